@@ -1,0 +1,30 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'stylepong_policy'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='StylePong developers',
+    maintainer_email='dev@stylepong.org',
+    description='Training bridge (bags to reference motions), PPO + AMP training, evaluation and the 60 Hz player.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'build_dataset = stylepong_policy.build_dataset:main',
+            'train = stylepong_policy.train:main',
+            'evaluate = stylepong_policy.evaluate:main',
+            'player = stylepong_policy.player_node:main',
+        ],
+    },
+)

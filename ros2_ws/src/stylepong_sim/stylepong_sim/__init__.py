@@ -1,0 +1,1 @@
+"""MuJoCo UR5 table-tennis cell standing in for the hardware, world spec, referee, virtual teacher, batched training world."""

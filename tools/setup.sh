@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# One-time, idempotent set-up of StylePong on Debian/Ubuntu with Python 3.11 (called by `make setup`):
+#   1. system build tools (cmake, g++, make) from apt, only where missing;
+#   2. a virtual environment in .venv with the exact versions of requirements.lock (reinstalled only
+#      when that file changes);
+#   3. the venv made into a ROS 2 Jazzy underlay (what /opt/ros/jazzy would be);
+#   4. a `ros2` command for the venv, unless a real ros2cli is present;
+#   5. colcon build of ros2_ws.
+# With ROS_UNDERLAY=/opt/ros/jazzy (a real Jazzy install) steps 2-4 are replaced by that underlay.
+set -eo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=$ROOT/.venv
+LOCK=$ROOT/requirements.lock
+say() { printf '[setup] %s\n' "$*"; }
+
+# 1. System tools -------------------------------------------------------------------------------
+missing=()
+command -v cmake >/dev/null || missing+=(cmake)
+command -v g++ >/dev/null || missing+=(g++)
+command -v make >/dev/null || missing+=(make)
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  say "installing from apt: ${missing[*]}"
+  $sudo apt-get update -qq && $sudo apt-get install -y -qq "${missing[@]}"
+fi
+
+if [ -n "${ROS_UNDERLAY:-}" ]; then
+  say "using the ROS underlay $ROS_UNDERLAY instead of the PyPI wheels"
+  # shellcheck disable=SC1091
+  source "$ROS_UNDERLAY/setup.bash"
+  PYTHON=python3
+else
+  # 2. Virtual environment ----------------------------------------------------------------------
+  PY=${PYTHON311:-$(command -v python3.11 || true)}
+  if [ -z "$PY" ]; then
+    PY=$(command -v python3 || true)
+    "$PY" -c 'import sys; assert sys.version_info[:2] == (3, 11)' 2>/dev/null || {
+      echo "[setup] Python 3.11 is required (the ROS 2 Jazzy wheels are cp311 only)." >&2
+      echo "[setup] Install it (apt install python3.11 python3.11-venv) or set PYTHON311=/path/to/python3.11." >&2
+      exit 1; }
+  fi
+  stamp=$VENV/.requirements.sha256
+  want=$(sha256sum "$LOCK" | cut -d' ' -f1)
+  if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+    say "creating $VENV from requirements.lock (a few minutes the first time)"
+    [ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$LOCK"
+    rm -f "$VENV/.underlay-done"
+    echo "$want" > "$stamp"
+  fi
+  PYTHON=$VENV/bin/python
+
+  # 3. The venv as a ROS underlay ---------------------------------------------------------------
+  if [ ! -f "$VENV/.underlay-done" ]; then
+    say "making $VENV a ROS 2 Jazzy underlay"
+    "$PYTHON" "$ROOT/tools/make_underlay.py" "$VENV"
+    touch "$VENV/.underlay-done"
+  fi
+  # 4. ros2 command -----------------------------------------------------------------------------
+  if ! "$PYTHON" -c 'import ros2cli' 2>/dev/null && [ ! -f "$VENV/bin/ros2" ]; then
+    printf '#!/bin/sh\nexec "%s" "%s" "$@"\n' "$PYTHON" "$ROOT/tools/ros2" > "$VENV/bin/ros2"
+    chmod +x "$VENV/bin/ros2"
+  fi
+  # shellcheck disable=SC1091
+  source "$VENV/setup.bash"
+fi
+
+# 5. Workspace ----------------------------------------------------------------------------------
+cd "$ROOT/ros2_ws"
+say "colcon build"
+colcon --log-base log build --symlink-install --event-handlers console_cohesion- status- summary+ \
+  --cmake-args -DPython3_EXECUTABLE="$PYTHON" -DBUILD_TESTING=OFF
+say "done: source ros2_ws/install/setup.bash"
