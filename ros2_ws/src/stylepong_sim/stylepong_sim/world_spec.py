@@ -1,0 +1,178 @@
+"""The table-tennis cell: the one place for its geometry, physical constants and incoming balls.
+
+Frame `world`: origin on the floor under the table centre, x along the table from the robot's end
+(x < 0) to the opponent's end, y to the robot's left, z up. Read by the MuJoCo cell (`ur5_sim`), the
+referee and the batched training world; nothing else may hold a copy of these numbers.
+Sources: ITTF rules (table, net, ball), MPI table-tennis ball models (drag, restitution).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+GRAVITY_M_S2 = 9.81
+
+# --- Table and net (ITTF) -------------------------------------------------------------------------
+TABLE_LENGTH_M = 2.74
+TABLE_WIDTH_M = 1.525
+TABLE_HEIGHT_M = 0.76          # playing surface above the floor
+TABLE_THICKNESS_M = 0.03
+NET_HEIGHT_M = 0.1525          # above the playing surface
+NET_LENGTH_M = 1.83            # 15.25 cm overhang on each side
+NET_THICKNESS_M = 0.01
+HALF_LENGTH_M = TABLE_LENGTH_M / 2.0
+HALF_WIDTH_M = TABLE_WIDTH_M / 2.0
+
+# --- Ball -----------------------------------------------------------------------------------------
+BALL_MASS_KG = 0.0027
+BALL_RADIUS_M = 0.020
+AIR_DENSITY_KG_M3 = 1.18       # randomised 1.18-1.20
+DRAG_COEFFICIENT = 0.47
+BALL_AREA_M2 = math.pi * BALL_RADIUS_M ** 2
+# a_drag = -DRAG_K |v| v, with DRAG_K = rho C_D A / (2 m) (about 0.129 1/m; Koc's fitted 0.1414).
+DRAG_K_PER_M = 0.5 * AIR_DENSITY_KG_M3 * DRAG_COEFFICIENT * BALL_AREA_M2 / BALL_MASS_KG
+
+# --- Contacts (restitution = normal velocity ratio; tangential factor = tangential velocity ratio) --
+TABLE_RESTITUTION = 0.89               # ITTF: 30 cm drop rebounds about 23 cm
+TABLE_RESTITUTION_RANGE = (0.86, 0.92)
+TABLE_TANGENTIAL_FACTOR = 0.70
+TABLE_TANGENTIAL_FACTOR_RANGE = (0.68, 0.73)
+PADDLE_RESTITUTION = 0.78
+PADDLE_RESTITUTION_RANGE = (0.74, 0.82)
+PADDLE_TANGENTIAL_FACTOR = 0.75        # rubber grips the ball: most tangential speed relative to the blade kept
+NET_RESTITUTION = 0.1
+
+# --- Robot placement ------------------------------------------------------------------------------
+# The UR5 base stands on a pedestal behind the robot's end line, facing +x. From there the paddle
+# (tool flange to blade centre 0.175 m) reaches balls that bounce on the robot's half and rise past
+# the end line, across the table's width.
+ROBOT_BASE_POSITION_M = (-HALF_LENGTH_M - 0.45, 0.0, TABLE_HEIGHT_M - 0.10)
+ROBOT_BASE_YAW_RAD = 0.0
+# Home pose (URDF joint order): paddle centre at about (-1.47, 0.11, 0.89) m, handle up, face normal +x.
+HOME_JOINT_POSITIONS_RAD = (0.0, -1.9, 1.9, -1.57, -1.57, -1.57)
+
+# --- Time -----------------------------------------------------------------------------------------
+PHYSICS_DT_S = 0.001           # ball contacts need <= 1 ms (see notes/libraries.md)
+POLICY_RATE_HZ = 60.0
+BALL_TIMEOUT_S = 3.0           # a rally not decided by then is a TIMEOUT
+
+
+def on_table(x_m: float, y_m: float) -> bool:
+    return abs(x_m) <= HALF_LENGTH_M and abs(y_m) <= HALF_WIDTH_M
+
+
+# --- Incoming balls -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class IncomingBallDistribution:
+    """Serves from the opponent's end that bounce once on the robot's half.
+
+    The launch point is above the far end of the opponent's half (where a returned ball leaves an
+    opponent's paddle); the first bounce point is uniform over a
+    patch of the robot's half that is wide enough to need forward, leftward and rightward strokes;
+    the launch speed is uniform in [speed_min, speed_max]; the direction is solved (with drag) so that
+    the ball lands on the drawn bounce point, taking the flatter of the two trajectories that clear
+    the net.
+    """
+    launch_x_m: tuple[float, float] = (HALF_LENGTH_M - 0.45, HALF_LENGTH_M)
+    launch_y_m: tuple[float, float] = (-0.45, 0.45)
+    launch_z_m: tuple[float, float] = (TABLE_HEIGHT_M + 0.15, TABLE_HEIGHT_M + 0.40)
+    bounce_x_m: tuple[float, float] = (-0.95, -0.35)
+    bounce_y_m: tuple[float, float] = (-0.55, 0.55)
+    speed_m_s: tuple[float, float] = (4.0, 6.6)
+    net_clearance_m: float = 0.03
+    max_draws: int = 200
+
+
+SPEED_RANGES_M_S = {'all': (4.0, 6.6), 'low': (4.0, 4.8), 'high': (5.8, 6.6)}
+INCOMING = IncomingBallDistribution()
+
+
+@dataclass
+class BallLaunch:
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    bounce_point_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
+def drag_acceleration(velocity_m_s, drag_k_per_m: float = DRAG_K_PER_M):
+    """Air drag on the ball, a = -k |v| v. Works on numpy arrays and torch tensors (last axis = xyz)."""
+    speed = ((velocity_m_s * velocity_m_s).sum(-1)) ** 0.5
+    return -drag_k_per_m * speed[..., None] * velocity_m_s
+
+
+def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float = PHYSICS_DT_S,
+                 max_time_s: float = 2.0) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Integrate free flight until the ball's bottom reaches the table plane (or max_time_s).
+
+    Returns (position at contact, velocity at contact, time of flight, lowest clearance over the net:
+    height of the ball's bottom above the net's top when it crosses x = 0, +inf if it never does).
+    Semi-implicit Euler at dt_s, interpolated linearly to the contact instant.
+    """
+    p = np.array(position_m, dtype=float)
+    v = np.array(velocity_m_s, dtype=float)
+    gravity = np.array([0.0, 0.0, -GRAVITY_M_S2])
+    contact_z = TABLE_HEIGHT_M + BALL_RADIUS_M
+    net_clearance = math.inf
+    t = 0.0
+    while t < max_time_s:
+        v_new = v + (gravity + drag_acceleration(v)) * dt_s
+        p_new = p + v_new * dt_s
+        if (p[0] > 0.0) != (p_new[0] > 0.0):
+            frac = p[0] / (p[0] - p_new[0])
+            z_at_net = p[2] + frac * (p_new[2] - p[2])
+            net_clearance = z_at_net - BALL_RADIUS_M - (TABLE_HEIGHT_M + NET_HEIGHT_M)
+        if p_new[2] <= contact_z < p[2]:
+            frac = (p[2] - contact_z) / (p[2] - p_new[2])
+            return p + frac * (p_new - p), v + frac * (v_new - v), t + frac * dt_s, net_clearance
+        p, v, t = p_new, v_new, t + dt_s
+    return p, v, t, net_clearance
+
+
+def _aim(start_m: np.ndarray, target_xy_m: np.ndarray, speed_m_s: float) -> np.ndarray | None:
+    """Launch velocity of the given speed whose flight lands on target_xy (the flatter solution).
+
+    The heading points at the target; the elevation is found by bisection on the landing distance,
+    which grows with elevation up to the maximum-range angle.
+    """
+    horizontal = target_xy_m - start_m[:2]
+    distance = float(np.linalg.norm(horizontal))
+    heading = horizontal / distance
+
+    def velocity(elevation_rad: float) -> np.ndarray:
+        return speed_m_s * np.array([math.cos(elevation_rad) * heading[0], math.cos(elevation_rad) * heading[1],
+                                     math.sin(elevation_rad)])
+
+    def landing_distance(elevation_rad: float) -> float:
+        landing, _, _, _ = fly_to_table(start_m, velocity(elevation_rad), dt_s=0.002)
+        return float(np.dot(landing[:2] - start_m[:2], heading))
+
+    low, high = math.radians(-30.0), math.radians(45.0)
+    if landing_distance(low) > distance or landing_distance(high) < distance:
+        return None
+    for _ in range(30):
+        mid = 0.5 * (low + high)
+        if landing_distance(mid) < distance:
+            low = mid
+        else:
+            high = mid
+    return velocity(0.5 * (low + high))
+
+
+def sample_incoming_ball(rng: np.random.Generator, speed_range_m_s: tuple[float, float] | None = None,
+                         distribution: IncomingBallDistribution = INCOMING) -> BallLaunch:
+    """Draw one incoming ball. Reproducible: the same generator state gives the same ball."""
+    speed_lo, speed_hi = speed_range_m_s or distribution.speed_m_s
+    for _ in range(distribution.max_draws):
+        start = np.array([rng.uniform(*distribution.launch_x_m), rng.uniform(*distribution.launch_y_m),
+                          rng.uniform(*distribution.launch_z_m)])
+        bounce = np.array([rng.uniform(*distribution.bounce_x_m), rng.uniform(*distribution.bounce_y_m)])
+        speed = rng.uniform(speed_lo, speed_hi)
+        velocity = _aim(start, bounce, speed)
+        if velocity is None:
+            continue
+        _, _, _, clearance = fly_to_table(start, velocity)
+        if clearance >= distribution.net_clearance_m:
+            return BallLaunch(position_m=start, velocity_m_s=velocity, bounce_point_m=bounce)
+    raise RuntimeError(f'no incoming ball found for speeds {speed_lo}-{speed_hi} m/s; check the distribution')
