@@ -102,6 +102,21 @@ def drag_acceleration(velocity_m_s, drag_k_per_m: float = DRAG_K_PER_M):
     return -drag_k_per_m * speed[..., None] * velocity_m_s
 
 
+def contact_response(relative_velocity_m_s, normal, restitution, tangential_factor):
+    """Outgoing velocity, relative to the surface, of a ball hitting it (the MPI simulators' law).
+
+    The normal component is reversed and scaled by the restitution, the tangential one scaled by the
+    tangential factor; a ball already leaving the surface is unchanged. Arrays of shape (..., 3) with
+    unit normals pointing out of the surface; numpy arrays and torch tensors alike.
+    """
+    normal_speed = (relative_velocity_m_s * normal).sum(-1)[..., None]
+    normal_part = normal_speed * normal
+    tangential_part = relative_velocity_m_s - normal_part
+    outgoing = tangential_factor * tangential_part - restitution * normal_part
+    approaching = normal_speed < 0
+    return outgoing * approaching + relative_velocity_m_s * ~approaching
+
+
 def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float = PHYSICS_DT_S,
                  max_time_s: float = 2.0) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Integrate free flight until the ball's bottom reaches the table plane (or max_time_s).
