@@ -69,6 +69,9 @@ fi
 # 5. Workspace ----------------------------------------------------------------------------------
 cd "$ROOT/ros2_ws"
 say "colcon build"
+# One build at a time: parallel `make setup` calls would write the same install tree.
+exec 9>"$ROOT/ros2_ws/.build.lock"
+flock 9
 colcon --log-base log build --symlink-install --event-handlers console_cohesion- status- summary+ \
   --cmake-args -DPython3_EXECUTABLE="$PYTHON" -DBUILD_TESTING=OFF
 say "done: source ros2_ws/install/setup.bash"
