@@ -1,0 +1,148 @@
+"""Issue 2: the workspace after `source ros2_ws/install/setup.bash`: interfaces, index, `ros2` command."""
+import os
+import pathlib
+import re
+import signal
+import stat
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+PACKAGES = ('stylepong_msgs', 'stylepong_description', 'stylepong_sim', 'stylepong_fdcc', 'stylepong_policy')
+
+
+def test_python3_is_the_project_interpreter_with_rclpy():
+    out = subprocess.run(['python3', '-c', 'import rclpy, sys; print(sys.prefix)'], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert pathlib.Path(out).resolve() == pathlib.Path(sys.prefix).resolve()
+
+
+def test_interfaces_have_the_documented_fields_and_constants():
+    from stylepong_msgs.msg import BallState, RallyEvent
+    from stylepong_msgs.srv import LaunchBall, StartClip
+    assert list(BallState.get_fields_and_field_types()) == ['header', 'position', 'velocity']
+    assert BallState.get_fields_and_field_types()['position'] == 'geometry_msgs/Point'
+    assert list(RallyEvent.get_fields_and_field_types()) == ['header', 'ball_id', 'type', 'position', 'success',
+                                                             'reason']
+    names = ['LAUNCHED', 'BOUNCE_OWN_SIDE', 'PADDLE_HIT', 'BOUNCE_OPPONENT_SIDE', 'NET', 'ROBOT_CONTACT',
+             'TABLE_CONTACT_BY_ROBOT', 'OUT', 'TIMEOUT', 'RALLY_END']
+    values = [getattr(RallyEvent, n) for n in names]
+    assert len(set(values)) == len(names)
+    assert list(LaunchBall.Request.get_fields_and_field_types()) == [
+        'position', 'velocity', 'randomize', 'speed_min', 'speed_max', 'seed']
+    assert LaunchBall.Request.get_fields_and_field_types()['seed'] == 'uint32'
+    assert list(LaunchBall.Response.get_fields_and_field_types()) == [
+        'ball_id', 'position', 'velocity', 'success', 'message']
+    assert list(StartClip.Request.get_fields_and_field_types()) == ['label']
+    assert list(StartClip.Response.get_fields_and_field_types()) == ['success', 'bag_path', 'message']
+
+
+def test_all_packages_are_indexed():
+    from ament_index_python.packages import get_package_share_directory
+    for package in PACKAGES:
+        assert pathlib.Path(get_package_share_directory(package), 'package.xml').is_file()
+
+
+def test_unknown_package_is_reported_like_ros2run():
+    result = subprocess.run(['ros2', 'run', 'no_such_pkg', 'x'], capture_output=True, text=True)
+    assert result.returncode != 0
+    assert "Package 'no_such_pkg' not found" in result.stderr
+
+
+def test_unknown_executable_is_reported():
+    result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'no_such_exe'], capture_output=True, text=True)
+    assert result.returncode != 0
+    assert 'No executable found' in result.stderr
+
+
+@pytest.fixture
+def fake_package(tmp_path, monkeypatch):
+    """An installed package `sp_fake` with executable `probe` that reports its pid and arguments."""
+    prefix = tmp_path / 'install'
+    (prefix / 'share/ament_index/resource_index/packages').mkdir(parents=True)
+    (prefix / 'share/ament_index/resource_index/packages/sp_fake').write_text('')
+    lib = prefix / 'lib/sp_fake'
+    lib.mkdir(parents=True)
+    probe = lib / 'probe'
+    probe.write_text('#!/bin/sh\necho "pid=$$ prefix=${SP_PREFIX:-none} args=$*"\n'
+                     'trap "echo got-sigint; exit 7" INT\nsleep 30 & wait\n')
+    probe.chmod(probe.stat().st_mode | stat.S_IXUSR)
+    monkeypatch.setenv('AMENT_PREFIX_PATH', f"{prefix}:{os.environ['AMENT_PREFIX_PATH']}")
+    return prefix
+
+
+def _read_line(process) -> str:
+    return process.stdout.readline().strip()
+
+
+def test_run_execs_the_node_and_passes_arguments(fake_package):
+    process = subprocess.Popen(['ros2', 'run', 'sp_fake', 'probe', 'a', '--ros-args', '-p', 'x:=1'],
+                               stdout=subprocess.PIPE, text=True)
+    line = _read_line(process)
+    # exec: the node is the very process that was started, so signals reach it.
+    assert line == f'pid={process.pid} prefix=none args=a --ros-args -p x:=1'
+    process.send_signal(signal.SIGINT)
+    assert process.wait(10) == 7
+    assert _read_line(process) == 'got-sigint'
+
+
+def test_run_prefix_goes_in_front(fake_package):
+    process = subprocess.Popen(['ros2', 'run', '--prefix', 'env SP_PREFIX=yes', 'sp_fake', 'probe'],
+                               stdout=subprocess.PIPE, text=True)
+    assert _read_line(process).endswith('prefix=yes args=')
+    process.kill()
+    process.wait(10)
+
+
+@pytest.fixture
+def talker():
+    """A BallState publisher at 50 Hz in this process."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from stylepong_msgs.msg import BallState
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('ros2_command_test_talker', context=context)
+    publisher = node.create_publisher(BallState, '/test/ball', 10)
+
+    def publish():
+        msg = BallState()
+        msg.header.frame_id = 'world'
+        msg.position.x = -0.5
+        msg.velocity.z = 1.25
+        publisher.publish(msg)
+
+    node.create_timer(0.02, publish)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    yield
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+    thread.join(5)
+
+
+def test_topic_list_echo_hz(talker):
+    listing = subprocess.run(['ros2', 'topic', 'list', '-t'], capture_output=True, text=True, timeout=30).stdout
+    assert '/test/ball [stylepong_msgs/msg/BallState]' in listing.splitlines()
+
+    echo = subprocess.run(['ros2', 'topic', 'echo', '/test/ball', '--once'], capture_output=True, text=True,
+                          timeout=30).stdout
+    assert re.search(r'^header:\n  stamp:\n    sec: 0\n    nanosec: 0\n  frame_id: world\nposition:\n  x: -0\.5\n',
+                     echo), echo
+    assert echo.rstrip().endswith('---')
+    assert 'z: 1.25' in echo
+
+    hz = subprocess.Popen(['ros2', 'topic', 'hz', '/test/ball'], stdout=subprocess.PIPE, text=True)
+    time.sleep(4.5)
+    hz.send_signal(signal.SIGINT)
+    out, _ = hz.communicate(timeout=10)
+    rates = [float(r) for r in re.findall(r'average rate: ([0-9.]+)', out)]
+    assert rates, out
+    assert 40.0 < rates[-1] < 60.0
+    assert re.search(r'\tmin: [0-9.]+s max: [0-9.]+s std dev: [0-9.]+s window: \d+', out)
