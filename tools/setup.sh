@@ -14,16 +14,18 @@ VENV=$ROOT/.venv
 LOCK=$ROOT/requirements.lock
 say() { printf '[setup] %s\n' "$*"; }
 
+apt_install() {
+  local sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  say "installing from apt: $*"
+  $sudo apt-get update -qq && $sudo apt-get install -y -qq "$@"
+}
+
 # 1. System tools -------------------------------------------------------------------------------
 missing=()
 command -v cmake >/dev/null || missing+=(cmake)
 command -v g++ >/dev/null || missing+=(g++)
 command -v make >/dev/null || missing+=(make)
-if [ ${#missing[@]} -gt 0 ]; then
-  sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
-  say "installing from apt: ${missing[*]}"
-  $sudo apt-get update -qq && $sudo apt-get install -y -qq "${missing[@]}"
-fi
+[ ${#missing[@]} -eq 0 ] || apt_install "${missing[@]}"
 
 if [ -n "${ROS_UNDERLAY:-}" ]; then
   say "using the ROS underlay $ROS_UNDERLAY instead of the PyPI wheels"
@@ -44,7 +46,11 @@ else
   want=$(sha256sum "$LOCK" | cut -d' ' -f1)
   if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     say "creating $VENV from requirements.lock (a few minutes the first time)"
-    [ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
+    if [ ! -x "$VENV/bin/python" ]; then
+      # Debian/Ubuntu ship venv's ensurepip separately.
+      "$PY" -c 'import ensurepip' 2>/dev/null || apt_install "python3.11-venv"
+      "$PY" -m venv "$VENV"
+    fi
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$LOCK"
     rm -f "$VENV/.underlay-done"
     echo "$want" > "$stamp"
@@ -52,10 +58,11 @@ else
   PYTHON=$VENV/bin/python
 
   # 3. The venv as a ROS underlay ---------------------------------------------------------------
-  if [ ! -f "$VENV/.underlay-done" ]; then
+  underlay=$(sha256sum "$ROOT/tools/make_underlay.py" | cut -d' ' -f1)
+  if [ "$(cat "$VENV/.underlay-done" 2>/dev/null)" != "$underlay" ]; then
     say "making $VENV a ROS 2 Jazzy underlay"
     "$PYTHON" "$ROOT/tools/make_underlay.py" "$VENV"
-    touch "$VENV/.underlay-done"
+    echo "$underlay" > "$VENV/.underlay-done"
   fi
   # 4. ros2 command -----------------------------------------------------------------------------
   if ! "$PYTHON" -c 'import ros2cli' 2>/dev/null && [ ! -f "$VENV/bin/ros2" ]; then
