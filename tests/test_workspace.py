@@ -67,8 +67,8 @@ def fake_package(tmp_path, monkeypatch):
     lib = prefix / 'lib/sp_fake'
     lib.mkdir(parents=True)
     probe = lib / 'probe'
-    probe.write_text('#!/bin/sh\necho "pid=$$ prefix=${SP_PREFIX:-none} args=$*"\n'
-                     'trap "echo got-sigint; exit 7" INT\nsleep 30 & wait\n')
+    probe.write_text('#!/bin/sh\ntrap "echo got-sigint; exit 7" INT\n'
+                     'echo "pid=$$ prefix=${SP_PREFIX:-none} args=$*"\nsleep 30 & wait\n')
     probe.chmod(probe.stat().st_mode | stat.S_IXUSR)
     monkeypatch.setenv('AMENT_PREFIX_PATH', f"{prefix}:{os.environ['AMENT_PREFIX_PATH']}")
     return prefix
