@@ -1,0 +1,243 @@
+"""`ros2 run stylepong_policy build_dataset BAG_OR_DIR... -o DATASET.npz`: the training bridge.
+
+Turns rosbag2 recordings of an arm (the teaching clips in ros2_ws/bags, or any bag from a real UR
+driver) into the reference motions the AMP discriminator learns from: 60 Hz clips of joint positions
+and velocities in URDF order, plus the paper's x2/x3/x5 sped-up copies. Prints one report entry per bag
+(used, or skipped and why); a bad bag never stops the others.
+
+Exit status: 0 when at least one clip was written, 1 when none was (or, with --strict, when anything
+went wrong), 2 for invalid arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import pathlib
+import re
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from stylepong_policy.bag_reading import BagError, find_bags, median_rate_hz, one_line, read_joint_states
+from stylepong_policy.dataset import (
+    DEFAULT_RATE_HZ,
+    DEFAULT_SPEEDUPS,
+    Clip,
+    ClipOptions,
+    SourceClip,
+    assemble_dataset,
+    make_clips,
+    parse_speedups,
+)
+
+UNLABELLED = 'unlabelled'
+# The recorder names a clip's directory <label>_<time>; rosbag2's default is rosbag2_<date>, which
+# carries no label: a label is letters (and dashes) followed by '_' and a digit.
+_DIRECTORY_LABEL = re.compile(r'^([A-Za-z][A-Za-z-]*)_\d')
+
+
+def default_joint_names() -> tuple[str, ...]:
+    from stylepong_description.robot_model import JOINT_NAMES
+    return tuple(JOINT_NAMES)
+
+
+def label_from_name(name: str) -> str | None:
+    """'forward_2025-01-02_10-11-12' -> 'forward'; None when the name does not look like <label>_<time>."""
+    match = _DIRECTORY_LABEL.match(name)
+    return match.group(1) if match else None
+
+
+@dataclass
+class BagReport:
+    path: pathlib.Path
+    reason: str | None = None            # why the bag gave no clip; None when used
+    topic: str = ''
+    label: str = ''
+    label_origin: str = ''
+    summary: str = ''
+    clips: list[Clip] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def used(self) -> bool:
+        return self.reason is None
+
+
+def choose_label(bag: pathlib.Path, from_metadata: str | None, fallback: str | None) -> tuple[str, str]:
+    if from_metadata:
+        return from_metadata, 'metadata custom_data'
+    name_label = label_from_name(bag.name if bag.is_dir() else bag.stem)
+    if name_label:
+        return name_label, 'directory name'
+    if fallback:
+        return fallback, '--label'
+    return UNLABELLED, 'none in custom_data or the directory name; --label sets one'
+
+
+def process_bag(bag: pathlib.Path, args: argparse.Namespace, options: ClipOptions) -> BagReport:
+    """Read one bag and cut its clips; every failure becomes the report's reason, never an exception."""
+    report = BagReport(path=bag)
+    try:
+        recording = read_joint_states(bag, topic=args.topic, joints=args.joints, assume_order=args.assume_order)
+    except BagError as error:
+        report.reason = str(error)
+        return report
+    except Exception as error:   # noqa: BLE001  a bag must never stop the tool
+        report.reason = f'unreadable: {one_line(error)}'
+        return report
+    report.topic = recording.topic
+    report.problems.extend(recording.problems)
+    report.notes.extend(recording.notes)
+    report.label, report.label_origin = choose_label(bag, recording.label, args.label)
+    rate = median_rate_hz(recording.header_stamp_ns if (recording.header_stamp_ns > 0).all()
+                          else recording.receive_time_ns)
+    report.summary = (f'{recording.topic}: {recording.message_count} msgs, {rate:.0f} Hz'
+                      + (f', {recording.storage}' if recording.storage else ''))
+    try:
+        result = make_clips(recording.header_stamp_ns, recording.receive_time_ns, recording.position_rad,
+                            recording.velocity_rad_s, options)
+    except Exception as error:   # noqa: BLE001
+        report.reason = f'{recording.topic}: could not make clips: {one_line(error)}'
+        return report
+    report.notes.extend(result.notes)
+    report.clips = result.clips
+    if not result.clips:
+        report.reason = f'{recording.topic}: no clip: {"; ".join(result.notes) if result.notes else "no motion"}'
+    return report
+
+
+def format_report(report: BagReport, speedups: Sequence[int], rate_hz: float) -> list[str]:
+    lines = []
+    if report.used:
+        clip_text = '; '.join(
+            f'{len(c) / rate_hz:.2f} s, {len(c)} frames'
+            + (' (' + ', '.join(f'x{k} {-(-len(c) // k)}' for k in speedups) + ')' if speedups else '')
+            + f', velocity from {"the bag" if c.velocity_source == "bag" else "positions"}'
+            + ('' if c.time_source == 'header' else ', timed by receive time')
+            for c in report.clips)
+        lines.append(f'[used]    {report.path}  {report.summary}; label {report.label!r} ({report.label_origin})')
+        lines.append(f'          {len(report.clips)} clip(s): {clip_text}')
+    else:
+        lines.append(f'[skipped] {report.path}: {report.reason}')
+    lines += [f'          note: {n}' for n in report.notes if report.used]
+    lines += [f'          problem: {p}' for p in report.problems]
+    return lines
+
+
+def _comma_list(text: str) -> tuple[str, ...]:
+    items = tuple(part.strip() for part in text.split(',') if part.strip())
+    if not items:
+        raise argparse.ArgumentTypeError('needs at least one name')
+    if len(set(items)) != len(items):
+        raise argparse.ArgumentTypeError(f'repeated name in {text!r}')
+    return items
+
+
+def _speedups(text: str) -> tuple[int, ...]:
+    try:
+        return parse_speedups(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    defaults = ClipOptions()
+    parser = argparse.ArgumentParser(
+        prog='build_dataset', description=__doc__.split('\n\n')[1],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument('bags', nargs='+', metavar='BAG_OR_DIR',
+                        help='bag directories (or .mcap/.db3 files), or directories searched for bags')
+    parser.add_argument('-o', '--output', required=True, type=pathlib.Path, help='dataset file to write (.npz)')
+    parser.add_argument('--topic', default=None,
+                        help="JointState topic (default: the bag's only JointState topic)")
+    parser.add_argument('--joints', type=_comma_list, default=None,
+                        help='comma-separated joint names in output order (default: the UR5 joints in URDF order)')
+    parser.add_argument('--assume-order', action='store_true',
+                        help='messages with an empty name[] list positions in --joints order')
+    parser.add_argument('--rate-hz', type=float, default=DEFAULT_RATE_HZ, help='clip frame rate')
+    parser.add_argument('--speedups', type=_speedups, default=DEFAULT_SPEEDUPS,
+                        help="comma-separated speed-up factors for augmentation ('none': originals only)")
+    parser.add_argument('--idle-speed-rad-s', type=float, default=defaults.idle_speed_rad_s,
+                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed (0: no trim)')
+    parser.add_argument('--max-gap-s', type=float, default=defaults.max_gap_s,
+                        help='a longer silence in a recording (or 5 message periods) splits it into clips')
+    parser.add_argument('--label', default=None,
+                        help='label for bags with none in metadata custom_data or the directory name')
+    parser.add_argument('--plot', type=pathlib.Path, default=None, metavar='PNG',
+                        help="write a figure of every clip's joint trajectories")
+    parser.add_argument('--strict', action='store_true',
+                        help='any problem (a skipped bag, lost messages) is fatal: nothing is written')
+    return parser
+
+
+def _ros_free_argv(argv: Sequence[str]) -> list[str]:
+    """Drop a trailing --ros-args section (added by launch files); this tool takes no ROS arguments."""
+    argv = list(argv)
+    return argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(_ros_free_argv(sys.argv[1:] if argv is None else argv))
+    args.joints = args.joints or default_joint_names()
+    options = ClipOptions(rate_hz=args.rate_hz, idle_speed_rad_s=args.idle_speed_rad_s, max_gap_s=args.max_gap_s)
+    try:
+        options.validate()
+    except ValueError as error:
+        parser.error(str(error))
+    if args.output.is_dir():
+        parser.error(f'--output {args.output} is a directory; give a file name such as dataset.npz')
+
+    search = find_bags(args.bags)
+    problems = 0
+    for path, reason in search.rejected:
+        print(f'[skipped] {path}: {reason}', flush=True)
+        problems += 1
+    reports = []
+    for bag in search.bags:
+        report = process_bag(bag, args, options)
+        reports.append(report)
+        print('\n'.join(format_report(report, args.speedups, options.rate_hz)), flush=True)
+        problems += len(report.problems) + (0 if report.used else 1)
+
+    originals = [SourceClip(clip, r.label, f'{r.path}:{r.topic}') for r in reports if r.used for clip in r.clips]
+    used = sum(r.used for r in reports)
+    tally = (f'{used} of {len(search.bags)} bag(s) used, {len(search.bags) - used + len(search.rejected)} skipped, '
+             f'{problems} problem(s)')
+    if args.strict and problems:
+        print(f'build_dataset: --strict and {problems} problem(s): nothing written ({tally})', file=sys.stderr)
+        return 1
+    if not originals:
+        print(f'build_dataset: no clip, nothing written ({tally})', file=sys.stderr)
+        return 1
+    dataset = assemble_dataset(originals, args.speedups, args.joints, options.rate_hz)
+    try:
+        dataset.save(args.output)
+    except OSError as error:
+        print(f'build_dataset: cannot write {args.output}: {one_line(error)}', file=sys.stderr)
+        return 1
+    print(f'wrote {args.output}: {dataset.num_clips} clips ({len(originals)} original + '
+          f'{dataset.num_clips - len(originals)} sped up {"x" + "/x".join(map(str, args.speedups)) if args.speedups else ""}'
+          f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}')
+    if args.plot is not None:
+        try:
+            from stylepong_policy.dataset_plot import plot_dataset
+            plot_dataset(dataset, args.plot)
+            print(f'wrote {args.plot}')
+        except Exception as error:   # noqa: BLE001  the dataset is written; a failed figure is only reported
+            print(f'build_dataset: could not write the figure {args.plot}: {one_line(error)}', file=sys.stderr)
+            return 0 if not args.strict else 1
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        code = run(argv)
+    except KeyboardInterrupt:
+        print('build_dataset: interrupted, nothing written', file=sys.stderr)
+        code = 130
+    sys.exit(code)
+
+
+if __name__ == '__main__':
+    main()
