@@ -1,0 +1,135 @@
+"""The one training configuration: explicit hyper-parameters in dataclasses, loaded from and saved to YAML.
+
+A YAML file has the sections `policy`, `ppo`, `runner` and `task`. The first three map onto the
+dataclasses below; unknown keys are errors (a typo must not silently fall back to a default). `task`
+is kept as a plain dict and handed to the task module's own `TaskConfig(**task)`, which owns and
+validates those fields.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import pathlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+SCHEDULES = ('adaptive', 'fixed', 'linear')
+
+
+@dataclass
+class PolicyConfig:
+    actor_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])
+    critic_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])
+    activation: str = 'elu'
+    init_noise_std: float = 1.0          # initial std of the Gaussian policy, in action units
+    min_std: float = 1e-3                # floor on the std (keeps log-probs finite)
+    normalize_observations: bool = True  # running mean/var normalisation of actor and critic inputs
+
+
+@dataclass
+class PPOConfig:
+    num_steps_per_env: int = 24          # rollout length T per iteration; batch = T x num_envs samples
+    num_learning_epochs: int = 5
+    num_mini_batches: int = 4
+    clip_param: float = 0.2              # PPO ratio clip epsilon
+    gamma: float = 0.99                  # discount per policy step (60 Hz)
+    lam: float = 0.95                    # GAE lambda
+    value_loss_coef: float = 1.0
+    use_clipped_value_loss: bool = True
+    entropy_coef: float = 0.005
+    learning_rate: float = 1e-3
+    schedule: str = 'adaptive'           # adaptive (from the KL), fixed, or linear decay to min_learning_rate
+    desired_kl: float = 0.01             # target KL for the adaptive schedule
+    min_learning_rate: float = 1e-5
+    max_learning_rate: float = 1e-2
+    max_grad_norm: float = 1.0
+    normalize_advantages: bool = True
+
+
+@dataclass
+class RunnerConfig:
+    iterations: int = 1500               # total iterations of the run (a resumed run continues to this)
+    seed: int = 1                        # training seeds stay below 1000; evaluation uses 1000 and up
+    device: str = 'cpu'                  # 'cpu' or 'cuda' (or 'cuda:N')
+    num_threads: int = 2                 # torch intra-op threads on CPU
+    save_interval: int = 50              # iterations between numbered checkpoints (last.pt is every iteration)
+    keep_checkpoints: int = 3            # numbered checkpoints kept besides last.pt (0 keeps all)
+    progress_bar: bool = True
+
+
+@dataclass
+class TrainConfig:
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    runner: RunnerConfig = field(default_factory=RunnerConfig)
+    task: dict[str, Any] = field(default_factory=dict)
+
+    def validate(self) -> 'TrainConfig':
+        p, r = self.ppo, self.runner
+        if p.schedule not in SCHEDULES:
+            raise ValueError(f'ppo.schedule must be one of {SCHEDULES}, got {p.schedule!r}')
+        positive = {'ppo.num_steps_per_env': p.num_steps_per_env, 'ppo.num_learning_epochs': p.num_learning_epochs,
+                    'ppo.num_mini_batches': p.num_mini_batches, 'ppo.learning_rate': p.learning_rate,
+                    'ppo.clip_param': p.clip_param, 'ppo.desired_kl': p.desired_kl,
+                    'ppo.max_grad_norm': p.max_grad_norm, 'runner.save_interval': r.save_interval,
+                    'runner.num_threads': r.num_threads, 'policy.init_noise_std': self.policy.init_noise_std}
+        for name, value in positive.items():
+            if not value > 0:
+                raise ValueError(f'{name} must be positive, got {value}')
+        for name, value in {'ppo.gamma': p.gamma, 'ppo.lam': p.lam}.items():
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f'{name} must be in [0, 1], got {value}')
+        if r.iterations < 0 or r.keep_checkpoints < 0:
+            raise ValueError('runner.iterations and runner.keep_checkpoints must not be negative')
+        if not 0 <= r.seed:
+            raise ValueError(f'runner.seed must not be negative, got {r.seed}')
+        if not isinstance(self.task, dict):
+            raise ValueError(f'task must be a mapping of TaskConfig fields, got {type(self.task).__name__}')
+        return self
+
+
+_SECTIONS = {'policy': PolicyConfig, 'ppo': PPOConfig, 'runner': RunnerConfig}
+
+
+def config_from_dict(data: dict[str, Any] | None) -> TrainConfig:
+    data = dict(data or {})
+    unknown = set(data) - set(_SECTIONS) - {'task'}
+    if unknown:
+        raise ValueError(f'unknown config sections {sorted(unknown)}; expected {sorted(_SECTIONS) + ["task"]}')
+    sections = {}
+    for name, cls in _SECTIONS.items():
+        values = data.get(name) or {}
+        if not isinstance(values, dict):
+            raise ValueError(f'config section {name!r} must be a mapping')
+        allowed = {f.name for f in dataclasses.fields(cls)}
+        bad = set(values) - allowed
+        if bad:
+            raise ValueError(f'unknown keys in section {name!r}: {sorted(bad)}; allowed: {sorted(allowed)}')
+        sections[name] = cls(**values)
+    return TrainConfig(**sections, task=copy.deepcopy(data.get('task') or {})).validate()
+
+
+def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:
+    return dataclasses.asdict(cfg)
+
+
+def load_config(path: str | pathlib.Path) -> TrainConfig:
+    path = pathlib.Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as err:
+        raise ValueError(f'cannot read config {path}: {err}') from err
+    except yaml.YAMLError as err:
+        raise ValueError(f'config {path} is not valid YAML: {err}') from err
+    if data is not None and not isinstance(data, dict):
+        raise ValueError(f'config {path} must be a YAML mapping')
+    try:
+        return config_from_dict(data)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f'config {path}: {err}') from err
+
+
+def save_config(cfg: TrainConfig, path: str | pathlib.Path) -> None:
+    pathlib.Path(path).write_text(yaml.safe_dump(config_to_dict(cfg), sort_keys=False))

@@ -1,0 +1,132 @@
+"""Training logs: one CSV row and TensorBoard scalars per iteration, and the learning-curve plot.
+
+The CSV is the durable record (it survives a resume: rows past the resumed iteration are dropped so
+the file never holds two histories); TensorBoard is for watching a run live.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+from typing import Any
+
+CSV_NAME = 'progress.csv'
+TENSORBOARD_DIR = 'tensorboard'
+
+
+class TrainingLog:
+    def __init__(self, run_dir: str | pathlib.Path, start_iteration: int, tensorboard: bool = True):
+        self.run_dir = pathlib.Path(run_dir)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.csv_path = self.run_dir / CSV_NAME
+        self.fieldnames: list[str] | None = None
+        self._truncate_csv(start_iteration)
+        self.writer = None
+        if tensorboard:
+            from torch.utils.tensorboard import SummaryWriter
+            # purge_step drops events a previous session logged past the checkpoint we resume from.
+            self.writer = SummaryWriter(log_dir=str(self.run_dir / TENSORBOARD_DIR),
+                                        purge_step=start_iteration if start_iteration > 0 else None)
+
+    def _truncate_csv(self, start_iteration: int) -> None:
+        if not self.csv_path.exists():
+            return
+        with open(self.csv_path, newline='') as f:
+            reader = csv.DictReader(f)
+            self.fieldnames = list(reader.fieldnames or []) or None
+            rows = [row for row in reader if int(float(row['iteration'])) <= start_iteration]
+        if self.fieldnames is None:
+            return
+        with open(self.csv_path, 'w', newline='') as f:
+            writer = csv.DictWriter(f, fieldnames=self.fieldnames)
+            writer.writeheader()
+            writer.writerows(rows)
+
+    def write(self, row: dict[str, Any]) -> None:
+        """Append one iteration. Columns are fixed by the first row ever written to the file."""
+        new_file = self.fieldnames is None
+        if new_file:
+            self.fieldnames = list(row)
+        with open(self.csv_path, 'a', newline='') as f:
+            writer = csv.DictWriter(f, fieldnames=self.fieldnames, extrasaction='ignore')
+            if new_file:
+                writer.writeheader()
+            writer.writerow({k: _csv_value(row.get(k)) for k in self.fieldnames})
+        if self.writer is not None:
+            step = int(row['iteration'])
+            for key, value in row.items():
+                if key != 'iteration' and isinstance(value, (int, float)) and math.isfinite(value):
+                    self.writer.add_scalar(_tensorboard_tag(key), value, step)
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.flush()
+            self.writer.close()
+            self.writer = None
+
+
+def _csv_value(value: Any) -> Any:
+    if value is None:
+        return ''
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    return value
+
+
+def _tensorboard_tag(key: str) -> str:
+    if '/' in key:
+        return key
+    group = ('perf' if key in ('samples_per_s', 'iteration_time_s', 'world_s', 'policy_s', 'learn_s', 'world_share',
+                               'wall_time_s', 'env_steps')
+             else 'loss' if key in ('value_loss', 'surrogate_loss', 'entropy', 'kl', 'clip_fraction',
+                                    'learning_rate', 'action_std')
+             else 'train')
+    return f'{group}/{key}'
+
+
+def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
+    """Columns of a progress CSV as float lists (empty cells become NaN)."""
+    with open(csv_path, newline='') as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return {}
+    return {key: [float(r[key]) if r[key] not in ('', None) else math.nan for r in rows] for key in rows[0]}
+
+
+def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Path, title: str = '') -> None:
+    """Success rate, hit rate and mean episode return against samples, with wall time on a twin axis."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    data = read_progress(csv_path)
+    if not data:
+        raise ValueError(f'{csv_path} holds no iterations to plot')
+    samples_m = [s / 1e6 for s in data['env_steps']]
+    fig, (ax_rate, ax_ret) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    ax_rate.plot(samples_m, data['success_rate'], label='success rate')
+    ax_rate.plot(samples_m, data['hit_rate'], label='hit rate', alpha=0.7)
+    ax_rate.set_ylim(-0.02, 1.02)
+    ax_rate.set_ylabel('rate over balls decided per iteration')
+    ax_rate.grid(True, alpha=0.3)
+    ax_rate.legend(loc='lower right')
+    ax_ret.plot(samples_m, data['mean_return'], color='tab:green')
+    ax_ret.set_ylabel('mean episode return')
+    ax_ret.set_xlabel('samples (millions)')
+    ax_ret.grid(True, alpha=0.3)
+    hours = [t / 3600.0 for t in data['wall_time_s']]
+    top = ax_rate.secondary_xaxis(
+        'top', functions=(lambda x: _interp(x, samples_m, hours), lambda h: _interp(h, hours, samples_m)))
+    top.set_xlabel('training wall time (h)')
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=120)
+    plt.close(fig)
+
+
+def _interp(x, xs: list[float], ys: list[float]):
+    import numpy as np
+    if len(xs) < 2:
+        return np.asarray(x, dtype=float) * 0.0 + (ys[0] if ys else 0.0)
+    return np.interp(x, xs, ys)

@@ -1,0 +1,96 @@
+"""Actor and critic networks: MLPs with a Gaussian policy head whose std is a learnable parameter.
+
+Asymmetric actor-critic: the actor sees only what the robot can sense (the spec module's observation),
+the critic also sees privileged simulator state (true ball state, physics parameters, delays). Each has
+its own running observation normaliser, kept inside the module so checkpoints and exports carry it.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from torch import nn
+from torch.distributions import Normal
+
+from .normalizer import RunningNormalizer
+
+ACTIVATIONS = {'elu': nn.ELU, 'relu': nn.ReLU, 'tanh': nn.Tanh, 'selu': nn.SELU, 'leaky_relu': nn.LeakyReLU}
+
+
+def make_mlp(in_size: int, hidden_sizes: Sequence[int], out_size: int, activation: str = 'elu',
+             output_gain: float = 1.0) -> nn.Sequential:
+    """Linear -> activation for each hidden size, then a linear output layer.
+
+    Orthogonal initialisation (sqrt(2) gain on hidden layers) as in CleanRL; a small gain on the output
+    layer of the actor makes the initial policy's mean actions near zero, i.e. near the default pose.
+    """
+    if activation not in ACTIVATIONS:
+        raise ValueError(f'unknown activation {activation!r}; choose one of {sorted(ACTIVATIONS)}')
+    layers: list[nn.Module] = []
+    size = in_size
+    for hidden in hidden_sizes:
+        linear = nn.Linear(size, int(hidden))
+        nn.init.orthogonal_(linear.weight, gain=2.0 ** 0.5)
+        nn.init.zeros_(linear.bias)
+        layers += [linear, ACTIVATIONS[activation]()]
+        size = int(hidden)
+    head = nn.Linear(size, out_size)
+    nn.init.orthogonal_(head.weight, gain=output_gain)
+    nn.init.zeros_(head.bias)
+    layers.append(head)
+    return nn.Sequential(*layers)
+
+
+class ActorCritic(nn.Module):
+    """Gaussian policy pi(a|o) = N(actor(norm(o)), diag(std^2)) and value V(norm_c(o_critic))."""
+
+    def __init__(self, num_obs: int, num_critic_obs: int, num_actions: int,
+                 actor_hidden_dims: Sequence[int] = (512, 256, 128),
+                 critic_hidden_dims: Sequence[int] = (512, 256, 128),
+                 activation: str = 'elu', init_noise_std: float = 1.0, min_std: float = 1e-3,
+                 normalize_observations: bool = True):
+        super().__init__()
+        if init_noise_std <= 0.0:
+            raise ValueError(f'init_noise_std must be positive, got {init_noise_std}')
+        self.num_obs, self.num_critic_obs, self.num_actions = int(num_obs), int(num_critic_obs), int(num_actions)
+        self.actor_hidden_dims = [int(h) for h in actor_hidden_dims]
+        self.critic_hidden_dims = [int(h) for h in critic_hidden_dims]
+        self.activation = activation
+        self.min_std = float(min_std)
+        self.actor = make_mlp(num_obs, self.actor_hidden_dims, num_actions, activation, output_gain=0.01)
+        self.critic = make_mlp(num_critic_obs, self.critic_hidden_dims, 1, activation, output_gain=1.0)
+        # std itself (not log std) is the parameter, as in rsl_rl; clamped below at min_std when used.
+        self.std = nn.Parameter(torch.full((num_actions,), float(init_noise_std)))
+        self.normalize_observations = bool(normalize_observations)
+        self.obs_normalizer = RunningNormalizer(num_obs)
+        self.critic_obs_normalizer = RunningNormalizer(num_critic_obs)
+
+    def normalize(self, obs: torch.Tensor, critic_obs: torch.Tensor, update: bool) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalised inputs for actor and critic; update=True folds this batch into the statistics first."""
+        if not self.normalize_observations:
+            return obs, critic_obs
+        if update:
+            self.obs_normalizer.update(obs)
+            self.critic_obs_normalizer.update(critic_obs)
+        return self.obs_normalizer(obs), self.critic_obs_normalizer(critic_obs)
+
+    def action_std(self) -> torch.Tensor:
+        return self.std.clamp_min(self.min_std)
+
+    def distribution(self, norm_obs: torch.Tensor) -> Normal:
+        mean = self.actor(norm_obs)
+        return Normal(mean, self.action_std().expand_as(mean))
+
+    def value(self, norm_critic_obs: torch.Tensor) -> torch.Tensor:
+        return self.critic(norm_critic_obs).squeeze(-1)
+
+    def act_deterministic(self, obs: torch.Tensor) -> torch.Tensor:
+        """The mean action for raw (unnormalised) observations: what the exported actor computes."""
+        norm_obs = self.obs_normalizer(obs) if self.normalize_observations else obs
+        return self.actor(norm_obs)
+
+    def architecture(self) -> dict:
+        """Everything needed to rebuild this module (stored in checkpoints and the export sidecar)."""
+        return {'num_obs': self.num_obs, 'num_critic_obs': self.num_critic_obs, 'num_actions': self.num_actions,
+                'actor_hidden_dims': self.actor_hidden_dims, 'critic_hidden_dims': self.critic_hidden_dims,
+                'activation': self.activation, 'normalize_observations': self.normalize_observations}

@@ -1,0 +1,337 @@
+"""The on-policy runner: rollouts in a batched env, PPO updates, checkpoints with resume, logs.
+
+The env follows the interface of `stylepong_policy.task.TableTennisEnv` (reset/step on batched
+tensors, auto-reset, an info dict with time-outs and ball outcomes); nothing else about it is assumed,
+so any env with that interface trains here (the tests use a small toy task).
+"""
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+import random
+import sys
+import time
+from collections import deque
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from .config import TrainConfig, config_to_dict
+from .logger import TrainingLog
+from .networks import ActorCritic
+from .ppo import PPO
+from .storage import RolloutStorage
+
+CHECKPOINT_FORMAT = 'stylepong-ppo-checkpoint'
+CHECKPOINT_VERSION = 1
+CHECKPOINT_DIR = 'checkpoints'
+LAST_CHECKPOINT = 'last.pt'
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % 2 ** 32)
+    torch.manual_seed(seed)
+
+
+def capture_rng_state(shuffle: torch.Generator) -> dict[str, Any]:
+    np_state = np.random.get_state()
+    state = {'torch': torch.get_rng_state(), 'python': random.getstate(), 'shuffle': shuffle.get_state(),
+             # numpy's MT19937 state as tensors and ints, so checkpoints load with weights_only=True.
+             'numpy': {'keys': torch.from_numpy(np_state[1].astype(np.int64)), 'pos': int(np_state[2]),
+                       'has_gauss': int(np_state[3]), 'cached_gaussian': float(np_state[4])}}
+    if torch.cuda.is_available():
+        state['cuda'] = torch.cuda.get_rng_state_all()
+    return state
+
+
+def restore_rng_state(state: dict[str, Any], shuffle: torch.Generator) -> None:
+    torch.set_rng_state(state['torch'].cpu())
+    random.setstate(_as_python_random_state(state['python']))
+    shuffle.set_state(state['shuffle'].cpu())
+    n = state['numpy']
+    np.random.set_state(('MT19937', n['keys'].numpy().astype(np.uint32), n['pos'], n['has_gauss'],
+                         n['cached_gaussian']))
+    if 'cuda' in state and torch.cuda.is_available() and len(state['cuda']) == torch.cuda.device_count():
+        torch.cuda.set_rng_state_all([s.cpu() for s in state['cuda']])
+
+
+def _as_python_random_state(state):
+    # torch.save keeps tuples, but be tolerant of lists (e.g. a checkpoint rewritten by other tools).
+    version, internal, gauss = state
+    return (version, tuple(internal), gauss)
+
+
+def describe_device(device: torch.device | str) -> str:
+    """Where training ran, in words (the shipped summary must say whether it was this CPU or a GPU)."""
+    device = torch.device(device)
+    if device.type == 'cuda':
+        return f'cuda: {torch.cuda.get_device_name(device)}'
+    cpu = 'unknown CPU'
+    try:
+        with open('/proc/cpuinfo') as f:
+            cpu = next((line.split(':', 1)[1].strip() for line in f if line.startswith('model name')), cpu)
+    except OSError:
+        pass
+    return f'cpu: {os.cpu_count()} cores ({cpu}), {torch.get_num_threads()} torch threads'
+
+
+def find_checkpoint(path: str | pathlib.Path) -> pathlib.Path:
+    """A checkpoint file, or the last checkpoint of a run directory."""
+    path = pathlib.Path(path)
+    if path.is_dir():
+        for candidate in (path / CHECKPOINT_DIR / LAST_CHECKPOINT, path / LAST_CHECKPOINT):
+            if candidate.is_file():
+                return candidate
+        raise FileNotFoundError(f'no checkpoint in run directory {path} (looked for {CHECKPOINT_DIR}/{LAST_CHECKPOINT})')
+    if not path.is_file():
+        raise FileNotFoundError(f'checkpoint {path} does not exist')
+    return path
+
+
+def read_checkpoint(path: str | pathlib.Path) -> dict[str, Any]:
+    path = find_checkpoint(path)
+    try:
+        data = torch.load(path, map_location='cpu', weights_only=True)
+    except Exception as err:  # torch raises several types for a truncated or foreign file
+        raise ValueError(f'{path} is not a readable checkpoint: {err}') from err
+    if not isinstance(data, dict) or data.get('format') != CHECKPOINT_FORMAT:
+        raise ValueError(f'{path} is not a StylePong PPO checkpoint')
+    if data.get('version') != CHECKPOINT_VERSION:
+        raise ValueError(f'{path} has checkpoint version {data.get("version")}, this code reads {CHECKPOINT_VERSION}')
+    return data
+
+
+class EpisodeStatistics:
+    """Per-iteration tallies of episodes and balls from the env's step outputs."""
+
+    def __init__(self, num_envs: int, device: torch.device, failure_reasons: Sequence[str], history: int = 200):
+        self.failure_reasons = list(failure_reasons)
+        self.current_return = torch.zeros(num_envs, device=device)
+        self.current_length = torch.zeros(num_envs, device=device)
+        self.returns: deque[float] = deque(maxlen=history)
+        self.lengths: deque[float] = deque(maxlen=history)
+        self.reset_iteration()
+
+    def reset_iteration(self) -> None:
+        self.episodes = 0
+        self.balls = 0
+        self.successes = 0
+        self.hits = 0
+        self.reason_counts = torch.zeros(max(len(self.failure_reasons), 1), dtype=torch.int64)
+        self.term_sums: dict[str, float] = {}
+        self.term_counts: dict[str, int] = {}
+
+    def record(self, rewards: torch.Tensor, dones: torch.Tensor, info: dict[str, Any]) -> None:
+        self.current_return += rewards
+        self.current_length += 1
+        if bool(dones.any()):
+            done_idx = dones.nonzero(as_tuple=False).squeeze(-1)
+            self.returns.extend(self.current_return[done_idx].tolist())
+            self.lengths.extend(self.current_length[done_idx].tolist())
+            self.current_return[done_idx] = 0.0
+            self.current_length[done_idx] = 0.0
+            self.episodes += int(done_idx.numel())
+        ball_done = info.get('ball_done')
+        if ball_done is not None and bool(ball_done.any()):
+            self.balls += int(ball_done.sum())
+            self.successes += int((info['ball_success'] & ball_done).sum())
+            if 'ball_hit' in info:
+                self.hits += int((info['ball_hit'] & ball_done).sum())
+            if 'ball_reason' in info and self.failure_reasons:
+                reasons = info['ball_reason'][ball_done].clamp(0, len(self.failure_reasons) - 1)
+                self.reason_counts += torch.bincount(reasons.cpu(), minlength=len(self.failure_reasons))
+        for key, value in (info.get('episode') or {}).items():
+            self.term_sums[key] = self.term_sums.get(key, 0.0) + float(value)
+            self.term_counts[key] = self.term_counts.get(key, 0) + 1
+
+    def summary(self) -> dict[str, float]:
+        out = {'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
+               'mean_episode_length': float(np.mean(self.lengths)) if self.lengths else math.nan,
+               'episodes': self.episodes, 'balls': self.balls,
+               'success_rate': self.successes / self.balls if self.balls else math.nan,
+               'hit_rate': self.hits / self.balls if self.balls else math.nan}
+        for i, name in enumerate(self.failure_reasons):
+            out[f'ball/{name}'] = int(self.reason_counts[i]) / self.balls if self.balls else math.nan
+        for key, total in self.term_sums.items():
+            out[f'episode/{key}'] = total / self.term_counts[key]
+        return out
+
+
+class OnPolicyRunner:
+    def __init__(self, env, cfg: TrainConfig, run_dir: str | pathlib.Path, failure_reasons: Sequence[str] = (),
+                 tensorboard: bool = True):
+        self.env = env
+        self.cfg = cfg
+        self.run_dir = pathlib.Path(run_dir)
+        self.device = torch.device(env.device)
+        self.failure_reasons = list(failure_reasons)
+        self.tensorboard = tensorboard
+        p = cfg.policy
+        self.actor_critic = ActorCritic(env.num_obs, env.num_critic_obs, env.num_actions,
+                                        actor_hidden_dims=p.actor_hidden_dims, critic_hidden_dims=p.critic_hidden_dims,
+                                        activation=p.activation, init_noise_std=p.init_noise_std, min_std=p.min_std,
+                                        normalize_observations=p.normalize_observations).to(self.device)
+        self.alg = PPO(self.actor_critic, cfg.ppo)
+        self.storage = RolloutStorage(cfg.ppo.num_steps_per_env, env.num_envs, env.num_obs, env.num_critic_obs,
+                                      env.num_actions, self.device)
+        self.shuffle = torch.Generator()
+        self.shuffle.manual_seed(cfg.runner.seed)
+        self.iteration = 0
+        self.env_steps = 0
+        self.wall_time_s = 0.0      # summed over every session of this run
+        self.sessions: list[dict[str, Any]] = []   # one entry per learn() call, over all sessions
+        self.last_stats: dict[str, Any] = {}
+        self.interrupted = False
+
+    # --- checkpoints -------------------------------------------------------------------------------
+    @property
+    def checkpoint_dir(self) -> pathlib.Path:
+        return self.run_dir / CHECKPOINT_DIR
+
+    def state_dict(self) -> dict[str, Any]:
+        return {'format': CHECKPOINT_FORMAT, 'version': CHECKPOINT_VERSION, 'iteration': self.iteration,
+                'env_steps': self.env_steps, 'wall_time_s': self.wall_time_s,
+                'architecture': self.actor_critic.architecture(), 'model': self.actor_critic.state_dict(),
+                'optimizer': self.alg.optimizer.state_dict(), 'learning_rate': self.alg.learning_rate,
+                'config': config_to_dict(self.cfg), 'rng': capture_rng_state(self.shuffle),
+                'sessions': [dict(s) for s in self.sessions],
+                'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))}}
+
+    def save(self, path: str | pathlib.Path) -> pathlib.Path:
+        """Write atomically: a run killed mid-save keeps its previous checkpoint intact."""
+        path = pathlib.Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + '.tmp')
+        torch.save(self.state_dict(), tmp)
+        os.replace(tmp, path)
+        return path
+
+    def load(self, path: str | pathlib.Path, restore_rng: bool = True) -> pathlib.Path:
+        path = find_checkpoint(path)
+        data = read_checkpoint(path)
+        mine = self.actor_critic.architecture()
+        if data['architecture'] != mine:
+            diff = {k: (data['architecture'].get(k), v) for k, v in mine.items() if data['architecture'].get(k) != v}
+            raise ValueError(f'checkpoint {path} does not fit this network/env (checkpoint vs now): {diff}')
+        self.actor_critic.load_state_dict(data['model'])
+        self.alg.optimizer.load_state_dict(data['optimizer'])
+        self.alg._set_learning_rate(data['learning_rate'])
+        self.iteration = int(data['iteration'])
+        self.env_steps = int(data['env_steps'])
+        self.wall_time_s = float(data['wall_time_s'])
+        self.last_stats = dict(data.get('last_stats') or {})
+        self.sessions = [dict(s) for s in data.get('sessions') or []]
+        if restore_rng:
+            restore_rng_state(data['rng'], self.shuffle)
+        return path
+
+    def _save_checkpoints(self) -> None:
+        self.save(self.checkpoint_dir / LAST_CHECKPOINT)
+        if self.iteration % self.cfg.runner.save_interval == 0:
+            self.save(self.checkpoint_dir / f'model_{self.iteration:06d}.pt')
+            keep = self.cfg.runner.keep_checkpoints
+            if keep > 0:
+                for old in sorted(self.checkpoint_dir.glob('model_*.pt'))[:-keep]:
+                    old.unlink()
+
+    # --- training ----------------------------------------------------------------------------------
+    def _sync(self) -> None:
+        # CUDA kernels run asynchronously: without a sync the world/learn split of the timings is wrong.
+        if self.device.type == 'cuda':
+            torch.cuda.synchronize(self.device)
+
+    def _collect(self, obs: torch.Tensor, critic_obs: torch.Tensor, stats: EpisodeStatistics):
+        """One rollout of num_steps_per_env steps into the storage; returns the next obs and timings."""
+        gamma = self.cfg.ppo.gamma
+        world_s = policy_s = 0.0
+        self.storage.clear()
+        with torch.inference_mode():
+            for _ in range(self.storage.num_steps):
+                t0 = time.perf_counter()
+                step = self.alg.act(obs, critic_obs)
+                self._sync()
+                t1 = time.perf_counter()
+                obs, critic_obs, rewards, dones, info = self.env.step(step.actions)
+                self._sync()
+                t2 = time.perf_counter()
+                rewards = rewards.to(torch.float32)
+                if not (torch.isfinite(obs).all() and torch.isfinite(critic_obs).all() and torch.isfinite(rewards).all()):
+                    raise FloatingPointError('the env returned non-finite observations or rewards; '
+                                             'stopping before they poison the normalisers')
+                stats.record(rewards, dones, info)
+                # A time-limit end is not a real terminal: bootstrap with the value of the state it was cut at.
+                time_outs = info.get('time_outs')
+                if time_outs is not None:
+                    rewards = rewards + gamma * step.values * time_outs.to(torch.float32)
+                self.storage.add(step.norm_obs, step.norm_critic_obs, step.actions, rewards, dones.to(torch.float32),
+                                 step.values, step.log_probs, step.mean, step.std)
+                world_s += t2 - t1
+                policy_s += t1 - t0
+            last_values = self.alg.value(critic_obs)
+            self.storage.compute_returns(last_values, gamma, self.cfg.ppo.lam, self.cfg.ppo.normalize_advantages)
+        return obs, critic_obs, world_s, policy_s
+
+    def learn(self, until_iteration: int, progress_bar: bool | None = None) -> dict[str, Any]:
+        """Train until the run has `until_iteration` iterations; Ctrl-C stops after saving a checkpoint."""
+        progress_bar = self.cfg.runner.progress_bar if progress_bar is None else progress_bar
+        start = self.iteration
+        log = TrainingLog(self.run_dir, start, tensorboard=self.tensorboard)
+        stats = EpisodeStatistics(self.env.num_envs, self.device, self.failure_reasons)
+        bar = None
+        if progress_bar and until_iteration > start:
+            from tqdm import tqdm
+            tty = sys.stderr.isatty()
+            bar = tqdm(total=until_iteration, initial=start, unit='it', dynamic_ncols=True,
+                       mininterval=0.5 if tty else 30.0, desc='PPO')
+        self.actor_critic.train()
+        batch = self.storage.num_steps * self.env.num_envs
+        session = {'start_iteration': start, 'end_iteration': start, 'wall_time_s': 0.0,
+                   'num_envs': self.env.num_envs, 'device': describe_device(self.device)}
+        self.sessions.append(session)
+        try:
+            with torch.inference_mode():
+                obs, critic_obs = self.env.reset()
+            while self.iteration < until_iteration:
+                t_start = time.perf_counter()
+                self.alg.apply_schedule(self.iteration, until_iteration)
+                stats.reset_iteration()
+                obs, critic_obs, world_s, policy_s = self._collect(obs, critic_obs, stats)
+                t_learn = time.perf_counter()
+                losses = self.alg.update(self.storage, self.shuffle)
+                self._sync()
+                t_end = time.perf_counter()
+                self.iteration += 1
+                self.env_steps += batch
+                iteration_s = t_end - t_start
+                self.wall_time_s += iteration_s
+                session['end_iteration'] = self.iteration
+                session['wall_time_s'] += iteration_s
+                self.last_stats = {'iteration': self.iteration, 'env_steps': self.env_steps,
+                                   'wall_time_s': self.wall_time_s, 'iteration_time_s': iteration_s,
+                                   'samples_per_s': batch / iteration_s, 'world_s': world_s, 'policy_s': policy_s,
+                                   'learn_s': t_end - t_learn, 'world_share': world_s / iteration_s,
+                                   **stats.summary(), **losses}
+                log.write(self.last_stats)
+                self._save_checkpoints()
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(success=_fmt(self.last_stats['success_rate']),
+                                    ret=_fmt(self.last_stats['mean_return']),
+                                    sps=f'{self.last_stats["samples_per_s"]:.0f}', refresh=False)
+        except KeyboardInterrupt:
+            # The checkpoint of the last completed iteration is already on disk; keep it and stop.
+            self.interrupted = True
+        finally:
+            if session['end_iteration'] == start:
+                self.sessions.remove(session)
+            if bar is not None:
+                bar.close()
+            log.close()
+        return self.last_stats
+
+
+def _fmt(value: float) -> str:
+    return 'n/a' if value is None or (isinstance(value, float) and math.isnan(value)) else f'{value:.3f}'

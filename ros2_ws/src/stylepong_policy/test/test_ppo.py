@@ -1,0 +1,206 @@
+"""PPO parts on their own (normaliser, GAE, KL, losses, config) and PPO learning a small toy task."""
+import importlib.util
+import math
+import pathlib
+
+import numpy as np
+import pytest
+import torch
+from torch.distributions import Normal, kl_divergence
+
+from stylepong_policy.rl.config import TrainConfig, config_from_dict, load_config, save_config
+from stylepong_policy.rl.networks import ActorCritic
+from stylepong_policy.rl.normalizer import RunningNormalizer
+from stylepong_policy.rl.ppo import PPO, gaussian_kl
+from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+from stylepong_policy.rl.storage import RolloutStorage
+
+HERE = pathlib.Path(__file__).resolve().parent
+
+
+def load_toy_task():
+    spec = importlib.util.spec_from_file_location('ppo_toy_task', HERE / 'ppo_toy_task.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def toy_config(**ppo) -> TrainConfig:
+    return config_from_dict({
+        'policy': {'actor_hidden_dims': [64, 64], 'critic_hidden_dims': [64, 64], 'init_noise_std': 0.5},
+        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3,
+                **ppo},
+        'runner': {'seed': 0, 'save_interval': 1000}})
+
+
+def test_normalizer_matches_batch_statistics_for_any_split():
+    rng = np.random.default_rng(0)
+    data = rng.normal([1.0, -3.0, 20.0], [0.5, 2.0, 7.0], size=(1000, 3)).astype(np.float32)
+    norm = RunningNormalizer(3)
+    for chunk in np.split(data, [1, 7, 300, 301, 999]):
+        norm.update(torch.from_numpy(chunk))
+    np.testing.assert_allclose(norm.mean.numpy(), data.mean(0), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(norm.var.numpy(), data.var(0), rtol=1e-4)
+    assert float(norm.count) == 1000
+    out = norm(torch.from_numpy(data)).numpy()
+    np.testing.assert_allclose(out.mean(0), 0.0, atol=1e-4)
+    np.testing.assert_allclose(out.std(0), 1.0, atol=1e-3)
+
+
+def test_normalizer_clips_outliers():
+    norm = RunningNormalizer(1, clip=5.0)
+    norm.update(torch.randn(10000, 1))
+    assert float(norm(torch.tensor([[1e6]]))) == pytest.approx(5.0)
+
+
+def _storage_with(rewards, dones, values):
+    T, N = rewards.shape
+    storage = RolloutStorage(T, N, 1, 1, 1, 'cpu')
+    for t in range(T):
+        zeros = torch.zeros(N, 1)
+        storage.add(zeros, zeros, zeros, rewards[t], dones[t], values[t], torch.zeros(N), zeros, zeros + 1)
+    return storage
+
+
+def test_gae_with_lambda_one_is_discounted_return_cut_at_episode_ends():
+    gamma = 0.9
+    rewards = torch.tensor([[1.0], [2.0], [3.0], [4.0]])
+    dones = torch.tensor([[0.0], [1.0], [0.0], [0.0]])   # the episode ends after step 1
+    values = torch.tensor([[0.5], [0.1], [0.7], [0.2]])
+    last_value = torch.tensor([10.0])
+    storage = _storage_with(rewards, dones, values)
+    storage.compute_returns(last_value, gamma=gamma, lam=1.0, normalize_advantages=False)
+    expected = [1.0 + gamma * 2.0, 2.0, 3.0 + gamma * 4.0 + gamma ** 2 * 10.0, 4.0 + gamma * 10.0]
+    np.testing.assert_allclose(storage.returns[:, 0].numpy(), expected, rtol=1e-6)
+    np.testing.assert_allclose(storage.advantages[:, 0].numpy(), np.array(expected) - values[:, 0].numpy(), rtol=1e-6)
+
+
+def test_gae_with_lambda_zero_is_one_step_td_error():
+    gamma = 0.99
+    rewards = torch.tensor([[1.0, 0.0], [0.5, 2.0]])
+    dones = torch.tensor([[0.0, 1.0], [0.0, 0.0]])
+    values = torch.tensor([[0.2, 0.3], [0.4, 0.6]])
+    last = torch.tensor([1.0, -1.0])
+    storage = _storage_with(rewards, dones, values)
+    storage.compute_returns(last, gamma=gamma, lam=0.0, normalize_advantages=False)
+    expected = torch.tensor([[1.0 + gamma * 0.4 - 0.2, 0.0 - 0.3], [0.5 + gamma * 1.0 - 0.4, 2.0 - gamma * 1.0 - 0.6]])
+    torch.testing.assert_close(storage.advantages, expected)
+
+
+def test_minibatches_cover_every_sample_once_per_epoch():
+    T, N = 4, 6
+    storage = _storage_with(torch.arange(T * N, dtype=torch.float32).reshape(T, N), torch.zeros(T, N), torch.zeros(T, N))
+    storage.compute_returns(torch.zeros(N), 0.0, 0.0, normalize_advantages=False)
+    seen = sorted(v for mb in storage.minibatches(3, 1) for v in mb.returns.tolist())
+    assert seen == list(range(T * N))
+
+
+def test_gaussian_kl_matches_torch():
+    mean_old, mean_new = torch.randn(5, 3), torch.randn(5, 3)
+    std_old, std_new = torch.rand(5, 3) + 0.1, torch.rand(5, 3) + 0.1
+    expected = kl_divergence(Normal(mean_old, std_old), Normal(mean_new, std_new)).sum(-1)
+    torch.testing.assert_close(gaussian_kl(mean_old, std_old, mean_new, std_new), expected)
+
+
+def _filled_storage(ac: ActorCritic, ppo: PPO, shift_mean: float = 0.0) -> RolloutStorage:
+    """One-step episodes whose reward is a smooth function of the critic's input (so V can fit it)."""
+    T, N = 4, 32
+    storage = RolloutStorage(T, N, ac.num_obs, ac.num_critic_obs, ac.num_actions, 'cpu')
+    with torch.inference_mode():
+        for _ in range(T):
+            critic_obs = torch.randn(N, ac.num_critic_obs)
+            step = ppo.act(torch.randn(N, ac.num_obs), critic_obs)
+            storage.add(step.norm_obs, step.norm_critic_obs, step.actions, 3.0 * critic_obs.sum(-1), torch.ones(N),
+                        step.values, step.log_probs, step.mean + shift_mean, step.std)
+    storage.compute_returns(torch.zeros(N), 0.99, 0.95)
+    return storage
+
+
+def test_adaptive_learning_rate_falls_when_the_policy_moved_far_and_rises_when_it_did_not():
+    torch.manual_seed(0)
+    cfg = toy_config(num_learning_epochs=1, num_mini_batches=1, learning_rate=1e-3).ppo
+    ac = ActorCritic(3, 4, 2, [16], [16])
+    ppo = PPO(ac, cfg)
+    ppo.update(_filled_storage(ac, ppo, shift_mean=5.0))   # old policy far away: KL >> desired
+    assert ppo.learning_rate == pytest.approx(1e-3 / 1.5)
+    ac2 = ActorCritic(3, 4, 2, [16], [16])
+    ppo2 = PPO(ac2, cfg)
+    ppo2.update(_filled_storage(ac2, ppo2, shift_mean=0.01))  # almost the same policy: tiny KL
+    assert ppo2.learning_rate == pytest.approx(1e-3 * 1.5)
+
+
+def test_fixed_and_linear_schedules():
+    ac = ActorCritic(3, 4, 2, [8], [8])
+    linear = PPO(ac, toy_config(schedule='linear', learning_rate=1e-3, min_learning_rate=1e-5).ppo)
+    linear.apply_schedule(50, 100)
+    assert linear.learning_rate == pytest.approx(0.5 * (1e-3 + 1e-5))
+    fixed = PPO(ac, toy_config(schedule='fixed', learning_rate=2e-4).ppo)
+    fixed.update(_filled_storage(ac, fixed, shift_mean=5.0))
+    assert fixed.learning_rate == pytest.approx(2e-4)
+
+
+def test_update_lowers_the_clipped_objective_on_a_fixed_batch():
+    torch.manual_seed(1)
+    ac = ActorCritic(3, 4, 2, [32], [32])
+    ppo = PPO(ac, toy_config(num_learning_epochs=1, num_mini_batches=1, schedule='fixed', learning_rate=1e-2,
+                             use_clipped_value_loss=False).ppo)
+    storage = _filled_storage(ac, ppo)
+    first = ppo.update(storage)
+    for _ in range(50):
+        last = ppo.update(storage)
+    assert last['value_loss'] < 0.5 * first['value_loss']
+    assert last['surrogate_loss'] < first['surrogate_loss']
+
+
+def test_config_rejects_unknown_keys_and_bad_values(tmp_path):
+    with pytest.raises(ValueError, match='unknown keys'):
+        config_from_dict({'ppo': {'learning_rat': 1e-3}})
+    with pytest.raises(ValueError, match='schedule'):
+        config_from_dict({'ppo': {'schedule': 'cosine'}})
+    with pytest.raises(ValueError, match='gamma'):
+        config_from_dict({'ppo': {'gamma': 1.5}})
+    with pytest.raises(ValueError, match='unknown config sections'):
+        config_from_dict({'algorithm': {}})
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('ppo: [1, 2\n')
+    with pytest.raises(ValueError, match='not valid YAML'):
+        load_config(bad)
+
+
+def test_config_yaml_round_trip_and_shipped_default(tmp_path):
+    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8, 4]}, 'task': {'num_envs': 7, 'anything': [1, 2]}})
+    save_config(cfg, tmp_path / 'c.yaml')
+    assert load_config(tmp_path / 'c.yaml') == cfg
+    shipped = load_config(HERE.parent / 'config' / 'ppo.yaml')
+    assert shipped.policy.activation == 'elu'
+    assert shipped.runner.seed < 1000
+
+
+def toy_success_rate(actor_critic: ActorCritic, toy, episodes_steps: int = 30) -> float:
+    """Deterministic policy, fresh env, every env's first episode: the fraction that reached the target."""
+    env = toy.ReachTask(num_envs=512, seed=123, episode_steps=episodes_steps)
+    obs, _ = env.reset()
+    outcome = torch.full((env.num_envs,), -1)
+    with torch.inference_mode():
+        for _ in range(episodes_steps):
+            obs, _, _, dones, info = env.step(actor_critic.act_deterministic(obs))
+            first = dones & (outcome < 0)
+            outcome[first] = info['ball_success'][first].long()
+    assert (outcome >= 0).all()
+    return float(outcome.float().mean())
+
+
+def test_ppo_learns_the_toy_task(tmp_path):
+    toy = load_toy_task()
+    seed_everything(0)
+    torch.set_num_threads(2)
+    env = toy.ReachTask(num_envs=256, seed=0)
+    runner = OnPolicyRunner(env, toy_config(), tmp_path, failure_reasons=toy.FAILURE_REASONS, tensorboard=False)
+    before = toy_success_rate(runner.actor_critic, toy)
+    stats = runner.learn(40, progress_bar=False)
+    after = toy_success_rate(runner.actor_critic, toy)
+    assert before < 0.5
+    assert after > 0.95, (before, after)
+    assert stats['success_rate'] > 0.9, stats
+    assert stats['ball/timeout'] == pytest.approx(1.0 - stats['success_rate'])
+    assert math.isfinite(stats['episode/distance']) and stats['balls'] > 0

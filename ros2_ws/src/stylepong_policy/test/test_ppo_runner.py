@@ -1,0 +1,151 @@
+"""The runner's checkpoints, resume, logs and interruption handling, on the toy task."""
+import csv
+import importlib.util
+import pathlib
+
+import pytest
+import torch
+
+from stylepong_policy.rl.config import config_from_dict
+from stylepong_policy.rl.logger import plot_learning_curve, read_progress
+from stylepong_policy.rl.runner import OnPolicyRunner, read_checkpoint, seed_everything
+
+HERE = pathlib.Path(__file__).resolve().parent
+
+
+def load_toy_task():
+    spec = importlib.util.spec_from_file_location('ppo_toy_task', HERE / 'ppo_toy_task.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+TOY = load_toy_task()
+
+
+def small_config(**runner):
+    return config_from_dict({'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32]},
+                             'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2},
+                             'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2, **runner}})
+
+
+def make_runner(run_dir, cfg=None, tensorboard=False, env=None):
+    env = env or TOY.ReachTask(num_envs=64, seed=5)
+    return OnPolicyRunner(env, cfg or small_config(), run_dir, TOY.FAILURE_REASONS, tensorboard=tensorboard)
+
+
+def test_resume_continues_exactly_like_an_uninterrupted_run(tmp_path):
+    """Model, optimiser, normalisers, learning rate and every RNG come back from the checkpoint."""
+    seed_everything(3)
+    straight = make_runner(tmp_path / 'a')
+    straight.learn(3, progress_bar=False)
+    env_rng_at_3 = straight.env.generator.get_state()
+    straight.learn(6, progress_bar=False)
+
+    seed_everything(99)   # a fresh process would have other RNG states: the checkpoint must restore them
+    env = TOY.ReachTask(num_envs=64, seed=5)
+    env.generator.set_state(env_rng_at_3)   # the toy env's own state is not part of the runner's checkpoint
+    resumed = make_runner(tmp_path / 'b', env=env)
+    resumed.load(tmp_path / 'a' / 'checkpoints' / 'model_000004.pt')   # an older one first: overwritten next
+    resumed.load(tmp_path / 'a')                                       # a run dir means its last.pt
+    assert resumed.iteration == 6
+    checkpoint = read_checkpoint(tmp_path / 'a' / 'checkpoints' / 'last.pt')
+    assert checkpoint['iteration'] == 6
+
+    # Rewind both to iteration 3 of run a and continue: identical parameters at the end.
+    seed_everything(3)
+    straight = make_runner(tmp_path / 'c')
+    straight.learn(3, progress_bar=False)
+    straight.save(tmp_path / 'at3.pt')
+    env_rng_at_3 = straight.env.generator.get_state()
+    straight.learn(6, progress_bar=False)
+
+    seed_everything(99)
+    env = TOY.ReachTask(num_envs=64, seed=5)
+    env.generator.set_state(env_rng_at_3)
+    resumed = make_runner(tmp_path / 'd', env=env)
+    resumed.load(tmp_path / 'at3.pt')
+    assert (resumed.iteration, resumed.env_steps) == (3, 3 * 8 * 64)
+    resumed.learn(6, progress_bar=False)
+    for (name, a), b in zip(straight.actor_critic.state_dict().items(), resumed.actor_critic.state_dict().values()):
+        torch.testing.assert_close(a, b, msg=f'{name} differs after resume')
+    assert resumed.alg.learning_rate == straight.alg.learning_rate
+    assert resumed.wall_time_s > 0 and len(resumed.sessions) == 2
+
+
+def test_checkpoint_files_csv_and_tensorboard(tmp_path):
+    runner = make_runner(tmp_path, tensorboard=True)
+    runner.learn(5, progress_bar=False)
+    checkpoints = sorted(p.name for p in (tmp_path / 'checkpoints').iterdir())
+    assert checkpoints == ['last.pt', 'model_000002.pt', 'model_000004.pt']
+    runner.learn(7, progress_bar=False)
+    assert sorted(p.name for p in (tmp_path / 'checkpoints').iterdir()) == \
+        ['last.pt', 'model_000004.pt', 'model_000006.pt']   # keep_checkpoints=2
+    progress = read_progress(tmp_path / 'progress.csv')
+    assert progress['iteration'] == [1, 2, 3, 4, 5, 6, 7]
+    for column in ('samples_per_s', 'world_share', 'success_rate', 'hit_rate', 'ball/returned', 'kl', 'value_loss'):
+        assert column in progress
+    assert list((tmp_path / 'tensorboard').glob('events.out.tfevents.*'))
+    plot_learning_curve(tmp_path / 'progress.csv', tmp_path / 'curve.png')
+    assert (tmp_path / 'curve.png').stat().st_size > 10_000
+
+
+def test_resume_from_an_older_checkpoint_rewrites_the_csv_history(tmp_path):
+    make_runner(tmp_path).learn(5, progress_bar=False)
+    again = make_runner(tmp_path)
+    again.load(tmp_path / 'checkpoints' / 'model_000004.pt')
+    again.learn(6, progress_bar=False)
+    with open(tmp_path / 'progress.csv', newline='') as f:
+        iterations = [int(row['iteration']) for row in csv.DictReader(f)]
+    assert iterations == [1, 2, 3, 4, 5, 6]
+    assert read_checkpoint(tmp_path)['iteration'] == 6
+
+
+def test_load_refuses_other_networks_and_damaged_files(tmp_path):
+    make_runner(tmp_path / 'run').learn(1, progress_bar=False)
+    bigger = small_config()
+    bigger.policy.actor_hidden_dims = [64, 32]
+    with pytest.raises(ValueError, match='actor_hidden_dims'):
+        make_runner(tmp_path / 'other', cfg=bigger).load(tmp_path / 'run')
+    damaged = tmp_path / 'damaged.pt'
+    damaged.write_bytes((tmp_path / 'run' / 'checkpoints' / 'last.pt').read_bytes()[:1000])
+    with pytest.raises(ValueError, match='not a readable checkpoint'):
+        make_runner(tmp_path / 'x').load(damaged)
+    with pytest.raises(FileNotFoundError):
+        make_runner(tmp_path / 'y').load(tmp_path / 'nowhere')
+
+
+class InterruptingTask(TOY.ReachTask):
+    """Raises KeyboardInterrupt (a Ctrl-C) in the middle of a given iteration's rollout."""
+
+    def __init__(self, interrupt_at_step: int, **kwargs):
+        super().__init__(**kwargs)
+        self.interrupt_at_step = interrupt_at_step
+        self.calls = 0
+
+    def step(self, actions):
+        self.calls += 1
+        if self.calls == self.interrupt_at_step:
+            raise KeyboardInterrupt
+        return super().step(actions)
+
+
+def test_ctrl_c_keeps_the_last_completed_iteration(tmp_path):
+    env = InterruptingTask(interrupt_at_step=8 * 3 + 4, num_envs=64, seed=5)   # inside iteration 4
+    runner = make_runner(tmp_path, env=env)
+    runner.learn(10, progress_bar=False)
+    assert runner.interrupted and runner.iteration == 3
+    assert read_checkpoint(tmp_path)['iteration'] == 3
+    assert not list((tmp_path / 'checkpoints').glob('*.tmp'))
+
+
+def test_non_finite_env_output_stops_training(tmp_path):
+    class NanTask(TOY.ReachTask):
+        def step(self, actions):
+            obs, critic_obs, rewards, dones, info = super().step(actions)
+            rewards[0] = float('nan')
+            return obs, critic_obs, rewards, dones, info
+
+    runner = make_runner(tmp_path, env=NanTask(num_envs=16, seed=0))
+    with pytest.raises(FloatingPointError, match='non-finite'):
+        runner.learn(1, progress_bar=False)
