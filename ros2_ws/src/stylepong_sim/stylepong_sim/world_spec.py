@@ -43,6 +43,11 @@ PADDLE_RESTITUTION = 0.78
 PADDLE_RESTITUTION_RANGE = (0.74, 0.82)
 PADDLE_TANGENTIAL_FACTOR = 0.75        # rubber grips the ball: most tangential speed relative to the blade kept
 NET_RESTITUTION = 0.1
+NET_TANGENTIAL_FACTOR = 0.5
+# Robot links other than the blade (handle, wrist, arm): painted aluminium, the ball bounces off but
+# the referee fails the rally anyway.
+ROBOT_LINK_RESTITUTION = 0.6
+ROBOT_LINK_TANGENTIAL_FACTOR = 0.8
 
 # --- Robot placement ------------------------------------------------------------------------------
 # The UR5 base stands on a pedestal behind the robot's end line, facing +x. From there the paddle
@@ -53,10 +58,32 @@ ROBOT_BASE_YAW_RAD = 0.0
 # Home pose (URDF joint order): paddle centre at about (-1.47, 0.11, 0.89) m, handle up, face normal +x.
 HOME_JOINT_POSITIONS_RAD = (0.0, -1.9, 1.9, -1.57, -1.57, -1.57)
 
+# The robot stands on a pedestal (floor to base). Geometry only: the arm never reaches it.
+PEDESTAL_HALF_SIZE_M = (0.12, 0.12)
+
+# --- Arm servo: a UR-like joint position servo (ros2_control forward_position_controller on a UR5) ---
+# Both simulators (MuJoCo cell, batched world) implement exactly this law, every physics step dt:
+#   reference:  q_ref <- q_ref + clip(q_cmd - q_ref, -v_max dt, +v_max dt)   (v_max = URDF velocity limit)
+#               v_ref  = (change of q_ref in this step) / dt
+#   torque:     tau = clip(Kp (q_ref - q) + Kd (v_ref - qdot), -effort, +effort)     (URDF effort limits)
+#               plus ideal gravity compensation of every robot body (paddle included), outside the clip
+#   dynamics:   M(q) + diag(ARM_ARMATURE) is the joint-space inertia; no joint friction
+#   safety:     after integration, qdot is clipped to +-v_max (the controller's speed limit)
+# The damping term is integrated implicitly by MuJoCo (integrator implicitfast); at dt = 1 ms the gains
+# below are well inside the explicit stability limit too (Kd dt / I < 0.4, omega dt < 0.1).
+# Armature: reflected rotor inertia of the harmonic drives (gear ratio about 100), which a real UR's
+# joints have and the URDF lacks.
+ARM_ARMATURE_KG_M2 = (0.1, 0.1, 0.1, 0.1, 0.1, 0.1)
+ARM_KP_NM_PER_RAD = (4000.0, 4000.0, 4000.0, 1000.0, 1000.0, 1000.0)
+ARM_KD_NMS_PER_RAD = (200.0, 200.0, 200.0, 40.0, 40.0, 40.0)
+
 # --- Time -----------------------------------------------------------------------------------------
 PHYSICS_DT_S = 0.001           # ball contacts need <= 1 ms (see notes/libraries.md)
 POLICY_RATE_HZ = 60.0
 BALL_TIMEOUT_S = 3.0           # a rally not decided by then is a TIMEOUT
+BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its launch is removed
+# A ball whose centre leaves this box (|x|, |y| below the bounds; z above the floor) has left the cell.
+CELL_HALF_EXTENT_M = (5.0, 4.0)
 
 
 def on_table(x_m: float, y_m: float) -> bool:
@@ -66,14 +93,17 @@ def on_table(x_m: float, y_m: float) -> bool:
 # --- Incoming balls -------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class IncomingBallDistribution:
-    """Serves from the opponent's end that bounce once on the robot's half.
+    """Serves from the opponent's end that bounce once on the robot's half and then come within reach.
 
     The launch point is above the far end of the opponent's half (where a returned ball leaves an
     opponent's paddle); the first bounce point is uniform over a
     patch of the robot's half that is wide enough to need forward, leftward and rightward strokes;
     the launch speed is uniform in [speed_min, speed_max]; the direction is solved (with drag) so that
     the ball lands on the drawn bounce point, taking the flatter of the two trajectories that clear
-    the net.
+    the net. A draw is kept only if its rebound (nominal table coefficients) passes through the
+    paddle's reachable region before it could bounce again: ball centre within reach_radius_m of
+    reach_centre_m (about the UR5's shoulder; the paddle centre reaches 1.09 m from there) and at
+    least min_hit_height_m above the floor.
     """
     launch_x_m: tuple[float, float] = (HALF_LENGTH_M - 0.45, HALF_LENGTH_M)
     launch_y_m: tuple[float, float] = (-0.45, 0.45)
@@ -82,6 +112,10 @@ class IncomingBallDistribution:
     bounce_y_m: tuple[float, float] = (-0.55, 0.55)
     speed_m_s: tuple[float, float] = (4.0, 6.6)
     net_clearance_m: float = 0.03
+    reach_centre_m: tuple[float, float, float] = (ROBOT_BASE_POSITION_M[0], ROBOT_BASE_POSITION_M[1],
+                                                  ROBOT_BASE_POSITION_M[2] + 0.1)
+    reach_radius_m: float = 0.9
+    min_hit_height_m: float = TABLE_HEIGHT_M + 0.1
     max_draws: int = 200
 
 
@@ -175,6 +209,24 @@ def _aim(start_m: np.ndarray, target_xy_m: np.ndarray, speed_m_s: float) -> np.n
     return velocity(0.5 * (low + high))
 
 
+def rebound_reaches(contact_position_m: np.ndarray, contact_velocity_m_s: np.ndarray,
+                    distribution: IncomingBallDistribution = INCOMING, dt_s: float = 0.004) -> bool:
+    """Does the ball, bouncing off the table here, pass through the paddle's reachable region?"""
+    up = np.array([0.0, 0.0, 1.0])
+    v = contact_response(np.asarray(contact_velocity_m_s, float), up, TABLE_RESTITUTION, TABLE_TANGENTIAL_FACTOR)
+    p = np.array(contact_position_m, dtype=float)
+    centre = np.array(distribution.reach_centre_m)
+    gravity = np.array([0.0, 0.0, -GRAVITY_M_S2])
+    for _ in range(int(1.5 / dt_s)):
+        v = v + (gravity + drag_acceleration(v)) * dt_s
+        p = p + v * dt_s
+        if p[2] < TABLE_HEIGHT_M + BALL_RADIUS_M:   # fell back to table level: out of play or a 2nd bounce
+            return False
+        if p[2] >= distribution.min_hit_height_m and np.sum((p - centre) ** 2) <= distribution.reach_radius_m ** 2:
+            return True
+    return False
+
+
 def sample_incoming_ball(rng: np.random.Generator, speed_range_m_s: tuple[float, float] | None = None,
                          distribution: IncomingBallDistribution = INCOMING) -> BallLaunch:
     """Draw one incoming ball. Reproducible: the same generator state gives the same ball."""
@@ -187,7 +239,18 @@ def sample_incoming_ball(rng: np.random.Generator, speed_range_m_s: tuple[float,
         velocity = _aim(start, bounce, speed)
         if velocity is None:
             continue
-        _, _, _, clearance = fly_to_table(start, velocity)
-        if clearance >= distribution.net_clearance_m:
+        contact_p, contact_v, _, clearance = fly_to_table(start, velocity)
+        if clearance >= distribution.net_clearance_m and rebound_reaches(contact_p, contact_v, distribution):
             return BallLaunch(position_m=start, velocity_m_s=velocity, bounce_point_m=bounce)
     raise RuntimeError(f'no incoming ball found for speeds {speed_lo}-{speed_hi} m/s; check the distribution')
+
+
+def incoming_ball_for_seed(seed: int, speed_range_m_s: tuple[float, float] | None = None,
+                           distribution: IncomingBallDistribution = INCOMING) -> BallLaunch:
+    """The incoming ball that `seed` names: what `/sim/launch_ball` with randomize=true launches.
+
+    speed_range_m_s None or (0, 0) means the distribution's default range.
+    """
+    if speed_range_m_s is not None and speed_range_m_s[0] == 0.0 and speed_range_m_s[1] == 0.0:
+        speed_range_m_s = None
+    return sample_incoming_ball(np.random.default_rng(seed), speed_range_m_s, distribution)

@@ -1,0 +1,517 @@
+"""The simulated UR5 table-tennis cell: MuJoCo robot + analytic ball + referee, free of ROS.
+
+API (all units SI; joint vectors have 6 entries in URDF order, stylepong_description.robot_model.JOINT_NAMES)
+    cell = Cell()                               robot at home and at rest, no ball, time 0
+    cell.reset()                                robot to home at rest, targets home, ball removed (its rally
+                                                ends 'aborted'), hand released; time keeps running
+    cell.set_joint_targets(q_rad)               position targets for the servo; ValueError if the vector has
+                                                the wrong length, NaN/inf or leaves the URDF limits (then the
+                                                previous target stays)
+    cell.set_hand_wrench(force_n, torque_nm, frame='world'|'tool0', duration_s=inf)
+                                                a hand on the tool: force and torque act at tool0's origin,
+                                                components in `frame` axes (tool0: rotating with the tool);
+                                                released after duration_s of sim time
+    cell.clear_hand_wrench()
+    ball_id = cell.launch_ball(position_m, velocity_m_s)   a ball (ValueError if not finite, faster than
+                                                MAX_LAUNCH_SPEED_M_S or outside the cell); replaces any ball
+    cell.remove_ball()
+    cell.step(n_steps=1) / cell.step_for(duration_s)        advance physics in steps of world_spec.PHYSICS_DT_S
+    cell.time_s, cell.joint_positions_rad, cell.joint_velocities_rad_s, cell.joint_efforts_nm,
+    cell.joint_targets_rad
+    cell.tool_wrench() -> (force_n, torque_nm)  what a wrist F/T sensor between wrist_3 and the tool measures,
+                                                in tool0 axes about tool0's origin: the wrench the environment
+                                                applies on the tool (paddle weight, hand, robot contacts)
+                                                minus the tool's inertial force; static: exactly that wrench
+    cell.ball_in_play, cell.ball_id, cell.ball_position_m, cell.ball_velocity_m_s  (None without a ball)
+    cell.pop_events() -> list[referee.RallyEvent]           events since the last call, in order
+    cell.paddle_pose(), cell.tool_pose() -> (position_m, rotation 3x3: columns = frame axes in world)
+    cell.model, cell.data                       the MuJoCo objects (read them, e.g. to render; do not step them)
+
+Robot: the URDF's arm under the servo law of world_spec (rate-limited reference, PD with torques clipped to
+the effort limits, ideal gravity compensation, armature, joint speed clip). It collides with the table,
+net and floor (MuJoCo contacts), never with itself. Joint efforts = servo torque + gravity compensation.
+
+Ball (2.7 g, no spin): integrated here, not by MuJoCo, every physics step dt (the batched world does the same):
+    v' = v + (g + drag_acceleration(v)) dt,  p' = p + v' dt                 (semi-implicit Euler)
+  then the earliest contact within the step is found with swept tests on the straight segment p -> p'
+  (table top and the faces of net and blade: exact crossing times, so nothing tunnels at any speed; the
+  net's top edge and ends, the blade's rim and the other robot links: the ball's end position, which at
+  <= 30 m/s moves less than half of any of those obstacles' thickness plus the ball's diameter per step).
+  At a contact at fraction f of the step, with outward unit normal n and the surface's velocity u at the
+  contact point:  v_out = u + world_spec.contact_response(v' - u, n, restitution, tangential_factor);
+  the ball is put on the surface and flies the rest of the step, p' = p_contact + v_out (1 - f) dt.
+  One contact per step. Coefficients: table TABLE_*, net NET_*, blade PADDLE_*, other links ROBOT_LINK_*.
+  The ball never loads the robot (its impulse is negligible next to the servo) and is seen by nothing but
+  this code; the MuJoCo ball is a mocap marker for rendering and distance queries.
+  The ball is removed when dead (floor, left the cell: referee.ball_is_dead) after its verdict, or
+  BALL_LIFETIME_S after its launch.
+The referee (referee.py) is told every contact and the ball's state after every step.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import referee as rf
+from stylepong_sim import scene
+from stylepong_sim import world_spec as ws
+
+MAX_LAUNCH_SPEED_M_S = 30.0
+FRAME_WORLD = 'world'
+FRAME_TOOL = rm.TOOL_FRAME
+_GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
+_UP = np.array([0.0, 0.0, 1.0])
+_ZERO3 = np.zeros(3)
+
+
+@dataclass(frozen=True)
+class BallPhysics:
+    """Contact and air coefficients of the ball (world_spec's nominal values; vary them to randomise)."""
+    drag_k_per_m: float = ws.DRAG_K_PER_M
+    table_restitution: float = ws.TABLE_RESTITUTION
+    table_tangential_factor: float = ws.TABLE_TANGENTIAL_FACTOR
+    paddle_restitution: float = ws.PADDLE_RESTITUTION
+    paddle_tangential_factor: float = ws.PADDLE_TANGENTIAL_FACTOR
+    net_restitution: float = ws.NET_RESTITUTION
+    net_tangential_factor: float = ws.NET_TANGENTIAL_FACTOR
+    robot_restitution: float = ws.ROBOT_LINK_RESTITUTION
+    robot_tangential_factor: float = ws.ROBOT_LINK_TANGENTIAL_FACTOR
+
+
+@dataclass
+class _Contact:
+    kind: str                 # 'table' | 'net' | 'paddle' | 'robot'
+    fraction: float           # of the step at which it happens
+    centre_m: np.ndarray      # ball centre at the contact, on the surface
+    normal: np.ndarray        # unit, out of the surface towards the ball
+    surface_velocity_m_s: np.ndarray
+
+
+@dataclass
+class _HandWrench:
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    in_tool_frame: bool
+    release_time_s: float
+
+
+class Cell:
+    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, ball_physics: BallPhysics = BallPhysics()):
+        self.model = scene.build_model()
+        self.data = mujoco.MjData(self.model)
+        self.ball_physics = ball_physics
+        m = self.model
+        self._dt = m.opt.timestep
+        limits = rm.joint_limits()
+        self._lower_rad = limits.lower_rad.copy()
+        self._upper_rad = limits.upper_rad.copy()
+        self._v_max_rad_s = limits.velocity_rad_s.copy()
+        self._ref_step_rad = self._v_max_rad_s * self._dt
+        self._kd_over_kp_s = np.array(ws.ARM_KD_NMS_PER_RAD) / np.array(ws.ARM_KP_NM_PER_RAD)
+        self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
+
+        self._qadr = np.array([m.jnt_qposadr[m.joint(n).id] for n in rm.JOINT_NAMES])
+        self._dofadr = np.array([m.jnt_dofadr[m.joint(n).id] for n in rm.JOINT_NAMES])
+        if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dofadr, np.arange(6))):
+            raise RuntimeError('the cell expects the arm joints first in qpos/qvel')
+        self._tool_body = m.body(rm.TOOL_FRAME).id
+        self._paddle_centre_body = m.body(rm.PADDLE_CENTRE_FRAME).id
+        self._ball_mocap = m.body_mocapid[m.body(scene.BALL_BODY).id]
+        self._ball_geom = m.geom('ball').id
+        self._blade_geom = m.geom('paddle_blade').id
+        self._table_geom = m.geom('table_top').id
+        self._net_geom = m.geom('net').id
+        robot_bodies = {b for b in range(m.nbody) if self._is_robot_body(b)}
+        self._robot_geom_mask = np.array([m.geom_bodyid[g] in robot_bodies for g in range(m.ngeom)])
+        # Links the ball may touch besides the blade (handle, wrist, arm); ee_link's tiny marker box excluded.
+        self._link_geoms = np.array([g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != self._blade_geom
+                                     and m.geom_size[g].max() > 0.006])
+        # A link's geom can touch the ball only if the ball centre is within its bounding sphere + radius.
+        self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + ws.BALL_RADIUS_M) ** 2
+        force_adr = m.sensor_adr[m.sensor(scene.FT_FORCE_SENSOR).id]
+        torque_adr = m.sensor_adr[m.sensor(scene.FT_TORQUE_SENSOR).id]
+        self._force_slice = slice(force_adr, force_adr + 3)
+        self._torque_slice = slice(torque_adr, torque_adr + 3)
+        self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
+        self._blade_radius_m = rm.PADDLE.blade_radius_m
+        self._blade_bound_m = math.hypot(self._blade_radius_m, self._blade_half_thickness_m)
+        self._net_low = np.array([-ws.NET_THICKNESS_M / 2, -ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M])
+        self._net_high = np.array([ws.NET_THICKNESS_M / 2, ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M])
+        self._jac = np.zeros((3, m.nv))
+        self._abs_qvel = np.zeros(6)
+        self._distance_fromto = np.zeros(6)
+
+        self._referee = rf.Referee()
+        self._events: list[rf.RallyEvent] = []
+        self._next_ball_id = 1
+        self.ball_id: int | None = None
+        self._ball_p = np.zeros(3)
+        self._ball_v = np.zeros(3)
+        self._ball_launch_time_s = 0.0
+        self._paddle_prev: tuple[np.ndarray, np.ndarray] | None = None
+        self._hand: _HandWrench | None = None
+        self._q_cmd = self.home_joint_positions_rad.copy()
+        self._q_ref = self.home_joint_positions_rad.copy()
+        self._ref_moving = False
+        self._feedforward_active = False
+        self._reset_robot()
+
+    # --- commands --------------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.remove_ball()
+        self.clear_hand_wrench()
+        self._reset_robot()
+
+    def set_joint_targets(self, q_rad) -> None:
+        q = self._checked_joint_vector(q_rad, 'joint target')
+        self._q_cmd = q
+        self._ref_moving = not np.array_equal(self._q_cmd, self._q_ref)
+
+    def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
+                        duration_s: float = math.inf) -> None:
+        force = np.asarray(force_n, dtype=float).reshape(3)
+        torque = np.asarray(torque_nm, dtype=float).reshape(3)
+        if not (np.isfinite(force).all() and np.isfinite(torque).all()):
+            raise ValueError('hand wrench must be finite')
+        if frame not in (FRAME_WORLD, FRAME_TOOL):
+            raise ValueError(f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
+        if not duration_s > 0.0:
+            raise ValueError('hand wrench duration must be positive')
+        self._hand = _HandWrench(force, torque, frame == FRAME_TOOL, self.time_s + duration_s)
+
+    def clear_hand_wrench(self) -> None:
+        self._hand = None
+        self.data.xfrc_applied[self._tool_body] = 0.0
+
+    def launch_ball(self, position_m, velocity_m_s) -> int:
+        p = np.asarray(position_m, dtype=float).reshape(3)
+        v = np.asarray(velocity_m_s, dtype=float).reshape(3)
+        if not (np.isfinite(p).all() and np.isfinite(v).all()):
+            raise ValueError('ball position and velocity must be finite')
+        if np.linalg.norm(v) > MAX_LAUNCH_SPEED_M_S:
+            raise ValueError(f'ball speed {np.linalg.norm(v):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
+        if rf.ball_is_dead(p):
+            raise ValueError(f'ball position {p.tolist()} is outside the cell (or below the floor)')
+        self.remove_ball()
+        self.ball_id = self._next_ball_id
+        self._next_ball_id += 1
+        self._ball_p, self._ball_v = p.copy(), v.copy()
+        self._ball_launch_time_s = self.time_s
+        mujoco.mj_kinematics(self.model, self.data)
+        self._paddle_prev = self.paddle_pose()
+        self._place_ball_marker()
+        self._events += self._referee.launch(self.ball_id, self.time_s, p)
+        return self.ball_id
+
+    def remove_ball(self) -> None:
+        if self.ball_id is None:
+            return
+        self._events += self._referee.abort(self.time_s, self._ball_p)
+        self.ball_id = None
+        self.data.mocap_pos[self._ball_mocap] = scene.BALL_PARKING_POSITION_M
+
+    # --- stepping --------------------------------------------------------------------------------
+    def step(self, n_steps: int = 1) -> None:
+        for _ in range(n_steps):
+            self._step_once()
+
+    def step_for(self, duration_s: float) -> None:
+        self.step(max(0, round(duration_s / self._dt)))
+
+    # --- state -----------------------------------------------------------------------------------
+    @property
+    def dt_s(self) -> float:
+        return self._dt
+
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def joint_positions_rad(self) -> np.ndarray:
+        return self.data.qpos[:6].copy()
+
+    @property
+    def joint_velocities_rad_s(self) -> np.ndarray:
+        return self.data.qvel[:6].copy()
+
+    @property
+    def joint_efforts_nm(self) -> np.ndarray:
+        return self.data.qfrc_actuator[:6] + self.data.qfrc_gravcomp[:6]
+
+    @property
+    def joint_targets_rad(self) -> np.ndarray:
+        return self._q_cmd.copy()
+
+    def tool_wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        # MuJoCo's force/torque sensors give what the parent (wrist_3) exerts on the tool subtree; the
+        # environment's wrench on the tool is its opposite (exactly so when the tool is at rest).
+        sensordata = self.data.sensordata
+        return -sensordata[self._force_slice], -sensordata[self._torque_slice]
+
+    @property
+    def ball_in_play(self) -> bool:
+        return self.ball_id is not None
+
+    @property
+    def ball_position_m(self) -> np.ndarray | None:
+        return self._ball_p.copy() if self.ball_id is not None else None
+
+    @property
+    def ball_velocity_m_s(self) -> np.ndarray | None:
+        return self._ball_v.copy() if self.ball_id is not None else None
+
+    def pop_events(self) -> list[rf.RallyEvent]:
+        events, self._events = self._events, []
+        return events
+
+    def paddle_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._body_pose(self._paddle_centre_body)
+
+    def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._body_pose(self._tool_body)
+
+    # --- internals: robot ------------------------------------------------------------------------
+    def _is_robot_body(self, body: int) -> bool:
+        root = self.model.body(rm.BASE_FRAME).id
+        while body != 0:
+            if body == root:
+                return True
+            body = self.model.body_parentid[body]
+        return False
+
+    def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
+        q = np.asarray(q_rad, dtype=float)
+        if q.shape != (6,):
+            raise ValueError(f'{what} needs 6 joint positions, got shape {q.shape}')
+        if not np.isfinite(q).all():
+            raise ValueError(f'{what} contains NaN or inf: {q.tolist()}')
+        outside = (q < self._lower_rad) | (q > self._upper_rad)
+        if outside.any():
+            names = [rm.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
+            raise ValueError(f'{what} outside the joint limits at {names}: {q.tolist()}')
+        return q.copy()
+
+    def _reset_robot(self) -> None:
+        d = self.data
+        d.qpos[:6] = self.home_joint_positions_rad
+        d.qvel[:6] = 0.0
+        d.qacc_warmstart[:] = 0.0
+        self._q_cmd = self.home_joint_positions_rad.copy()
+        self._q_ref = self.home_joint_positions_rad.copy()
+        self._ref_moving = False
+        self._feedforward_active = False
+        d.ctrl[:6] = self._q_ref
+        mujoco.mj_forward(self.model, d)
+
+    def _advance_servo_reference(self) -> None:
+        """Move q_ref towards the command at most v_max dt; ctrl carries the velocity feed-forward."""
+        delta = self._q_cmd - self._q_ref
+        if np.all(np.abs(delta) <= self._ref_step_rad):
+            step = delta
+            self._q_ref = self._q_cmd.copy()
+            self._ref_moving = False
+        else:
+            step = np.clip(delta, -self._ref_step_rad, self._ref_step_rad)
+            self._q_ref = self._q_ref + step
+        self.data.ctrl[:6] = self._q_ref + self._kd_over_kp_s * (step / self._dt)
+        self._feedforward_active = True
+
+    def _apply_hand_wrench(self) -> None:
+        hand = self._hand
+        if self.data.time >= hand.release_time_s:
+            self.clear_hand_wrench()
+            return
+        d = self.data
+        force, torque = hand.force_n, hand.torque_nm
+        if hand.in_tool_frame:
+            rotation = d.xmat[self._tool_body].reshape(3, 3)
+            force, torque = rotation @ force, rotation @ torque
+        # xfrc_applied acts at the body's centre of mass; the hand acts at tool0's origin.
+        lever = d.xpos[self._tool_body] - d.xipos[self._tool_body]
+        d.xfrc_applied[self._tool_body, :3] = force
+        d.xfrc_applied[self._tool_body, 3:] = torque + np.cross(lever, force)
+
+    def _step_once(self) -> None:
+        m, d = self.model, self.data
+        if self._ref_moving:
+            self._advance_servo_reference()
+        elif self._feedforward_active:
+            d.ctrl[:6] = self._q_ref   # the reference has arrived: no more velocity feed-forward
+            self._feedforward_active = False
+        if self._hand is not None:
+            self._apply_hand_wrench()
+        mujoco.mj_step(m, d)
+        qvel = d.qvel[:6]
+        if (np.abs(qvel, out=self._abs_qvel) > self._v_max_rad_s).any():
+            np.clip(qvel, -self._v_max_rad_s, self._v_max_rad_s, out=qvel)
+        if d.ncon:
+            self._check_robot_table_contacts()
+        if self.ball_id is not None:
+            mujoco.mj_kinematics(m, d)   # poses at the new time, for the ball's contacts
+            self._step_ball()
+
+    def _check_robot_table_contacts(self) -> None:
+        if not self._referee.rally_open:
+            return
+        contacts = self.data.contact
+        for i in range(self.data.ncon):
+            g1, g2 = contacts.geom[i]
+            env = g2 if self._robot_geom_mask[g1] else g1
+            if env in (self._table_geom, self._net_geom) and self._robot_geom_mask[g1] != self._robot_geom_mask[g2]:
+                self._events += self._referee.robot_table_contact(self.time_s, contacts.pos[i])
+                return
+
+    def _body_pose(self, body: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.data.xpos[body].copy(), self.data.xmat[body].reshape(3, 3).copy()
+
+    def _point_velocity(self, point_m: np.ndarray, body: int) -> np.ndarray:
+        mujoco.mj_comPos(self.model, self.data)   # mj_jac needs the motion subspaces at the new poses
+        mujoco.mj_jac(self.model, self.data, self._jac, None, point_m, body)
+        return self._jac @ self.data.qvel
+
+    # --- internals: ball -------------------------------------------------------------------------
+    def _place_ball_marker(self) -> None:
+        self.data.mocap_pos[self._ball_mocap] = self._ball_p
+        self.data.geom_xpos[self._ball_geom] = self._ball_p   # for distance queries before the next step
+
+    def _step_ball(self) -> None:
+        dt = self._dt
+        physics = self.ball_physics
+        p0, v0 = self._ball_p, self._ball_v
+        v1 = v0 + (_GRAVITY + ws.drag_acceleration(v0, physics.drag_k_per_m)) * dt
+        p1 = p0 + v1 * dt
+        paddle_now = self.paddle_pose()
+        contact = self._earliest_contact(p0, p1, v1, self._paddle_prev, paddle_now)
+        self._paddle_prev = paddle_now
+        time_s = self.time_s
+        if contact is not None:
+            restitution, tangential = {
+                'table': (physics.table_restitution, physics.table_tangential_factor),
+                'net': (physics.net_restitution, physics.net_tangential_factor),
+                'paddle': (physics.paddle_restitution, physics.paddle_tangential_factor),
+                'robot': (physics.robot_restitution, physics.robot_tangential_factor),
+            }[contact.kind]
+            u = contact.surface_velocity_m_s
+            v1 = u + ws.contact_response(v1 - u, contact.normal, restitution, tangential)
+            p1 = contact.centre_m + v1 * ((1.0 - contact.fraction) * dt)
+            contact_time_s = time_s - (1.0 - contact.fraction) * dt
+            report = {'table': self._referee.table_contact, 'net': self._referee.net_contact,
+                      'paddle': self._referee.paddle_contact, 'robot': self._referee.robot_contact}[contact.kind]
+            self._events += report(contact_time_s, contact.centre_m)
+        self._ball_p, self._ball_v = p1, v1
+        self._place_ball_marker()
+        if self._referee.rally_open:
+            self._events += self._referee.ball_state(time_s, p1, v1)
+        elif rf.ball_is_dead(p1) or time_s - self._ball_launch_time_s >= ws.BALL_LIFETIME_S:
+            self.remove_ball()
+
+    def _earliest_contact(self, p0, p1, v1, paddle_before, paddle_after) -> _Contact | None:
+        candidates = [c for c in (self._table_contact(p0, p1),
+                                  self._net_contact(p0, p1, v1),
+                                  self._paddle_contact(p0, p1, v1, paddle_before, paddle_after)) if c is not None]
+        if candidates:
+            return min(candidates, key=lambda c: c.fraction)
+        return self._robot_link_contact(p1, v1)
+
+    def _table_contact(self, p0, p1) -> _Contact | None:
+        contact_z = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+        if not (p0[2] >= contact_z > p1[2]):
+            return None
+        fraction = (p0[2] - contact_z) / (p0[2] - p1[2])
+        centre = p0 + fraction * (p1 - p0)
+        if not ws.on_table(centre[0], centre[1]):
+            return None
+        centre[2] = contact_z
+        return _Contact('table', fraction, centre, _UP, _ZERO3)
+
+    def _net_contact(self, p0, p1, v1) -> _Contact | None:
+        r = ws.BALL_RADIUS_M
+        face_x = ws.NET_THICKNESS_M / 2.0 + r
+        if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
+            return None   # on one side of the net, not touching it
+        for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x
+            s0, s1 = side * p0[0], side * p1[0]
+            if s0 >= face_x > s1:
+                fraction = (s0 - face_x) / (s0 - s1)
+                centre = p0 + fraction * (p1 - p0)
+                if abs(centre[1]) <= self._net_high[1] and self._net_low[2] < centre[2] <= self._net_high[2]:
+                    centre[0] = side * face_x
+                    return _Contact('net', fraction, centre, np.array([side, 0.0, 0.0]), _ZERO3)
+        # Top edge and ends: the ball's end position against the net's box.
+        closest = np.clip(p1, self._net_low, self._net_high)
+        offset = p1 - closest
+        distance = float(np.linalg.norm(offset))
+        if distance >= r:
+            return None
+        normal = offset / distance if distance > 0.0 else np.array([math.copysign(1.0, p0[0]), 0.0, 0.0])
+        if np.dot(v1, normal) >= 0.0:
+            return None
+        return _Contact('net', 1.0, closest + normal * r, normal, _ZERO3)
+
+    def _paddle_contact(self, p0, p1, v1, before, after) -> _Contact | None:
+        (c0, rot0), (c1, rot1) = before, after
+        # Far from the blade's bounding sphere, even allowing for this step's motion of ball and blade?
+        reach = (self._blade_bound_m + ws.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0))
+                 + float(np.linalg.norm(c1 - c0)))
+        offset = p1 - c1
+        if offset @ offset > reach * reach:
+            return None
+        local0 = rot0.T @ (p0 - c0)   # ball centre in the blade's frame (z = face normal) before the step
+        local1 = rot1.T @ (p1 - c1)   # and after it: the segment between them is the relative motion
+        h, radius, r = self._blade_half_thickness_m, self._blade_radius_m, ws.BALL_RADIUS_M
+        face_z = h + r
+        for side in (-1.0, 1.0):
+            s0, s1 = side * local0[2], side * local1[2]
+            if s0 >= face_z > s1:
+                fraction = (s0 - face_z) / (s0 - s1)
+                local = local0 + fraction * (local1 - local0)
+                if local[0] ** 2 + local[1] ** 2 <= radius ** 2:
+                    local[2] = side * face_z
+                    normal = rot1[:, 2] * side
+                    centre = c1 + rot1 @ local
+                    surface_point = centre - normal * r
+                    return _Contact('paddle', fraction, centre, normal,
+                                    self._point_velocity(surface_point, self._paddle_centre_body))
+        # Rim (and a ball found inside the blade's slab): the end position against the solid disc.
+        rho = math.hypot(local1[0], local1[1])
+        scale = min(1.0, radius / rho) if rho > 0.0 else 1.0
+        closest = np.array([local1[0] * scale, local1[1] * scale, min(max(local1[2], -h), h)])
+        offset = local1 - closest
+        distance = float(np.linalg.norm(offset))
+        if distance >= r:
+            return None
+        if distance > 0.0:
+            local_normal = offset / distance
+        else:
+            local_normal = np.array([0.0, 0.0, math.copysign(1.0, local0[2])])
+        normal = rot1 @ local_normal
+        surface_point = c1 + rot1 @ closest
+        u = self._point_velocity(surface_point, self._paddle_centre_body)
+        if np.dot(v1 - u, normal) >= 0.0:
+            return None
+        return _Contact('paddle', 1.0, surface_point + normal * r, normal, u)
+
+    def _robot_link_contact(self, p1, v1) -> _Contact | None:
+        d = self.data
+        offsets = d.geom_xpos[self._link_geoms] - p1
+        near = self._link_geoms[np.einsum('ij,ij->i', offsets, offsets) < self._link_reach_sq_m2]
+        if near.size == 0:
+            return None
+        d.geom_xpos[self._ball_geom] = p1
+        for geom in near:
+            distance = mujoco.mj_geomDistance(self.model, d, self._ball_geom, int(geom), 0.01, self._distance_fromto)
+            if distance > 0.0:
+                continue
+            surface_point = self._distance_fromto[3:6].copy()
+            offset = p1 - surface_point
+            normal = offset / max(float(np.linalg.norm(offset)), 1e-9)
+            u = self._point_velocity(surface_point, int(self.model.geom_bodyid[geom]))
+            if np.dot(v1 - u, normal) >= 0.0:
+                continue
+            return _Contact('robot', 1.0, surface_point + normal * ws.BALL_RADIUS_M, normal, u)
+        return None
