@@ -208,8 +208,11 @@ class DragTeachNode(Node):
                        'running': 'running: following the sensor wrench',
                        'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
                        'disabled': 'disabled'}
-            log = self.get_logger().warn if result.state == 'holding' and self._state else self.get_logger().info
-            log(reasons[result.state])
+            # rclpy ties a severity to its call site: one call per severity
+            if result.state == 'holding':
+                self.get_logger().warn(reasons[result.state])
+            else:
+                self.get_logger().info(reasons[result.state])
             self._state = result.state
 
     def log_statistics(self) -> None:

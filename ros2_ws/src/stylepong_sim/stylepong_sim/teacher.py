@@ -1,0 +1,313 @@
+"""The virtual teacher: a person's hand dragging the paddle through a table-tennis stroke (no ROS here).
+
+The hand is a spring-damper between the paddle and a via-point that moves along the stroke; what it
+pushes with is the wrench `virtual_teacher` publishes on /sim/hand_wrench. The arm only moves because
+drag_teach (FDCC) yields to that push, as it would to a person's hand on the real robot.
+
+A stroke is four key poses of the paddle centre, given as offsets from its home pose (world_spec's
+HOME_JOINT_POSITIONS_RAD, robot placement ROBOT_BASE_POSITION_M), with the blade turned about the
+vertical by a yaw:
+
+    ready -> back-swing -> hit (the fastest point, in front of the robot) -> follow-through
+
+The back-swing is a minimum-jerk move from rest to rest. The forward swing runs from the back-swing
+through the hitting point to the follow-through along the quadratic through those three points, timed
+by a minimum-jerk profile whose middle falls on the hitting point (passed at 85-100 % of top speed). Forward, leftward and rightward
+strokes differ in where the ball is met (straight ahead, to the robot's left, to its right: world +y
+is the robot's left) and in where the blade sweeps and faces.
+
+World frame (world_spec): x from the robot's end towards the opponent, y to the robot's left, z up.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import world_spec as ws
+
+SWINGS = ('forward', 'leftward', 'rightward')
+
+
+@dataclass(frozen=True)
+class StrokeShape:
+    """Key poses of the paddle centre: offsets (m, world axes) from home and blade yaw (rad) about world z."""
+    back_offset_m: tuple[float, float, float]
+    hit_offset_m: tuple[float, float, float]
+    follow_offset_m: tuple[float, float, float]
+    back_yaw_rad: float
+    hit_yaw_rad: float
+    follow_yaw_rad: float
+
+
+# Home puts the blade centre 0.10 m behind the end line and 0.13 m above the table's height, facing +x.
+# Back-swings stay behind the end line; hits are just above the end line, 0.19-0.21 m above the table
+# (where a ball that bounced on the robot's half is met); follow-throughs rise forwards over the table.
+STROKES = {
+    'forward': StrokeShape(back_offset_m=(-0.20, -0.06, -0.06), hit_offset_m=(0.06, 0.0, 0.06),
+                           follow_offset_m=(0.20, -0.02, 0.20), back_yaw_rad=-0.25, hit_yaw_rad=0.0,
+                           follow_yaw_rad=0.15),
+    'leftward': StrokeShape(back_offset_m=(-0.16, -0.02, -0.05), hit_offset_m=(0.04, 0.20, 0.07),
+                            follow_offset_m=(0.12, 0.36, 0.18), back_yaw_rad=-0.10, hit_yaw_rad=0.30,
+                            follow_yaw_rad=0.50),
+    'rightward': StrokeShape(back_offset_m=(-0.16, 0.04, -0.05), hit_offset_m=(0.05, -0.18, 0.07),
+                             follow_offset_m=(0.13, -0.30, 0.18), back_yaw_rad=0.10, hit_yaw_rad=-0.30,
+                             follow_yaw_rad=-0.50),
+}
+
+
+@dataclass(frozen=True)
+class TeacherConfig:
+    """Timing of the stroke and the hand's impedance (units in the names)."""
+    backswing_s: float = 0.8
+    forward_swing_s: float = 1.4
+    end_hold_s: float = 0.3            # recorded at rest after the follow-through
+    approach_speed_m_s: float = 0.25   # getting to the ready pose (not recorded)
+    approach_min_s: float = 1.0
+    settle_timeout_s: float = 4.0
+    settle_position_m: float = 0.015
+    settle_angle_rad: float = 0.05
+    settle_speed_m_s: float = 0.01
+    hand_stiffness_n_per_m: float = 400.0
+    hand_damping_ns_per_m: float = 30.0
+    hand_rot_stiffness_nm_per_rad: float = 15.0
+    hand_rot_damping_nms_per_rad: float = 1.0
+    # How heavy the person expects the arm to feel (they push ahead of the motion): the arm's damping.
+    expected_damping_ns_per_m: float = 30.0
+    expected_rot_damping_nms_per_rad: float = 3.0
+    max_force_n: float = 35.0
+    max_torque_nm: float = 3.5
+
+    def validate(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f'{name} must be a non-negative number, got {value!r}')
+        for name in ('backswing_s', 'forward_swing_s', 'approach_speed_m_s', 'approach_min_s', 'max_force_n'):
+            if getattr(self, name) <= 0:
+                raise ValueError(f'{name} must be positive')
+        if not 1.5 <= self.stroke_s <= 3.0:
+            raise ValueError(f'a stroke takes 1.5-3 s like a slow drag, got {self.stroke_s:.2f} s')
+
+    @property
+    def stroke_s(self) -> float:
+        return self.backswing_s + self.forward_swing_s + self.end_hold_s
+
+
+# ---------------------------------------------------------------------------------------------------
+# Kinematics of the cell
+# ---------------------------------------------------------------------------------------------------
+def robot_base_in_world() -> pin.SE3:
+    return pin.SE3(pin.utils.rpyToMatrix(0.0, 0.0, ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
+
+
+class CellKinematics:
+    """World poses and velocities of robot frames (the robot model placed as the world spec says)."""
+
+    def __init__(self):
+        self.model = rm.pinocchio_model()
+        self.data = self.model.createData()
+        self.base = robot_base_in_world()
+
+    def frame_id(self, name: str) -> int:
+        frame_id = self.model.getFrameId(name)
+        if frame_id >= self.model.nframes:
+            raise ValueError(f'the robot model has no frame {name!r}')
+        return frame_id
+
+    def pose(self, q: np.ndarray, frame_id: int) -> pin.SE3:
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return self.base * self.data.oMf[frame_id]
+
+    def twist(self, q: np.ndarray, qdot: np.ndarray, frame_id: int) -> np.ndarray:
+        """(linear, angular) velocity of the frame's origin, world axes."""
+        pin.computeJointJacobians(self.model, self.data, np.asarray(q, dtype=float))
+        jacobian = pin.getFrameJacobian(self.model, self.data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+        velocity = jacobian @ np.asarray(qdot, dtype=float)
+        rotation = self.base.rotation
+        return np.concatenate([rotation @ velocity[:3], rotation @ velocity[3:]])
+
+
+# ---------------------------------------------------------------------------------------------------
+# The via-point path
+# ---------------------------------------------------------------------------------------------------
+def minimum_jerk(tau: float) -> tuple[float, float]:
+    """Minimum-jerk progress s in [0, 1] and ds/dtau at normalised time tau in [0, 1]."""
+    tau = min(max(tau, 0.0), 1.0)
+    return 10 * tau ** 3 - 15 * tau ** 4 + 6 * tau ** 5, 30 * tau ** 2 - 60 * tau ** 3 + 30 * tau ** 4
+
+
+@dataclass(frozen=True)
+class ViaPoint:
+    position_m: np.ndarray       # paddle centre, world
+    velocity_m_s: np.ndarray
+    yaw_rad: float               # blade turned about world z from its home orientation
+    yaw_rate_rad_s: float
+
+
+class StrokePath:
+    """Via-point of the paddle centre over time for one stroke, starting at the ready (home) pose."""
+
+    def __init__(self, swing: str, config: TeacherConfig, home_position_m: np.ndarray):
+        if swing not in STROKES:
+            raise ValueError(f'swing must be one of {SWINGS}, got {swing!r}')
+        shape = STROKES[swing]
+        self.config = config
+        self.ready = np.asarray(home_position_m, dtype=float)
+        self.back = self.ready + shape.back_offset_m
+        self.hit = self.ready + shape.hit_offset_m
+        self.follow = self.ready + shape.follow_offset_m
+        self.yaws = (0.0, shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad)
+
+    @property
+    def duration_s(self) -> float:
+        return self.config.stroke_s
+
+    def hit_time_s(self) -> float:
+        return self.config.backswing_s + 0.5 * self.config.forward_swing_s
+
+    def at(self, t_s: float) -> ViaPoint:
+        c = self.config
+        if t_s < c.backswing_s:
+            s, ds = minimum_jerk(t_s / c.backswing_s)
+            ds /= c.backswing_s
+            _, yaw_back, _, _ = self.yaws
+            return ViaPoint(self.ready + s * (self.back - self.ready), ds * (self.back - self.ready),
+                            s * yaw_back, ds * yaw_back)
+        # Forward swing: the quadratic through back (s=0), hit (s=1/2), follow-through (s=1).
+        s, ds = minimum_jerk((t_s - c.backswing_s) / c.forward_swing_s)
+        ds /= c.forward_swing_s
+        weights = np.array([(1 - s) * (1 - 2 * s), 4 * s * (1 - s), s * (2 * s - 1)])
+        dweights = np.array([4 * s - 3, 4 - 8 * s, 4 * s - 1])
+        points = np.stack([self.back, self.hit, self.follow])
+        yaws = np.array(self.yaws[1:])
+        return ViaPoint(weights @ points, ds * (dweights @ points), float(weights @ yaws), float(ds * (dweights @ yaws)))
+
+
+# ---------------------------------------------------------------------------------------------------
+# The hand
+# ---------------------------------------------------------------------------------------------------
+def clamp_norm(vector: np.ndarray, limit: float) -> np.ndarray:
+    norm = float(np.linalg.norm(vector))
+    return vector if norm <= limit else vector * (limit / norm)
+
+
+def hand_wrench(config: TeacherConfig, position_m: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
+                target_position_m: np.ndarray, target_rotation: np.ndarray, target_twist: np.ndarray) -> np.ndarray:
+    """The hand's wrench (force N, torque N m about the gripped point; world axes).
+
+    A spring-damper pulling the gripped point and the blade's orientation towards the via-point, plus
+    the push a person makes ahead of the motion to overcome the arm's felt damping.
+    """
+    c = config
+    force = (c.hand_stiffness_n_per_m * (target_position_m - position_m)
+             + c.hand_damping_ns_per_m * (target_twist[:3] - twist[:3])
+             + c.expected_damping_ns_per_m * target_twist[:3])
+    torque = (c.hand_rot_stiffness_nm_per_rad * pin.log3(target_rotation @ rotation.T)
+              + c.hand_rot_damping_nms_per_rad * (target_twist[3:] - twist[3:])
+              + c.expected_rot_damping_nms_per_rad * target_twist[3:])
+    return np.concatenate([clamp_norm(force, c.max_force_n), clamp_norm(torque, c.max_torque_nm)])
+
+
+def yaw_rotation(yaw_rad: float) -> np.ndarray:
+    return pin.utils.rpyToMatrix(0.0, 0.0, yaw_rad)
+
+
+class VirtualTeacher:
+    """Approach the ready pose, wait to be started, play the stroke, hold, release.
+
+    Phases: 'approach' -> 'ready' (holding; `begin_stroke` starts the stroke) -> 'stroke' -> 'finished'
+    (holding the follow-through; `release` lets go) -> 'released'. `update` gives the hand's wrench
+    for the measured joint state at time t; the wrench acts at `grip_frame` (what the simulator does
+    with /sim/hand_wrench) while the stroke is defined for the paddle centre.
+    """
+
+    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = rm.TOOL_FRAME):
+        config.validate()
+        self.config = config
+        self.swing = swing
+        self.kinematics = CellKinematics()
+        self.centre_id = self.kinematics.frame_id(rm.PADDLE_CENTRE_FRAME)
+        self.grip_id = self.kinematics.frame_id(grip_frame)
+        home = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+        home_centre = self.kinematics.pose(home, self.centre_id)
+        self.home_rotation = home_centre.rotation.copy()
+        # Both frames are fixed to the last link: the grip's pose relative to the paddle centre is constant.
+        self.centre_to_grip = home_centre.actInv(self.kinematics.pose(home, self.grip_id))
+        self.path = StrokePath(swing, config, home_centre.translation)
+        self.phase = 'approach'
+        self._phase_start_s: float | None = None
+        self._approach_from: ViaPoint | None = None
+        self._approach_s = config.approach_min_s
+
+    # --- the moving target of the paddle centre ---
+    def via_point(self, t_s: float) -> ViaPoint:
+        elapsed = t_s - self._phase_start_s
+        if self.phase == 'approach':
+            start, ready = self._approach_from, self.path.at(0.0)
+            s, ds = minimum_jerk(elapsed / self._approach_s)
+            ds /= self._approach_s
+            return ViaPoint(start.position_m + s * (ready.position_m - start.position_m),
+                            ds * (ready.position_m - start.position_m),
+                            start.yaw_rad + s * (ready.yaw_rad - start.yaw_rad), ds * (ready.yaw_rad - start.yaw_rad))
+        if self.phase == 'ready':
+            return self.path.at(0.0)
+        if self.phase == 'stroke':
+            return self.path.at(min(elapsed, self.path.duration_s))
+        return self.path.at(self.path.duration_s)
+
+    def _yaw_of(self, rotation: np.ndarray) -> float:
+        """Yaw about world z taking the home blade orientation to `rotation` (its vertical-axis part)."""
+        relative = rotation @ self.home_rotation.T
+        return math.atan2(relative[1, 0], relative[0, 0])
+
+    # --- control ---
+    def update(self, t_s: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """Hand wrench (world axes, force N and torque N m about the grip point) for this joint state."""
+        kin = self.kinematics
+        centre = kin.pose(q, self.centre_id)
+        if self._phase_start_s is None:   # the first joint state: start the approach from here
+            self._phase_start_s = t_s
+            self._approach_from = ViaPoint(centre.translation.copy(), np.zeros(3), self._yaw_of(centre.rotation), 0.0)
+            distance = float(np.linalg.norm(self.path.at(0.0).position_m - centre.translation))
+            angle = abs(self._approach_from.yaw_rad)
+            self._approach_s = max(self.config.approach_min_s, distance / self.config.approach_speed_m_s, angle / 0.5)
+        if self.phase == 'released':
+            return np.zeros(6)
+        via = self.via_point(t_s)
+        if self.phase == 'approach' and t_s - self._phase_start_s >= self._approach_s:
+            self.phase, self._phase_start_s = 'settling', t_s
+        if self.phase == 'settling':
+            if self.at_rest_on(q, qdot, self.path.at(0.0)) or t_s - self._phase_start_s > self.config.settle_timeout_s:
+                self.phase, self._phase_start_s = 'ready', t_s
+        if self.phase == 'stroke' and t_s - self._phase_start_s >= self.path.duration_s:
+            self.phase, self._phase_start_s = 'finished', t_s
+        if self.phase == 'settling':
+            via = self.path.at(0.0)
+        target_centre = pin.SE3(yaw_rotation(via.yaw_rad) @ self.home_rotation, via.position_m)
+        target_grip = target_centre * self.centre_to_grip
+        omega = np.array([0.0, 0.0, via.yaw_rate_rad_s])
+        # Velocity of the gripped point on a body moving with the via-point: v + omega x r.
+        lever = target_grip.translation - target_centre.translation
+        target_twist = np.concatenate([via.velocity_m_s + np.cross(omega, lever), omega])
+        grip = kin.pose(q, self.grip_id)
+        return hand_wrench(self.config, grip.translation, grip.rotation, kin.twist(q, qdot, self.grip_id),
+                           target_grip.translation, target_grip.rotation, target_twist)
+
+    def at_rest_on(self, q: np.ndarray, qdot: np.ndarray, via: ViaPoint) -> bool:
+        centre = self.kinematics.pose(q, self.centre_id)
+        target_rotation = yaw_rotation(via.yaw_rad) @ self.home_rotation
+        c = self.config
+        return (np.linalg.norm(centre.translation - via.position_m) < c.settle_position_m
+                and np.linalg.norm(pin.log3(target_rotation @ centre.rotation.T)) < c.settle_angle_rad
+                and np.linalg.norm(self.kinematics.twist(q, qdot, self.centre_id)[:3]) < c.settle_speed_m_s)
+
+    def begin_stroke(self, t_s: float) -> None:
+        if self.phase != 'ready':
+            raise RuntimeError(f'the stroke can start only from the ready pose (phase {self.phase})')
+        self.phase, self._phase_start_s = 'stroke', t_s
+
+    def release(self) -> None:
+        self.phase = 'released'

@@ -1,0 +1,138 @@
+"""The virtual teacher's strokes and hand, alone and dragging the FDCC arm (a perfect servo, no ROS)."""
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from stylepong_description import robot_model as rm
+from stylepong_fdcc.fdcc import DragTeachController, FdccConfig, gravity_wrench_on_tool, tool_load_from_model
+from stylepong_sim import world_spec as ws
+from stylepong_sim.teacher import (STROKES, SWINGS, CellKinematics, StrokePath, TeacherConfig, VirtualTeacher,
+                                   hand_wrench)
+
+HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+KIN = CellKinematics()
+HOME_CENTRE = KIN.pose(HOME, KIN.frame_id(rm.PADDLE_CENTRE_FRAME)).translation
+
+
+def sampled(path: StrokePath, dt_s: float = 0.002):
+    times = np.arange(0.0, path.duration_s + 1e-9, dt_s)
+    points = [path.at(t) for t in times]
+    return times, np.array([p.position_m for p in points]), np.array([p.velocity_m_s for p in points])
+
+
+@pytest.mark.parametrize('swing', SWINGS)
+def test_a_stroke_is_slow_and_starts_and_ends_at_rest(swing):
+    path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
+    times, positions, velocities = sampled(path)
+    assert 1.5 <= path.duration_s <= 3.0
+    np.testing.assert_allclose(positions[0], HOME_CENTRE)
+    assert np.linalg.norm(velocities[0]) == 0.0 and np.linalg.norm(velocities[-1]) == 0.0
+    speeds = np.linalg.norm(velocities, axis=1)
+    assert speeds.max() < 1.0
+    # It passes the hitting point near its top speed.
+    hit = path.at(path.hit_time_s())
+    np.testing.assert_allclose(hit.position_m, path.hit, atol=1e-9)
+    assert np.linalg.norm(hit.velocity_m_s) > 0.85 * speeds.max()
+    assert abs(times[np.argmax(speeds)] - path.hit_time_s()) < 0.2
+    # The velocities are the derivative of the positions.
+    np.testing.assert_allclose(np.gradient(positions, times, axis=0)[1:-1], velocities[1:-1], atol=2e-3)
+
+
+@pytest.mark.parametrize('swing', SWINGS)
+def test_a_stroke_swings_back_then_forwards_through_a_hit_in_front_of_the_robot_and_clear_of_the_table(swing):
+    path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
+    _, positions, _ = sampled(path)
+    assert path.back[0] < HOME_CENTRE[0] < path.hit[0] < path.follow[0]
+    assert path.hit[0] > ws.ROBOT_BASE_POSITION_M[0] + 0.2
+    assert path.follow[2] > path.hit[2] > path.back[2]
+    # Over the table the blade stays above its surface by more than its radius.
+    over_table = positions[:, 0] > -ws.HALF_LENGTH_M - rm.PADDLE.blade_radius_m
+    assert np.all(positions[over_table, 2] > ws.TABLE_HEIGHT_M + rm.PADDLE.blade_radius_m)
+
+
+def test_the_three_directions_are_distinct():
+    hits = {s: StrokePath(s, TeacherConfig(), HOME_CENTRE).hit for s in SWINGS}
+    sweeps = {s: StrokePath(s, TeacherConfig(), HOME_CENTRE).follow - StrokePath(s, TeacherConfig(), HOME_CENTRE).back
+              for s in SWINGS}
+    assert hits['leftward'][1] > hits['forward'][1] + 0.15     # world +y is the robot's left
+    assert hits['rightward'][1] < hits['forward'][1] - 0.15
+    assert sweeps['leftward'][1] > 0.2 and sweeps['rightward'][1] < -0.2 and abs(sweeps['forward'][1]) < 0.1
+    assert STROKES['leftward'].hit_yaw_rad > 0 > STROKES['rightward'].hit_yaw_rad
+
+
+def test_unknown_swing_and_too_slow_a_stroke_are_refused():
+    with pytest.raises(ValueError, match='swing'):
+        StrokePath('backhand', TeacherConfig(), HOME_CENTRE)
+    with pytest.raises(ValueError, match='1.5-3 s'):
+        VirtualTeacher('forward', TeacherConfig(forward_swing_s=3.0))
+
+
+def test_the_hand_pulls_towards_the_via_point_and_never_pushes_harder_than_its_limit():
+    config = TeacherConfig()
+    rotation = np.eye(3)
+    small = hand_wrench(config, np.zeros(3), rotation, np.zeros(6), np.array([0.01, 0, 0]), rotation, np.zeros(6))
+    np.testing.assert_allclose(small, [config.hand_stiffness_n_per_m * 0.01, 0, 0, 0, 0, 0])
+    far = hand_wrench(config, np.zeros(3), rotation, np.zeros(6), np.array([0, 5.0, 0]),
+                      pin.utils.rpyToMatrix(0, 0, 2.0), np.zeros(6))
+    assert np.linalg.norm(far[:3]) == pytest.approx(config.max_force_n)
+    assert np.linalg.norm(far[3:]) == pytest.approx(config.max_torque_nm)
+    assert far[1] > 0 and far[5] > 0
+
+
+class DragLoop:
+    """drag_teach's controller on an arm that follows its commands exactly; the hand acts at tool0."""
+
+    def __init__(self, dt_s: float = 0.002):
+        self.kin = KIN
+        self.tool = KIN.frame_id(rm.TOOL_FRAME)
+        self.load = tool_load_from_model(KIN.model)
+        self.controller = DragTeachController(FdccConfig(nominal_period_s=dt_s))
+        self.q, self.qdot, self.t, self.dt = HOME.copy(), np.zeros(6), 0.0, dt_s
+        for _ in range(100):   # drag_teach runs (and tares) before the teacher takes the paddle
+            self.step(np.zeros(6))
+
+    def step(self, hand_world: np.ndarray) -> None:
+        tool = self.kin.pose(self.q, self.tool)
+        rotation_base = self.kin.base.rotation.T @ tool.rotation
+        sensor = np.concatenate([tool.rotation.T @ hand_world[:3], tool.rotation.T @ hand_world[3:]])
+        sensor += gravity_wrench_on_tool(self.load, rotation_base, np.array(KIN.model.gravity.linear))
+        self.controller.on_joint_positions(self.q, self.t)
+        self.controller.on_wrench(sensor, self.t)
+        command = self.controller.tick(self.t).command
+        if command is not None:
+            self.qdot, self.q = (command - self.q) / self.dt, command
+        self.t += self.dt
+
+    def teach(self, swing: str):
+        teacher = VirtualTeacher(swing)
+        record, start = [], None
+        while self.t < 20.0:
+            wrench = teacher.update(self.t, self.q, self.qdot)
+            if teacher.phase == 'ready':
+                teacher.begin_stroke(self.t)
+                start = self.t
+            if teacher.phase == 'finished':
+                teacher.release()
+                assert np.all(teacher.update(self.t, self.q, self.qdot) == 0.0)
+                return teacher, record, self.t - start
+            self.step(wrench)
+            if teacher.phase == 'stroke':
+                record.append((self.q.copy(), teacher.via_point(self.t), np.linalg.norm(
+                    self.kin.twist(self.q, self.qdot, self.tool)[:3])))
+        raise AssertionError(f'the {swing} stroke did not finish (phase {teacher.phase})')
+
+
+def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits():
+    loop = DragLoop()
+    centre_id = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
+    limits = rm.joint_limits()
+    for swing in ('forward', 'leftward', 'rightward', 'forward'):   # each starts where the last one ended
+        teacher, record, duration_s = loop.teach(swing)
+        assert 1.5 <= duration_s <= 3.0
+        errors = [np.linalg.norm(KIN.pose(q, centre_id).translation - via.position_m) for q, via, _ in record]
+        assert max(errors) < 0.03, swing
+        assert max(speed for _, _, speed in record) < 1.0
+        joints = np.array([q for q, _, _ in record])
+        assert np.all(joints > limits.lower_rad + 0.05) and np.all(joints < limits.upper_rad - 0.05)
+        # The paddle ends the stroke where the follow-through is.
+        assert np.linalg.norm(KIN.pose(loop.q, centre_id).translation - teacher.path.follow) < 0.03
