@@ -1,0 +1,249 @@
+"""System tests of `ros2 run stylepong_fdcc recorder` and `recover_bag` through real topics and services.
+
+The test publishes JointState at 500 Hz itself (reliable, depth 10: what the UR driver's
+joint_state_broadcaster and ur5_sim offer), each message named by a unique header stamp, and keeps
+when it published which; then it reads the bag back with rosbags and with the mcap + mcap-ros2-support
+readers and compares stamps.
+"""
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from stylepong_msgs.srv import StartClip
+
+from tests.bag_check import JOINT_NAMES, JOINT_STATES, read_with_mcap_ros2, read_with_rosbags, storage_file
+from tests.node_process import NodeProcess, wait_until
+
+RATE_HZ = 500.0
+
+
+class JointStatePublisher:
+    """Publishes JointState at RATE_HZ from a thread; records (stamp_ns, monotonic publish time)."""
+
+    def __init__(self, node: Node):
+        self._pub = node.create_publisher(JointState, JOINT_STATES,
+                                          QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self.published: list[tuple[int, float]] = []
+        self._lock = threading.Lock()
+        self._running = True
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        msg = JointState(name=list(JOINT_NAMES), position=[0.0] * 6, velocity=[0.0] * 6, effort=[0.0] * 6)
+        period_s = 1.0 / RATE_HZ
+        next_s = time.monotonic()
+        index = 0
+        while self._running:
+            index += 1
+            # A unique, increasing stamp per message, as a 500 Hz driver's steady header stamps.
+            stamp_ns = 1_000_000_000 + index * 2_000_000
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+            msg.position[0] = index * 1e-3
+            self._pub.publish(msg)
+            with self._lock:
+                self.published.append((stamp_ns, time.monotonic()))
+            next_s += period_s
+            delay_s = next_s - time.monotonic()
+            if delay_s > 0:
+                time.sleep(delay_s)
+
+    def stamps_between(self, start_s: float, end_s: float) -> list[int]:
+        with self._lock:
+            return [stamp for stamp, t in self.published if start_s <= t <= end_s]
+
+    def stop(self) -> None:
+        self._running = False
+        self._thread.join(5.0)
+
+
+class Harness:
+    def __init__(self):
+        self.node = rclpy.create_node('recorder_test')
+        self.start_client = self.node.create_client(StartClip, '/recorder/start')
+        self.stop_client = self.node.create_client(Trigger, '/recorder/stop')
+        self.publisher: JointStatePublisher | None = None
+
+    def publish_joint_states(self) -> JointStatePublisher:
+        self.publisher = JointStatePublisher(self.node)
+        return self.publisher
+
+    def call(self, client, request, timeout_s=20.0):
+        assert client.wait_for_service(timeout_sec=timeout_s), f'{client.srv_name} not available'
+        future = client.call_async(request)
+        rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout_s)
+        assert future.done(), f'{client.srv_name} did not answer'
+        return future.result()
+
+    def start(self, label):
+        return self.call(self.start_client, StartClip.Request(label=label))
+
+    def stop(self):
+        return self.call(self.stop_client, Trigger.Request())
+
+    def wait_for_subscriber(self, recorder: NodeProcess, timeout_s=30.0):
+        assert wait_until(lambda: self.node.count_subscribers(JOINT_STATES) > 0 or not recorder.running(),
+                          timeout_s), 'the recorder never subscribed to /joint_states'
+        assert recorder.running(), recorder.output()
+
+
+@pytest.fixture
+def harness(ros_env):
+    rclpy.init()
+    harness = Harness()
+    yield harness
+    if harness.publisher is not None:
+        harness.publisher.stop()
+    harness.node.destroy_node()
+    rclpy.shutdown()
+
+
+def start_recorder(output_dir: Path, **params) -> NodeProcess:
+    return NodeProcess('stylepong_fdcc', 'recorder', params={'output_dir': str(output_dir), **params}).start()
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path, storage):
+    recorder = start_recorder(tmp_path / 'bags', storage=storage)
+    try:
+        harness.wait_for_subscriber(recorder)
+        publisher = harness.publish_joint_states()
+        time.sleep(0.5)
+        response = harness.start('forward')
+        started_s = time.monotonic()
+        assert response.success, response.message
+        bag_dir = Path(response.bag_path)
+        assert bag_dir.parent == tmp_path / 'bags' and bag_dir.name.startswith('forward_')
+        time.sleep(3.0)
+        stopping_s = time.monotonic()
+        stopped = harness.stop()
+        publisher.stop()
+        assert stopped.success, stopped.message
+        assert recorder.running(), recorder.output()
+    finally:
+        recorder.stop()
+
+    published = publisher.stamps_between(started_s, stopping_s)
+    assert len(published) > 0.8 * 3.0 * RATE_HZ, 'the test publisher itself fell behind'
+    content = read_with_rosbags(bag_dir)
+    assert content.custom_data == {'label': 'forward'}
+    recorded = content.stamps[JOINT_STATES]
+    kept = len(set(published) & set(recorded)) / len(published)
+    print(f'{storage}: kept {kept:.4f} of {len(published)} joint states published during the clip')
+    assert kept >= 0.99
+    assert recorded == sorted(recorded), 'joint states out of order'
+    assert content.metadata_counts[JOINT_STATES] == len(recorded)
+    if storage == 'mcap':
+        mcap = read_with_mcap_ros2(storage_file(bag_dir, '.mcap'))
+        assert mcap.stamps[JOINT_STATES] == recorded
+        assert mcap.log_times[JOINT_STATES] == content.log_times[JOINT_STATES]
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_2_s_before_the_kill(harness, tmp_path,
+                                                                                        storage):
+    recorder = start_recorder(tmp_path / 'bags', storage=storage)
+    try:
+        harness.wait_for_subscriber(recorder)
+        publisher = harness.publish_joint_states()
+        time.sleep(0.5)
+        response = harness.start('leftward')
+        started_s = time.monotonic()
+        assert response.success, response.message
+        time.sleep(3.0)
+        killed_s = time.monotonic()
+        recorder.signal(signal.SIGKILL)
+        recorder.process.wait(10.0)
+        publisher.stop()
+    finally:
+        recorder.stop()
+    bag_dir = Path(response.bag_path)
+    assert not (bag_dir / 'metadata.yaml').exists()     # the kill really left an unfinished bag
+
+    result = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(bag_dir)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert 'recovered' in result.stdout
+
+    content = read_with_rosbags(bag_dir)
+    assert content.custom_data == {'label': 'leftward'}
+    recorded = set(content.stamps[JOINT_STATES])
+    must_have = publisher.stamps_between(started_s, killed_s - 0.2)
+    missing = [s for s in must_have if s not in recorded]
+    print(f'{storage}: {len(recorded)} joint states recovered; {len(missing)} of the {len(must_have)} '
+          'published up to 0.2 s before the kill are missing')
+    assert len(must_have) > 2.0 * RATE_HZ
+    assert not missing
+    if storage == 'mcap':
+        assert set(read_with_mcap_ros2(storage_file(bag_dir, '.mcap')).stamps[JOINT_STATES]) == recorded
+
+    again = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(bag_dir)],
+                           capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and 'healthy, left unchanged' in again.stdout, again.stdout + again.stderr
+
+
+def test_sigint_closes_the_clip_cleanly(harness, tmp_path):
+    recorder = start_recorder(tmp_path / 'bags')
+    try:
+        harness.wait_for_subscriber(recorder)
+        publisher = harness.publish_joint_states()
+        response = harness.start('rightward')
+        assert response.success, response.message
+        time.sleep(1.0)
+    finally:
+        exit_code = recorder.stop(timeout_s=20.0)
+        publisher.stop()
+    assert exit_code == 0, recorder.output()
+    bag_dir = Path(response.bag_path)
+    assert (bag_dir / 'metadata.yaml').is_file()
+    assert not (bag_dir / 'recording_in_progress.yaml').exists()
+    content = read_with_rosbags(bag_dir)
+    assert content.custom_data == {'label': 'rightward'}
+    assert len(content.stamps[JOINT_STATES]) > 0.5 * RATE_HZ
+    assert read_with_mcap_ros2(storage_file(bag_dir, '.mcap')).stamps == content.stamps
+
+
+def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(harness, tmp_path):
+    a_file = tmp_path / 'a_file'
+    a_file.write_text('not a directory')
+    recorder = start_recorder(tmp_path / 'bags')
+    # Two more recorders in their own namespaces: one whose output_dir cannot exist, one on a "full" disk.
+    unwritable = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-r', '__ns:=/unwritable',
+                             params={'output_dir': str(a_file / 'bags')}).start()
+    full = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-r', '__ns:=/full',
+                       params={'output_dir': str(tmp_path / 'full'), 'min_free_space_mb': 1e9}).start()
+    try:
+        harness.wait_for_subscriber(recorder)
+        stop = harness.stop()
+        assert not stop.success and 'not recording' in stop.message
+        for label, reason in [('', 'empty'), ('../escape', 'path separator'), ('a/b', 'path separator'),
+                              ('.hidden', 'starts with')]:
+            response = harness.start(label)
+            assert not response.success and reason in response.message, response.message
+
+        for namespace, reason in [('/unwritable', 'cannot be created'), ('/full', 'disk full')]:
+            client = harness.node.create_client(StartClip, f'{namespace}/recorder/start')
+            response = harness.call(client, StartClip.Request(label='forward'))
+            assert not response.success and reason in response.message, response.message
+        assert not (tmp_path / 'full').exists() or not any((tmp_path / 'full').iterdir())
+
+        first = harness.start('forward')
+        assert first.success, first.message
+        again = harness.start('leftward')
+        assert not again.success and 'already recording' in again.message
+        assert again.bag_path == first.bag_path
+        assert harness.stop().success
+        assert harness.start('leftward').success and harness.stop().success
+        assert sorted(p.name.split('_')[0] for p in (tmp_path / 'bags').iterdir()) == ['forward', 'leftward']
+        assert recorder.running() and unwritable.running() and full.running()
+    finally:
+        for process in (recorder, unwritable, full):
+            process.stop()
