@@ -17,9 +17,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from stylepong_description.robot_model import JOINT_NAMES as URDF_JOINTS
 
-URDF_JOINTS = ('shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint',
-               'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint')
 # The order ur_robot_driver's joint_state_broadcaster publishes (seen in real UR3e recordings).
 DRIVER_JOINTS = ('shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint',
                  'shoulder_pan_joint')
@@ -99,9 +98,10 @@ def write_recorder_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float,
     plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
     times_s = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
     q, qd = motion(times_s)
-    with Writer(bag_dir, version=9, storage_plugin=plugin) as writer:
-        if compression:
-            writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    writer = Writer(bag_dir, version=9, storage_plugin=plugin)
+    if compression:
+        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    with writer:
         if label is not None:
             writer.set_custom_data('label', label)
         connection = writer.add_connection(topic, 'sensor_msgs/msg/JointState', typestore=store)
@@ -112,6 +112,23 @@ def write_recorder_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float,
                 raw = raw_messages(i, raw)
             writer.write(connection, stamp_ns + 300_000, raw)
     return len(times_s)
+
+
+def write_raw_bag(bag_dir: pathlib.Path, topics: dict[str, Sequence[tuple[int, bytes]]], *, storage: str = 'mcap',
+                  msgtypes: dict[str, str] | None = None, label: str | None = None) -> None:
+    """A bag (rosbags Writer) holding exactly these (receive_ns, serialized bytes) messages per topic."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2.enums import StoragePlugin
+    store = jazzy_typestore()
+    plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
+    with Writer(bag_dir, version=9, storage_plugin=plugin) as writer:
+        if label is not None:
+            writer.set_custom_data('label', label)
+        for topic, messages in topics.items():
+            msgtype = (msgtypes or {}).get(topic, 'sensor_msgs/msg/JointState')
+            connection = writer.add_connection(topic, msgtype, typestore=store)
+            for receive_ns, raw in messages:
+                writer.write(connection, int(receive_ns), raw)
 
 
 QOS_YAML = """- history: keep_last
@@ -216,6 +233,25 @@ def write_driver_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float, *
     }
     (bag_dir / 'metadata.yaml').write_text(yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
     return DriverRecording(stamps_ns=stamps_ns, receive_ns=receive_ns, q_true=q_true, qd_true=qd_true)
+
+
+def read_with_rosbags(bag: pathlib.Path, joints: Sequence[str] = URDF_JOINTS):
+    """(header stamps ns, positions, velocities) in `joints` order, read by rosbags' AnyReader alone.
+
+    The independent reference the tests compare build_dataset's output with.
+    """
+    from rosbags.highlevel import AnyReader
+    stamps, positions, velocities = [], [], []
+    with AnyReader([pathlib.Path(bag)], default_typestore=jazzy_typestore()) as reader:
+        for connection, _t, raw in reader.messages(reader.connections):
+            if connection.msgtype != 'sensor_msgs/msg/JointState':
+                continue
+            msg = reader.deserialize(raw, connection.msgtype)
+            order = [list(msg.name).index(j) for j in joints]
+            stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            positions.append(np.asarray(msg.position)[order])
+            velocities.append(np.asarray(msg.velocity)[order] if len(msg.velocity) else np.full(len(joints), np.nan))
+    return np.array(stamps, dtype=np.int64), np.array(positions), np.array(velocities)
 
 
 def truncate_file(path: pathlib.Path, keep_fraction: float = 0.6) -> None:

@@ -163,19 +163,27 @@ def check_storage_files(bag: pathlib.Path, info: dict) -> None:
         if size == 0:
             raise BagError(f'{path}: storage file is empty')
         if path.suffix == '.mcap':
-            with path.open('rb') as stream:
-                head = stream.read(8)
-                stream.seek(max(0, size - 8))
-                tail = stream.read(8)
-            if head != MCAP_MAGIC:
-                raise BagError(f'{path}: not an mcap file (bad magic)')
-            if tail != MCAP_MAGIC or size < 2 * len(MCAP_MAGIC) + 37:
-                raise BagError(f'{path}: truncated mcap file (no footer: the recording was not closed; '
-                               'ros2 run stylepong_fdcc recover_bag can rebuild it)')
+            _check_mcap_ends(path)
         elif path.suffix == '.db3':
             with path.open('rb') as stream:
                 if stream.read(16) != SQLITE_MAGIC:
                     raise BagError(f'{path}: not an sqlite3 database (bad header)')
+
+
+def _check_mcap_ends(path: pathlib.Path) -> None:
+    """An mcap file starts and ends with the magic; a writer that died never wrote the end."""
+    size = path.stat().st_size
+    if size == 0:
+        raise BagError(f'{path}: storage file is empty')
+    with path.open('rb') as stream:
+        head = stream.read(8)
+        stream.seek(max(0, size - 8))
+        tail = stream.read(8)
+    if head != MCAP_MAGIC:
+        raise BagError(f'{path}: not an mcap file (bad magic)')
+    if tail != MCAP_MAGIC or size < 2 * len(MCAP_MAGIC) + 37:
+        raise BagError(f'{path}: truncated mcap file (no footer: the recording was not closed; '
+                       'ros2 run stylepong_fdcc recover_bag can rebuild it)')
 
 
 # ---------------------------------------------------------------------------------------------
@@ -440,11 +448,26 @@ class _Source:
     has_metadata: bool
 
 
+def _recorder_in_progress_name() -> str | None:
+    try:
+        from stylepong_fdcc.clip_writer import IN_PROGRESS_NAME
+    except ImportError:
+        return None
+    return IN_PROGRESS_NAME
+
+
 def _open_sources(bag: pathlib.Path, info: dict | None) -> list[_Source]:
     from rosbags.rosbag2 import Reader
     if info is not None:
         return [_Source(Reader(bag), bag, True)]
+    in_progress = _recorder_in_progress_name()
+    if bag.is_dir() and in_progress and (bag / in_progress).is_file():
+        raise BagError(f'a recording still in progress or never closed ({in_progress} is there, metadata.yaml '
+                       'is not): let it finish, or rebuild it with ros2 run stylepong_fdcc recover_bag')
     files = [bag] if bag.is_file() else _storage_files(bag)
+    for path in files:
+        if path.suffix == '.mcap':
+            _check_mcap_ends(path)
     if any(f.name.endswith(COMPRESSED_STORAGE_SUFFIXES) for f in files):
         raise BagError(f'{bag}: compressed storage files without metadata.yaml cannot be read '
                        '(the compression mode is only recorded there)')

@@ -30,8 +30,8 @@ from stylepong_policy.dataset import (
 )
 
 UNLABELLED = 'unlabelled'
-# The recorder names a clip's directory <label>_<time>; rosbag2's default is rosbag2_<date>, which
-# carries no label: a label is letters (and dashes) followed by '_' and a digit.
+# Bags from elsewhere named <label>_<time> (forward_2025-11-21...): letters, '_', then a digit. rosbag2's
+# default rosbag2_<date> carries no label and does not match (the digit in 'rosbag2').
 _DIRECTORY_LABEL = re.compile(r'^([A-Za-z][A-Za-z-]*)_\d')
 
 
@@ -41,7 +41,19 @@ def default_joint_names() -> tuple[str, ...]:
 
 
 def label_from_name(name: str) -> str | None:
-    """'forward_2025-01-02_10-11-12' -> 'forward'; None when the name does not look like <label>_<time>."""
+    """The label a bag directory's name carries, or None.
+
+    The recorder's own names (<label>_<YYYYmmdd>_<HHMMSS>_<ms>, any label it accepts) are parsed by
+    the recorder's function; other names count when they look like <letters>_<digit>...
+    """
+    try:
+        from stylepong_fdcc.clip_writer import label_from_bag_dir_name
+    except ImportError:   # the recorder's package is not installed: only the general form is known
+        label_from_bag_dir_name = None
+    if label_from_bag_dir_name is not None:
+        label = label_from_bag_dir_name(name)
+        if label:
+            return label
     match = _DIRECTORY_LABEL.match(name)
     return match.group(1) if match else None
 

@@ -167,7 +167,8 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
     velocity = np.asarray(velocity_rad_s, dtype=float)
     # A message published or recorded twice is not a clock problem: drop exact repeats first.
     repeats = np.zeros(len(header_stamp_ns), dtype=bool)
-    repeats[1:] = (np.diff(header_stamp_ns) == 0) & np.all(position[1:] == position[:-1], axis=1)
+    repeats[1:] = ((np.diff(header_stamp_ns) == 0) & (header_stamp_ns[1:] > 0)
+                   & np.all(position[1:] == position[:-1], axis=1))
     if repeats.any():
         result.notes.append(f'{int(repeats.sum())} repeated messages (same stamp and positions) dropped')
         unique = ~repeats
