@@ -208,11 +208,12 @@ class DragTeachNode(Node):
                        'running': 'running: following the sensor wrench',
                        'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
                        'disabled': 'disabled'}
-            # rclpy ties a severity to its call site: one call per severity
+            # rclpy ties a severity to its call site: one call per severity. Throttled: a flaky sensor
+            # toggles between running and holding many times a second.
             if result.state == 'holding':
-                self.get_logger().warn(reasons[result.state])
+                self.get_logger().warn(reasons[result.state], throttle_duration_sec=WARN_THROTTLE_S)
             else:
-                self.get_logger().info(reasons[result.state])
+                self.get_logger().info(reasons[result.state], throttle_duration_sec=WARN_THROTTLE_S)
             self._state = result.state
 
     def log_statistics(self) -> None:

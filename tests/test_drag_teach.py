@@ -1,0 +1,201 @@
+"""drag_teach against the MuJoCo cell: `ros2 run stylepong_sim ur5_sim` + `ros2 run stylepong_fdcc drag_teach`,
+both with their defaults, driven and watched through their topics (issue 4, Done when 1-3)."""
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from geometry_msgs.msg import WrenchStamped
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from stylepong_description import robot_model as rm
+from stylepong_sim.teacher import CellKinematics
+from tests.node_process import NodeProcess, wait_until
+
+CONTROL_RATE_HZ = 500.0          # drag_teach's default
+LIMITS = rm.joint_limits()
+KIN = CellKinematics()
+TOOL = KIN.frame_id(rm.TOOL_FRAME)
+
+
+class CellProbe:
+    """Watches /joint_states and the commands, pushes through /sim/hand_wrench or floods the sensor topic."""
+
+    def __init__(self):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('drag_teach_probe', context=self.context)
+        self.lock = threading.Lock()
+        self.joints: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self.commands: list[tuple[float, np.ndarray]] = []
+        self.node.create_subscription(JointState, '/joint_states', self._on_joints, qos_profile_sensor_data)
+        self.node.create_subscription(Float64MultiArray, '/forward_position_controller/commands', self._on_command, 100)
+        self.hand = self.node.create_publisher(WrenchStamped, '/sim/hand_wrench', 10)
+        self.sensor = self.node.create_publisher(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', 10)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:   # noqa: BLE001 - shutting down
+                return
+
+    def _on_joints(self, msg: JointState):
+        index = [list(msg.name).index(n) for n in rm.JOINT_NAMES]
+        with self.lock:
+            self.joints.append((time.monotonic(), np.array(msg.position)[index], np.array(msg.velocity)[index]))
+
+    def _on_command(self, msg: Float64MultiArray):
+        with self.lock:
+            self.commands.append((time.monotonic(), np.array(msg.data)))
+
+    def latest_q(self) -> np.ndarray:
+        with self.lock:
+            return self.joints[-1][1].copy()
+
+    def joints_between(self, start: float, end: float):
+        with self.lock:
+            return [(t, q, v) for t, q, v in self.joints if start <= t <= end]
+
+    def commands_between(self, start: float, end: float):
+        with self.lock:
+            return [(t, c) for t, c in self.commands if start <= t <= end]
+
+    def commanding(self) -> bool:
+        with self.lock:
+            return len(self.commands) > 50 and len(self.joints) > 50
+
+    def push(self, force_world_n, duration_s: float, rate_hz: float = 200.0) -> tuple[float, float]:
+        """A constant force at the tool (world axes) for duration_s, then a zero wrench. Returns (start, end)."""
+        msg = WrenchStamped()
+        msg.header.frame_id = 'world'
+        start = time.monotonic()
+        while time.monotonic() - start < duration_s:
+            msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = (float(f) for f in force_world_n)
+            self.hand.publish(msg)
+            time.sleep(1.0 / rate_hz)
+        end = time.monotonic()
+        msg.wrench.force.x = msg.wrench.force.y = msg.wrench.force.z = 0.0
+        for _ in range(5):
+            self.hand.publish(msg)
+            time.sleep(0.01)
+        return start, end
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self.thread.join(timeout=2.0)
+
+
+def tool_position(q: np.ndarray) -> np.ndarray:
+    return KIN.pose(q, TOOL).translation.copy()
+
+
+@pytest.fixture(scope='module')
+def cell():
+    """ur5_sim and drag_teach (defaults) in a ROS domain of their own, and a probe; shared by the tests below."""
+    from conftest import fresh_domain_id
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv('ROS_DOMAIN_ID', str(fresh_domain_id()))
+        sim = NodeProcess('stylepong_sim', 'ur5_sim').start()
+        drag = NodeProcess('stylepong_fdcc', 'drag_teach').start()
+        probe = CellProbe()
+        try:
+            if not wait_until(probe.commanding, 60.0):
+                pytest.fail('drag_teach never commanded the arm:\n' + sim.output()[-2000:] + drag.output()[-2000:])
+            time.sleep(1.0)
+            yield probe, sim, drag
+        finally:
+            probe.close()
+            drag.stop()
+            sim.stop()
+
+
+def test_without_a_push_no_joint_moves_for_10_s(cell):
+    probe, _, drag = cell
+    start_q = probe.latest_q()
+    start = time.monotonic()
+    time.sleep(10.0)
+    samples = probe.joints_between(start, time.monotonic())
+    assert len(samples) > 1000, 'joint states stopped'
+    drift = np.max(np.abs(np.array([q for _, q, _ in samples]) - start_q), axis=0)
+    assert np.all(drift < 1e-3), f'joints moved {drift} rad without a push'
+    assert drag.running()
+
+
+def test_a_10_n_push_along_x_moves_the_tool_along_x_and_it_stays_where_it_was_left(cell):
+    probe, _, _ = cell
+    before = tool_position(probe.latest_q())
+    _, push_end = probe.push([10.0, 0.0, 0.0], 1.0)
+    time.sleep(2.0)
+    at_rest = push_end + 2.0
+    recent = probe.joints_between(at_rest - 0.1, at_rest + 0.05)
+    assert recent, 'no joint states after the push'
+    speeds = np.max(np.abs(np.array([v for _, _, v in recent])))
+    assert speeds < 0.05, f'joints still moving at {speeds:.3f} rad/s 2 s after the push'
+    left_at = tool_position(recent[-1][1])
+    displacement = left_at - before
+    distance = float(np.linalg.norm(displacement))
+    assert distance > 0.02, f'the tool moved only {distance * 100:.1f} cm'
+    assert displacement[0] / distance >= 0.9, f'the tool moved along {displacement / distance}'
+    time.sleep(3.0)
+    after = probe.joints_between(recent[-1][0], time.monotonic())
+    wander = max(np.linalg.norm(tool_position(q) - left_at) for _, q, _ in after[::10])
+    assert wander < 0.01, f'the tool moved {wander * 100:.1f} cm after coming to rest (spring-back)'
+
+
+GARBAGE = ([math.nan] * 6, [math.inf, 0, 0, 0, 0, 0], [0, 0, 0, 0, -math.inf, 0], [1e6, 0, 0, 0, 0, 0],
+           [0, -1e6, 0, 0, 0, 0], [0, 0, 1e6, 0, 0, 1e6], [-1e6, 1e6, -1e6, 0, 0, 0], [0, 0, 0, 1e6, -1e6, 0],
+           [1.0, math.nan, 2.0, 0, 0, 0])
+
+
+def garbage_wrenches():
+    """NaN, inf and +-1e6 N (N m) wrenches, round and round."""
+    k = 0
+    while True:
+        msg = WrenchStamped()
+        msg.header.frame_id = rm.TOOL_FRAME
+        (msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z,
+         msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z) = (float(v) for v in GARBAGE[k % len(GARBAGE)])
+        yield msg
+        k += 1
+
+
+def test_a_flood_of_nan_inf_and_huge_wrenches_never_makes_a_bad_command(cell):
+    probe, _, drag = cell
+    start = time.monotonic()
+    sent = 0
+    for msg in garbage_wrenches():
+        probe.sensor.publish(msg)
+        sent += 1
+        if sent % 4 == 0:
+            time.sleep(0.001)
+        if time.monotonic() - start > 5.0:
+            break
+    end = time.monotonic()
+    time.sleep(0.3)
+    assert sent > 5000, f'only {sent} garbage wrenches were sent'
+    commands = probe.commands_between(start, end + 0.2)
+    times = np.array([t for t, _ in commands])
+    q = np.array([c for _, c in commands])
+    assert drag.running()
+    assert len(commands) > 0.5 * CONTROL_RATE_HZ * 5.0, f'only {len(commands)} commands in 5 s'
+    assert np.max(np.diff(np.concatenate([[start], times, [end]]))) < 0.5, 'drag_teach stopped publishing'
+    assert np.all(np.isfinite(q))
+    assert np.all(q >= LIMITS.lower_rad) and np.all(q <= LIMITS.upper_rad)
+    implied_speed = np.abs(np.diff(q, axis=0)) * CONTROL_RATE_HZ   # per control period
+    assert np.all(implied_speed <= 1.1 * LIMITS.velocity_rad_s), implied_speed.max(axis=0)
+    # Still there afterwards, and it said why it ignored those wrenches.
+    count = len(probe.commands_between(0.0, time.monotonic()))
+    assert wait_until(lambda: len(probe.commands_between(0.0, time.monotonic())) > count + 50, 5.0)
+    assert 'wrench rejected' in drag.output()
