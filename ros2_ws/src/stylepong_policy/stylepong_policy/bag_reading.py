@@ -721,6 +721,8 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
             problems.append(f'{chosen_topic}: {int((~finite).sum())} messages with NaN or infinite positions: dropped')
             stamps, receive, position, velocity = stamps[finite], receive[finite], position[finite], velocity[finite]
     if not len(stamps):
+        if not any(c.yielded for c in collectors) and not problems:
+            raise BagError(f'{chosen_topic}: no messages recorded on it')
         lost = f' ({"; ".join(problems)})' if problems else ''
         raise BagError(f'{chosen_topic}: no usable JointState message{lost}')
     order = np.argsort(receive, kind='stable')   # several blocks, connections or files: one time line

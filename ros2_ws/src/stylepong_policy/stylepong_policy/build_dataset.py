@@ -155,8 +155,7 @@ def _speedups(text: str) -> tuple[int, ...]:
 def build_parser() -> argparse.ArgumentParser:
     defaults = ClipOptions()
     parser = argparse.ArgumentParser(
-        prog='build_dataset', description=__doc__.split('\n\n')[1],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        prog='build_dataset', description=__doc__.split('\n\n')[1], epilog=__doc__.split('\n\n')[2])
     parser.add_argument('bags', nargs='+', metavar='BAG_OR_DIR',
                         help='bag directories (or .mcap/.db3 files), or directories searched for bags')
     parser.add_argument('-o', '--output', required=True, type=pathlib.Path, help='dataset file to write (.npz)')
@@ -166,13 +165,13 @@ def build_parser() -> argparse.ArgumentParser:
                         help='comma-separated joint names in output order (default: the UR5 joints in URDF order)')
     parser.add_argument('--assume-order', action='store_true',
                         help='messages with an empty name[] list positions in --joints order')
-    parser.add_argument('--rate-hz', type=float, default=DEFAULT_RATE_HZ, help='clip frame rate')
+    parser.add_argument('--rate-hz', type=float, default=DEFAULT_RATE_HZ, help='clip frame rate (default %(default)s)')
     parser.add_argument('--speedups', type=_speedups, default=DEFAULT_SPEEDUPS,
-                        help="comma-separated speed-up factors for augmentation ('none': originals only)")
+                        help="comma-separated speed-up factors for augmentation, default 2,3,5 ('none': originals only)")
     parser.add_argument('--idle-speed-rad-s', type=float, default=defaults.idle_speed_rad_s,
-                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed (0: no trim)')
+                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed (default %(default)s; 0: no trim)')
     parser.add_argument('--max-gap-s', type=float, default=defaults.max_gap_s,
-                        help='a longer silence in a recording (or 5 message periods) splits it into clips')
+                        help='a longer silence in a recording (or 5 message periods) splits it into clips (default %(default)s)')
     parser.add_argument('--label', default=None,
                         help='label for bags with none in metadata custom_data or the directory name')
     parser.add_argument('--plot', type=pathlib.Path, default=None, metavar='PNG',

@@ -210,8 +210,12 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
             else:
                 result.notes.append(f'{where}velocities in the bag disagree with the positions (worst joint '
                                     f'rms {mismatch:.3g} rad/s): derived from the positions')
-        else:
+        elif np.isnan(seg_velocity).all():
             result.notes.append(f'{where}no velocities in the bag: derived from the positions')
+        else:
+            missing = int(np.isnan(seg_velocity).any(axis=1).sum())
+            result.notes.append(f'{where}{missing} of {len(seg_velocity)} messages lack velocities: '
+                                'all derived from the positions')
         frames = idle_trim(qd, options.idle_speed_rad_s)
         if frames is None:
             peak = float(np.abs(qd).max()) if qd.size else 0.0
