@@ -34,12 +34,21 @@ def gaussian_kl(mean_old: torch.Tensor, std_old: torch.Tensor, mean_new: torch.T
             + (std_old.square() + (mean_old - mean_new).square()) / (2.0 * std_new.square()) - 0.5).sum(-1)
 
 
+def make_adam(params, lr: float) -> torch.optim.Adam:
+    """Adam with the fused kernel where this torch build has one (fewer passes over the parameters)."""
+    params = list(params)
+    try:
+        return torch.optim.Adam(params, lr=lr, fused=True)
+    except (RuntimeError, TypeError, ValueError):
+        return torch.optim.Adam(params, lr=lr)
+
+
 class PPO:
     def __init__(self, actor_critic: ActorCritic, cfg: PPOConfig):
         self.actor_critic = actor_critic
         self.cfg = cfg
         self.learning_rate = float(cfg.learning_rate)
-        self.optimizer = torch.optim.Adam(actor_critic.parameters(), lr=self.learning_rate)
+        self.optimizer = make_adam(actor_critic.parameters(), self.learning_rate)
 
     def act(self, obs: torch.Tensor, critic_obs: torch.Tensor, update_normalizers: bool = True) -> PolicyStep:
         """Sample actions for a rollout step. Call under torch.inference_mode()."""

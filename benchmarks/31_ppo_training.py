@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""PPO training throughput end to end in the batched world, and the share of wall time spent in the world.
+
+Runs the real runner (rollouts with the policy under inference mode, GAE, PPO update, checkpoint and
+CSV log) on `stylepong_policy.task.make_env` with the shipped config's PPO settings, for the paper's
+network sizes and a smaller pair, and prints one Markdown section for BENCHMARKS.md.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+
+import torch
+
+NUM_ENVS = int(os.environ.get('BENCH_PPO_NUM_ENVS', 4096))
+WARMUP_ITERATIONS = 1
+MEASURED_ITERATIONS = 2
+NETWORKS = ([512, 256, 128], [256, 128, 64])
+
+
+def measure(hidden_dims: list[int]) -> dict[str, float]:
+    from stylepong_policy import task
+    from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+    from stylepong_policy.train import default_config_path
+    from stylepong_policy.rl.config import load_config
+
+    cfg = load_config(default_config_path())
+    cfg.policy.actor_hidden_dims = list(hidden_dims)
+    cfg.policy.critic_hidden_dims = list(hidden_dims)
+    cfg.task['num_envs'] = NUM_ENVS
+    cfg.runner.save_interval = 10 ** 6
+    seed_everything(1)
+    env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
+    with tempfile.TemporaryDirectory() as run_dir:
+        runner = OnPolicyRunner(env, cfg, run_dir, task.FAILURE_REASONS, tensorboard=False)
+        runner.learn(WARMUP_ITERATIONS, progress_bar=False)
+        totals = {'world_s': 0.0, 'policy_s': 0.0, 'learn_s': 0.0, 'iteration_time_s': 0.0}
+        for it in range(MEASURED_ITERATIONS):
+            stats = runner.learn(WARMUP_ITERATIONS + it + 1, progress_bar=False)
+            for key in totals:
+                totals[key] += stats[key]
+    samples = MEASURED_ITERATIONS * cfg.ppo.num_steps_per_env * NUM_ENVS
+    wall = totals['iteration_time_s']
+    return {'samples_per_s': samples / wall, 'iteration_s': wall / MEASURED_ITERATIONS,
+            'world_share': totals['world_s'] / wall, 'policy_share': totals['policy_s'] / wall,
+            'learn_share': totals['learn_s'] / wall, 'steps': cfg.ppo.num_steps_per_env,
+            'epochs': cfg.ppo.num_learning_epochs, 'minibatches': cfg.ppo.num_mini_batches}
+
+
+def main() -> int:
+    torch.set_num_threads(2)
+    load_before = os.getloadavg()[0]
+    rows = []
+    for dims in NETWORKS:
+        started = time.perf_counter()
+        rows.append((dims, measure(dims), time.perf_counter() - started))
+    first = rows[0][1]
+    print('## PPO training throughput (end to end)\n')
+    print(f'`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.task.make_env` with N = {NUM_ENVS} '
+          f'environments on the CPU (torch {torch.__version__}, 2 threads), the shipped `config/ppo.yaml` '
+          f'({first["steps"]} steps per env per iteration, {first["epochs"]} epochs x {first["minibatches"]} '
+          f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
+          f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '
+          f'Load average before the run: {load_before:.1f} (other work on the 2 cores slows every figure).\n')
+    print('| hidden sizes | samples/s | s/iteration | world share | policy inference (rollout) | PPO update |')
+    print('|---|---|---|---|---|---|')
+    for dims, r, _ in rows:
+        print(f'| {dims} | {r["samples_per_s"]:,.0f} | {r["iteration_s"]:.1f} | {100 * r["world_share"]:.0f} % | '
+              f'{100 * r["policy_share"]:.0f} % | {100 * r["learn_share"]:.0f} % |')
+    print('\nShares are of training wall time (the rest, a few %, is GAE, logging and checkpoints).')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
