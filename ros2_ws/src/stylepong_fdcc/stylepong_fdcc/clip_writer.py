@@ -8,7 +8,7 @@ Why the extra machinery around rosbags: rosbags keeps mcap messages in a 1 MiB i
 commits sqlite3 only at close, and writes metadata.yaml only at close, so a killed process loses
 everything not yet in a finished chunk (tens of seconds of joint states). ClipWriter hands what it
 holds to the operating system every `flush_period_s` (mcap: closes the pending chunk, so every chunk on
-disk is complete; sqlite3: commits). A SIGKILL therefore loses at most the last flush period; the bag
+disk is complete; sqlite3: commits, in WAL mode while recording). A SIGKILL therefore loses at most the last flush period; the bag
 then has no metadata.yaml (and an mcap no summary or footer) until `recover_bag` rebuilds them. Data
 handed to the OS survives the death of the process, not a power cut (no fsync per flush: it would cost
 milliseconds at every flush on a loaded disk).
@@ -19,6 +19,7 @@ removes it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
 import errno
@@ -26,6 +27,7 @@ import os
 import re
 import shutil
 import socket
+import sqlite3
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -159,8 +161,23 @@ class _FlushingMcapWriter(McapWriter):
 
 
 class _FlushingSqlite3Writer(Sqlite3Writer):
+    """Commits at every flush. While recording the database is in WAL mode with synchronous=NORMAL
+    (rosbag2's "resilient" preset): a commit appends to the log without waiting for the disk, a killed
+    process loses only the open transaction, a power cut no committed one. Closing checkpoints and
+    returns to a rollback journal, so a finished bag is one self-contained .db3 file."""
+
+    def __init__(self, path: Path, compression) -> None:
+        super().__init__(path, compression)
+        self.conn.execute('PRAGMA journal_mode=WAL')
+        self.conn.execute('PRAGMA synchronous=NORMAL')
+
     def flush(self) -> None:
         self.conn.commit()
+
+    def close(self, version: int, metadata: str) -> None:
+        super().close(version, metadata)
+        with contextlib.closing(sqlite3.connect(self.path)) as conn:
+            conn.execute('PRAGMA journal_mode=DELETE')
 
 
 class _FlushingWriter(Writer):

@@ -181,8 +181,8 @@ def _mcap_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
 
 
 def _sqlite_connect(path: Path) -> sqlite3.Connection:
-    # Read-write on purpose: the first read rolls a hot journal back, which is what makes a killed
-    # recording consistent again (committed transactions stay, the unfinished one goes).
+    # Read-write on purpose: opening resolves what a killed writer left (replays committed WAL frames,
+    # rolls a hot journal back), which makes the database consistent again.
     return sqlite3.connect(f'file:{path}?mode=rw', uri=True)
 
 
@@ -190,7 +190,8 @@ def _scan_sqlite3(path: Path) -> StorageScan:
     problems: list[str] = []
     side_files = [s for s in _SQLITE_SIDE_FILES if Path(f'{path}{s}').exists()]
     if side_files:
-        problems.append(f'an unfinished sqlite3 transaction ({", ".join(side_files)}) was rolled back')
+        problems.append(f'the sqlite3 database was not closed ({", ".join(side_files)} left): committed '
+                        'transactions kept, an unfinished one dropped')
     try:
         with contextlib.closing(_sqlite_connect(path)) as db:
             check = db.execute('PRAGMA quick_check').fetchone()[0]

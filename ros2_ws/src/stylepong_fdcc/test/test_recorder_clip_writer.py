@@ -63,7 +63,9 @@ def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, st
 
     assert summary.message_counts == {JOINT_STATES: 1500, WRENCH: 0}
     assert summary.duration_s == pytest.approx(1499 * 0.002)
-    assert not (clip.bag_dir / IN_PROGRESS_NAME).exists()
+    suffix = {'mcap': '.mcap', 'sqlite3': '.db3'}[storage]
+    assert sorted(p.name for p in clip.bag_dir.iterdir()) == ['forward_20250102_030405_000' + suffix,
+                                                               'metadata.yaml']
     content = read_with_rosbags(clip.bag_dir)
     assert content.custom_data == {'label': 'forward'}
     assert content.stamps[JOINT_STATES] == stamps
