@@ -234,3 +234,29 @@ def test_find_bags_searches_parents_and_reports_what_holds_none(tmp_path):
     assert {p.name: r for p, r in search.rejected}.keys() == {'empty', 'nope', 'notes.txt'}
     shutil.rmtree(tmp_path / 'a')
     assert [b.name for b in find_bags([tmp_path]).bags] == ['rightward_3']
+
+
+def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_path):
+    """A bag whose JointState differs (float32 velocities): the fast reader must not guess its layout."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2.enums import StoragePlugin
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    from tests.joint_state_bags import JOINT_STATE_MSGDEF
+    msgdef = JOINT_STATE_MSGDEF.replace('float64[] velocity', 'float32[] velocity')
+    custom = get_typestore(Stores.EMPTY)
+    custom.register(get_types_from_msg(msgdef, 'sensor_msgs/msg/JointState'))
+    types = custom.types
+    with Writer(tmp_path / 'bag', version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', msgdef=msgdef,
+                                           rihs01=custom.hash_rihs01('sensor_msgs/msg/JointState'))
+        for i in range(10):
+            message = types['sensor_msgs/msg/JointState'](
+                header=types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](sec=1000 + i, nanosec=0),
+                                                    frame_id=''),
+                name=list(URDF_JOINTS), position=np.full(6, 0.5 * i), velocity=np.full(6, i, dtype=np.float32),
+                effort=np.zeros(0))
+            writer.write(connection, (1000 + i) * 10**9, bytes(custom.serialize_cdr(message, 'sensor_msgs/msg/JointState')))
+    recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
+    assert not recording.problems and any('differs from the standard' in n for n in recording.notes)
+    assert np.array_equal(recording.position_rad[:, 2], 0.5 * np.arange(10))
+    assert np.array_equal(recording.velocity_rad_s[:, 2], np.arange(10.0))
