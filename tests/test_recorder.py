@@ -14,9 +14,11 @@ from pathlib import Path
 import pytest
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSPresetProfiles, QoSProfile, ReliabilityPolicy
+from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from stylepong_msgs.msg import BallState
 from stylepong_msgs.srv import StartClip
 
 from tests.bag_check import JOINT_NAMES, JOINT_STATES, read_with_mcap_ros2, read_with_rosbags, storage_file
@@ -247,3 +249,54 @@ def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(h
     finally:
         for process in (recorder, unwritable, full):
             process.stop()
+
+
+def test_best_effort_publishers_and_extra_topics_of_project_types_are_recorded(harness, tmp_path):
+    """A sensor-QoS /joint_states (a reliable reader would never match it) and a /ball/state of the
+    project's own message type, listed in `topics` and published only after the recorder started."""
+    recorder = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-p', 'topics:=[/ball/state]',
+                           params={'output_dir': str(tmp_path / 'bags')}).start()
+    node = harness.node
+    try:
+        harness.wait_for_subscriber(recorder)
+        joints = node.create_publisher(JointState, JOINT_STATES, QoSPresetProfiles.SENSOR_DATA.value)
+        balls = node.create_publisher(BallState, '/ball/state', 10)
+
+        def recorder_adapted():
+            infos = node.get_subscriptions_info_by_topic(JOINT_STATES)
+            return (node.count_subscribers('/ball/state') > 0 and len(infos) == 1
+                    and infos[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT)
+        assert wait_until(recorder_adapted, 30.0), recorder.output()
+        time.sleep(0.3)
+        response = harness.start('forward')
+        assert response.success, response.message
+        published = []
+        for i in range(1, 301):                       # 1.5 s: joint states at 200 Hz, balls at 100 Hz
+            msg = JointState(name=list(JOINT_NAMES), position=[i * 1e-3] * 6)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 7, i
+            joints.publish(msg)
+            published.append(i)
+            if i % 2 == 0:
+                ball = BallState()
+                ball.header.stamp.sec, ball.header.stamp.nanosec = 7, i
+                ball.header.frame_id = 'world'
+                ball.position.x, ball.velocity.z = i * 0.01, -1.0
+                balls.publish(ball)
+            time.sleep(0.005)
+        time.sleep(0.2)
+        stopped = harness.stop()
+        assert stopped.success, stopped.message
+    finally:
+        recorder.stop()
+
+    bag_dir = Path(response.bag_path)
+    for content in (read_with_rosbags(bag_dir), read_with_mcap_ros2(storage_file(bag_dir, '.mcap'))):
+        joint_stamps = [s - 7_000_000_000 for s in content.stamps[JOINT_STATES]]
+        assert len(set(joint_stamps) & set(published)) >= 0.9 * len(published)
+        assert [s - 7_000_000_000 for s in content.stamps['/ball/state']] == list(range(2, 301, 2))
+    with AnyReader([bag_dir]) as reader:
+        ball_connection = next(c for c in reader.connections if c.topic == '/ball/state')
+        assert ball_connection.msgtype == 'stylepong_msgs/msg/BallState'
+        first = reader.deserialize(next(reader.messages([ball_connection]))[2], ball_connection.msgtype)
+        assert first.header.frame_id == 'world' and first.position.x == pytest.approx(0.02)
+        assert first.velocity.z == -1.0

@@ -8,10 +8,10 @@ Why the extra machinery around rosbags: rosbags keeps mcap messages in a 1 MiB i
 commits sqlite3 only at close, and writes metadata.yaml only at close, so a killed process loses
 everything not yet in a finished chunk (tens of seconds of joint states). ClipWriter hands what it
 holds to the operating system every `flush_period_s` (mcap: closes the pending chunk, so every chunk on
-disk is complete; sqlite3: commits, in WAL mode while recording). A SIGKILL therefore loses at most the last flush period; the bag
-then has no metadata.yaml (and an mcap no summary or footer) until `recover_bag` rebuilds them. Data
-handed to the OS survives the death of the process, not a power cut (no fsync per flush: it would cost
-milliseconds at every flush on a loaded disk).
+disk is complete; sqlite3: commits, in WAL mode while recording). A SIGKILL therefore loses at most the
+last flush period; the bag then has no metadata.yaml (and an mcap no summary or footer) until
+`recover_bag` rebuilds them. Data handed to the OS survives the death of the process; an mcap tail may
+not survive a power cut (no fsync per flush: it would cost milliseconds at every flush on a loaded disk).
 
 While a clip is open its directory also holds `recording_in_progress.yaml` (label, storage, start
 time): it names a crashed recording for what it is and keeps its label for `recover_bag`. A clean close
@@ -239,14 +239,14 @@ class ClipWriter:
             self._state = 'failed'
             raise ClipError(f'cannot create the bag {self.bag_dir}: {err}') from err
         except OSError as err:
-            self._abandon_new_bag()
+            self.discard()
             raise ClipError(f'cannot create the bag {self.bag_dir}: {describe_os_error(err)}') from err
         self._state = 'open'
         try:
             self._write_in_progress_note()
             self._writer.storage.flush()
         except OSError as err:
-            self._abandon_new_bag()
+            self.discard()
             raise ClipError(f'cannot create the bag {self.bag_dir}: {describe_os_error(err)}') from err
         self._next_flush_s = self._monotonic_s() + self.flush_period_s
 
@@ -342,8 +342,8 @@ class ClipWriter:
         }
         (self.bag_dir / IN_PROGRESS_NAME).write_text(yaml.safe_dump(note, sort_keys=False))
 
-    def _abandon_new_bag(self) -> None:
-        """Remove what open() created, so a failed start leaves no empty bag behind."""
+    def discard(self) -> None:
+        """Remove the bag of a clip that failed to start, so it leaves no empty bag behind."""
         self.abort()
         self._state = 'failed'
         if self.bag_dir.is_dir():
@@ -365,6 +365,8 @@ def open_clip(output_dir: Path, label: str, storage: str, topics: Sequence[Topic
         output_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ClipError(f'output_dir {output_dir} cannot be created: {describe_os_error(err)}') from err
+    if not os.access(output_dir, os.W_OK | os.X_OK):
+        raise ClipError(f'output_dir {output_dir} is not writable')
     free_mb = free_space_mb(output_dir)
     if free_mb < min_free_space_mb:
         raise ClipError(f'disk full: only {free_mb:.1f} MB free in {output_dir} '
@@ -377,6 +379,6 @@ def open_clip(output_dir: Path, label: str, storage: str, topics: Sequence[Topic
             clip.add_topic(spec)
         clip.flush()
     except ClipError:
-        clip._abandon_new_bag()
+        clip.discard()
         raise
     return clip

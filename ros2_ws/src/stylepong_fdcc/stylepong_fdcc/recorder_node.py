@@ -6,8 +6,11 @@ plus the `topics` parameter (types found in the graph; a topic not published yet
 appears). Each message is stored as received (serialized, header stamps untouched) with its receive
 time (the middleware's reception timestamp, system clock) as the bag's log time.
 
-The subscriptions stay up while the node runs, so a clip starts with the very next message; between
-clips messages are dropped. Writing and crash safety are in clip_writer; this module is wiring.
+The subscriptions stay up while the node runs, so a clip starts with the very next message received;
+messages received between clips (or before a clip started and only taken from the queue after) are
+dropped. Subscriptions are reliable with a deep queue (`queue_depth`), best effort only for a topic
+whose publishers offer nothing better. Writing and crash safety are in clip_writer; this module is
+wiring.
 """
 from __future__ import annotations
 
@@ -94,22 +97,26 @@ class RecorderNode(Node):
         extra = self.declare_parameter('topics', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
             description='topics recorded besides /joint_states (types found in the graph)',
             read_only=True)).value or []
-        self.topics = list(dict.fromkeys([JOINT_STATES_TOPIC, *extra]))
+        # Resolved (namespace, remapping) names: what the graph and the bag call them.
+        self.joint_states_topic = self.resolve_topic_name(JOINT_STATES_TOPIC)
+        self.topics = list(dict.fromkeys([self.joint_states_topic, *map(self.resolve_topic_name, extra)]))
 
         self._definitions = MessageDefinitions()
         self._recorded: dict[str, tuple[object, str, ReliabilityPolicy]] = {}
         self._clip: ClipWriter | None = None
         self._clip_label = ''
+        self._clip_start_ns = 0
         self._failure: str | None = None
 
-        self._subscribe(JOINT_STATES_TOPIC, JOINT_STATES_TYPE)
+        self._subscribe(self.joint_states_topic, JOINT_STATES_TYPE)
         self._discover()
         self.create_timer(1.0, self._discover)
+        # Flushes also happen on writes; the timer covers a clip whose topics fall silent.
         self.create_timer(self.flush_period_s / 2.0, self._flush_if_due)
-        self.create_service(StartClip, '~/start', self._on_start)
-        self.create_service(Trigger, '~/stop', self._on_stop)
+        start = self.create_service(StartClip, '~/start', self._on_start)
+        stop = self.create_service(Trigger, '~/stop', self._on_stop)
         self.get_logger().info(
-            f'ready: /recorder/start and /recorder/stop record {", ".join(self.topics)} into '
+            f'ready: {start.srv_name} and {stop.srv_name} record {", ".join(self.topics)} into '
             f'{self.output_dir} ({self.storage}, flushed every {self.flush_period_s:g} s)')
 
     # --- parameters ---------------------------------------------------------------------------------
@@ -185,6 +192,8 @@ class RecorderNode(Node):
             return
         # The middleware's reception time is free of executor delays; 0 where an rmw does not fill it.
         log_time_ns = info.get('received_timestamp') or time.time_ns()
+        if log_time_ns < self._clip_start_ns:
+            return      # received before the clip started, taken from the queue only now
         try:
             if not clip.has_topic(topic):
                 clip.add_topic(self._topic_spec(topic))
@@ -213,6 +222,7 @@ class RecorderNode(Node):
             return response
         try:
             specs = [self._topic_spec(topic) for topic in self._recorded]
+            self._clip_start_ns = time.time_ns()
             self._clip = open_clip(self.output_dir, request.label, self.storage, specs,
                                    self.flush_period_s, self.min_free_space_mb)
         except ClipError as err:
