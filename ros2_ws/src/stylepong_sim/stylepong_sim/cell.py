@@ -4,9 +4,9 @@ API (all units SI; joint vectors have 6 entries in URDF order, stylepong_descrip
     cell = Cell()                               robot at home and at rest, no ball, time 0
     cell.reset()                                robot to home at rest, targets home, ball removed (its rally
                                                 ends 'aborted'), hand released; time keeps running
-    cell.set_joint_targets(q_rad)               position targets for the servo; ValueError if the vector has
-                                                the wrong length, NaN/inf or leaves the URDF limits (then the
-                                                previous target stays)
+    cell.set_joint_targets(q_rad)               position targets for the servo; InputError (a ValueError) if
+                                                the vector has the wrong length, NaN/inf or leaves the URDF
+                                                limits (then the previous target stays)
     cell.set_hand_wrench(force_n, torque_nm, frame='world'|'tool0', duration_s=inf)
                                                 a hand on the tool: force and torque act at tool0's origin,
                                                 components in `frame` axes (tool0: rotating with the tool);
@@ -66,6 +66,14 @@ FRAME_TOOL = rm.TOOL_FRAME
 _GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
+
+
+class InputError(ValueError):
+    """A rejected command or input; `kind` names the problem (for throttling warnings per kind)."""
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -176,11 +184,11 @@ class Cell:
         force = np.asarray(force_n, dtype=float).reshape(3)
         torque = np.asarray(torque_nm, dtype=float).reshape(3)
         if not (np.isfinite(force).all() and np.isfinite(torque).all()):
-            raise ValueError('hand wrench must be finite')
+            raise InputError('not_finite', f'hand wrench must be finite, got {force.tolist()} {torque.tolist()}')
         if frame not in (FRAME_WORLD, FRAME_TOOL):
-            raise ValueError(f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
+            raise InputError('frame', f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
         if not duration_s > 0.0:
-            raise ValueError('hand wrench duration must be positive')
+            raise InputError('duration', 'hand wrench duration must be positive')
         self._hand = _HandWrench(force, torque, frame == FRAME_TOOL, self.time_s + duration_s)
 
     def clear_hand_wrench(self) -> None:
@@ -191,11 +199,11 @@ class Cell:
         p = np.asarray(position_m, dtype=float).reshape(3)
         v = np.asarray(velocity_m_s, dtype=float).reshape(3)
         if not (np.isfinite(p).all() and np.isfinite(v).all()):
-            raise ValueError('ball position and velocity must be finite')
+            raise InputError('not_finite', 'ball position and velocity must be finite')
         if np.linalg.norm(v) > MAX_LAUNCH_SPEED_M_S:
-            raise ValueError(f'ball speed {np.linalg.norm(v):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
+            raise InputError('speed', f'ball speed {np.linalg.norm(v):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
         if rf.ball_is_dead(p):
-            raise ValueError(f'ball position {p.tolist()} is outside the cell (or below the floor)')
+            raise InputError('position', f'ball position {p.tolist()} is outside the cell (or below the floor)')
         self.remove_ball()
         self.ball_id = self._next_ball_id
         self._next_ball_id += 1
@@ -287,13 +295,13 @@ class Cell:
     def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
         q = np.asarray(q_rad, dtype=float)
         if q.shape != (6,):
-            raise ValueError(f'{what} needs 6 joint positions, got shape {q.shape}')
+            raise InputError('length', f'{what} needs 6 joint positions, got shape {q.shape}')
         if not np.isfinite(q).all():
-            raise ValueError(f'{what} contains NaN or inf: {q.tolist()}')
+            raise InputError('not_finite', f'{what} contains NaN or inf: {q.tolist()}')
         outside = (q < self._lower_rad) | (q > self._upper_rad)
         if outside.any():
             names = [rm.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
-            raise ValueError(f'{what} outside the joint limits at {names}: {q.tolist()}')
+            raise InputError('limits', f'{what} outside the joint limits at {names}: {q.tolist()}')
         return q.copy()
 
     def _reset_robot(self) -> None:

@@ -15,12 +15,17 @@ conaffinity 1) but never each other (the URDF's collision meshes of neighbouring
 from __future__ import annotations
 
 import math
+import os
 
-import mujoco
-import numpy as np
+# MuJoCo picks its OpenGL back end when first imported; without a display only EGL (or OSMesa) renders.
+if 'MUJOCO_GL' not in os.environ and not os.environ.get('DISPLAY'):
+    os.environ['MUJOCO_GL'] = 'egl'
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from stylepong_description import robot_model as rm  # noqa: E402
+from stylepong_sim import world_spec as ws  # noqa: E402
 
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2
 ENV_CONTYPE, ENV_CONAFFINITY = 2, 1

@@ -1,0 +1,82 @@
+"""config/ur5_sim.yaml lists every ur5_sim parameter with the node's default; realistic_sensing.yaml is valid."""
+import math
+import pathlib
+
+import pytest
+import rclpy
+import yaml
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+from stylepong_sim import world_spec as ws
+from stylepong_sim.ur5_sim_node import ConfigError, Ur5SimNode
+
+CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config'
+
+
+def _yaml_parameters(name: str) -> dict:
+    return yaml.safe_load((CONFIG / name).read_text())['ur5_sim']['ros__parameters']
+
+
+def _node(*ros_args: str) -> tuple[Ur5SimNode, rclpy.Context]:
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', *ros_args], context=context)
+    return Ur5SimNode(context=context), context
+
+
+def _close(node, context) -> None:
+    node.close()
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def test_the_yaml_holds_every_parameter_with_its_default():
+    node, context = _node()
+    try:
+        declared = {name: p.value for name, p in node._parameters.items() if name not in ('use_sim_time', 'start_type_description_service')}
+    finally:
+        _close(node, context)
+    in_yaml = _yaml_parameters('ur5_sim.yaml')
+    assert set(in_yaml) == set(declared)
+    for name, value in in_yaml.items():
+        default = declared[name]
+        if isinstance(default, (list, tuple)) or hasattr(default, 'tolist'):
+            assert list(value) == pytest.approx(list(default)), name
+        else:
+            assert value == default, name
+    assert in_yaml['home_joint_positions_rad'] == pytest.approx(list(ws.HOME_JOINT_POSITIONS_RAD))
+    assert in_yaml['real_time_factor'] == 1.0
+
+
+def test_realistic_sensing_is_valid_and_not_perfect():
+    realistic = _yaml_parameters('realistic_sensing.yaml')
+    node, context = _node('--params-file', str(CONFIG / 'realistic_sensing.yaml'))
+    try:
+        for name, value in realistic.items():
+            assert node.get_parameter(name).value == pytest.approx(value), name
+    finally:
+        _close(node, context)
+    for name in ('ball_position_noise_std_m', 'ball_latency_s', 'ball_dropout_probability', 'ft_force_noise_std_n'):
+        assert realistic[name] > 0.0
+    assert any(v != 0.0 for v in realistic['ft_force_bias_n'])
+
+
+@pytest.mark.parametrize('args', [('-p', 'real_time_factor:=-1.0'), ('-p', 'ball_latency_s:=-0.5'),
+                                  ('-p', 'home_joint_positions_rad:=[0.0,0.0]'),
+                                  ('-p', 'ft_force_bias_n:=[1.0]')])
+def test_bad_parameters_stop_the_node_with_a_clear_error(args):
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', *args], context=context)
+    try:
+        with pytest.raises((ConfigError, InvalidParameterValueException, InvalidParameterTypeException)) as error:
+            Ur5SimNode(context=context)
+        assert str(error.value)
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_an_integer_real_time_factor_is_accepted():
+    node, context = _node('-p', 'real_time_factor:=0')
+    try:
+        assert node._real_time_factor == 0.0 and not math.isnan(node._real_time_factor)
+    finally:
+        _close(node, context)
