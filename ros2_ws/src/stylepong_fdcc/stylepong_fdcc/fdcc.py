@@ -59,7 +59,8 @@ Safety layer (what FZI cartesian_controllers' users ask for, notes/anchors.md)
   acceleration limit before reaching them), velocities within `velocity_limit_scale` x the URDF's and
   accelerations within `acceleration_limit_rad_s2`; velocity and acceleration are limited by scaling
   the whole joint vector, so the tool keeps its direction. A command never moves a joint more than
-  its velocity limit times the nominal period from the previous one, even after a late tick.
+  its velocity limit times the nominal period from the previous one, even after a late tick (the
+  command then catches up with the simulated arm over the next cycles).
 - Watchdog: no valid wrench or joint state for `watchdog_timeout_s` (50 ms): the simulated arm
   decelerates at the acceleration limit along its path and holds; it resumes when both are fresh.
 - The simulated q, qdot are synchronised from the measured joints only when control is (re-)enabled,
@@ -309,16 +310,12 @@ def uniform_scale(vector: np.ndarray, bound: np.ndarray) -> float:
     return float(np.min(bound[over] / magnitude[over]))
 
 
-def limit_motion(q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s: float, step_period_s: float,
+def limit_motion(q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s: float,
                  limits: JointMotionLimits) -> tuple[np.ndarray, np.ndarray]:
-    """Next (q, qdot) from the wanted velocity, within acceleration, velocity and position limits.
-
-    `step_period_s` bounds how far one command may move (velocity limit x this time), so that a late
-    tick integrated over a longer dt still never implies more than the velocity limit per nominal period.
-    """
+    """Next (q, qdot) from the wanted velocity, within acceleration, velocity and position limits."""
     delta = qdot_wanted - qdot
     new_qdot = qdot + uniform_scale(delta, limits.acceleration_rad_s2 * dt_s) * delta
-    new_qdot = new_qdot * uniform_scale(new_qdot, limits.velocity_rad_s * min(1.0, step_period_s / dt_s))
+    new_qdot = new_qdot * uniform_scale(new_qdot, limits.velocity_rad_s)
     # Brake towards a position limit so that the acceleration limit can still stop the joint there.
     room = np.where(new_qdot > 0, limits.upper_rad - q, q - limits.lower_rad)
     braking_speed = np.sqrt(2.0 * limits.acceleration_rad_s2 * np.clip(room, 0.0, None))
@@ -355,6 +352,7 @@ class FdccSolver:
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)
         self.q = np.zeros(self.model.nq)
+        self.command = np.zeros(self.model.nq)
         self.qdot = np.zeros(self.model.nv)
         self.target_position_m = np.zeros(3)
         self.target_rotation = np.eye(3)
@@ -365,6 +363,7 @@ class FdccSolver:
         if q.shape != (self.model.nq,) or not np.all(np.isfinite(q)):
             raise ValueError(f'joint positions must be {self.model.nq} finite numbers')
         self.q = np.clip(q, self.limits.lower_rad, self.limits.upper_rad)
+        self.command = self.q.copy()
         self.qdot = np.zeros(self.model.nv)
         pose = self.pose(self.q)
         self.target_position_m, self.target_rotation = pose.translation.copy(), pose.rotation.copy()
@@ -415,16 +414,27 @@ class FdccSolver:
         qdot_wanted = np.linalg.solve(lhs, rhs)
         if not np.all(np.isfinite(qdot_wanted)):
             qdot_wanted = np.zeros_like(qdot)  # a numerical failure must not move the arm
-        self.q, self.qdot = limit_motion(q, qdot, qdot_wanted, dt, self.config.nominal_period_s, self.limits)
-        return self.q.copy()
+        self.q, self.qdot = limit_motion(q, qdot, qdot_wanted, dt, self.limits)
+        return self._follow()
 
     def brake(self, dt_s: float) -> np.ndarray:
         """Decelerate along the current path at the acceleration limits (watchdog); returns the command."""
         dt = min(float(dt_s), self.config.max_period_s)
         if dt > 0:
             qdot = decelerate(self.qdot, dt, self.limits)
-            self.q, self.qdot = limit_motion(self.q, self.qdot, qdot, dt, self.config.nominal_period_s, self.limits)
-        return self.q.copy()
+            self.q, self.qdot = limit_motion(self.q, self.qdot, qdot, dt, self.limits)
+        return self._follow()
+
+    def _follow(self) -> np.ndarray:
+        """The command: the simulated arm, approached by at most velocity limit x nominal period per cycle.
+
+        Integration uses the real period, so after a late tick the simulated arm may be further on than
+        one nominal period at full speed allows; the command then catches up over the next cycles, and
+        consecutive commands never imply more than the velocity limit at the nominal rate.
+        """
+        step = self.limits.velocity_rad_s * self.config.nominal_period_s
+        self.command = self.command + np.clip(self.q - self.command, -step, step)
+        return self.command.copy()
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -115,7 +115,7 @@ def test_motion_limits_hold_whatever_velocity_is_wanted():
     q, qdot, dt = HOME.copy(), np.zeros(6), 0.002
     for _ in range(3000):
         wanted = rng.normal(0.0, 50.0, 6)
-        new_q, new_qdot = limit_motion(q, qdot, wanted, dt, dt, limits)
+        new_q, new_qdot = limit_motion(q, qdot, wanted, dt, limits)
         assert np.all(new_q >= limits.lower_rad) and np.all(new_q <= limits.upper_rad)
         assert np.all(np.abs(new_qdot) <= limits.velocity_rad_s + 1e-12)
         assert np.all(np.abs(new_q - q) <= limits.velocity_rad_s * dt + 1e-12)
@@ -123,17 +123,32 @@ def test_motion_limits_hold_whatever_velocity_is_wanted():
         q, qdot = new_q, new_qdot
 
 
-def test_a_late_tick_never_steps_further_than_the_velocity_limit_allows_per_nominal_period():
-    limits = JointMotionLimits.from_config(FdccConfig())
-    qdot = limits.velocity_rad_s.copy()
-    new_q, _ = limit_motion(HOME, qdot, qdot * 10, 0.01, 0.002, limits)
-    assert np.all(np.abs(new_q - HOME) <= limits.velocity_rad_s * 0.002 + 1e-12)
+def test_after_late_ticks_commands_step_no_further_than_the_velocity_limit_per_nominal_period_and_catch_up():
+    config = FdccConfig(acceleration_limit_rad_s2=(1e3,) * 6)
+    solver = FdccSolver(config)
+    solver.reset(HOME)
+    step_limit = solver.limits.velocity_rad_s * config.nominal_period_s
+    wrench = np.array([40.0, 0, 0, 0, 0, 0])
+    commands = [solver.step(wrench, 0.002) for _ in range(50)]
+    commands += [solver.step(wrench, 0.008) for _ in range(20)]      # an overloaded machine: 125 Hz
+    commands += [solver.step(np.zeros(6), 0.002) for _ in range(500)]
+    steps = np.abs(np.diff(np.array(commands), axis=0))
+    assert np.all(steps <= step_limit + 1e-12)
+    np.testing.assert_allclose(commands[-1], solver.q)             # caught up once at rest
+    # and the late ticks cost no displacement: the same push at a steady rate ends at the same place
+    steady = FdccSolver(config)
+    steady.reset(HOME)
+    for _ in range(50 + 80):
+        steady.step(wrench, 0.002)
+    for _ in range(500):
+        steady.step(np.zeros(6), 0.002)
+    assert np.linalg.norm(steady.pose().translation - solver.pose(commands[-1]).translation) < 0.01
 
 
 def test_velocity_and_acceleration_limits_keep_the_direction_of_motion():
     limits = JointMotionLimits.from_config(FdccConfig())
     wanted = np.array([10.0, -5.0, 2.0, 1.0, 0.0, 0.5])
-    _, qdot = limit_motion(HOME, np.zeros(6), wanted, 0.002, 0.002, limits)
+    _, qdot = limit_motion(HOME, np.zeros(6), wanted, 0.002, limits)
     assert np.dot(qdot, wanted) / (np.linalg.norm(qdot) * np.linalg.norm(wanted)) == pytest.approx(1.0)
 
 

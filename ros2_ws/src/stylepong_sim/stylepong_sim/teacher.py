@@ -72,7 +72,7 @@ class TeacherConfig:
     settle_angle_rad: float = 0.05
     settle_speed_m_s: float = 0.01
     hand_stiffness_n_per_m: float = 400.0
-    hand_damping_ns_per_m: float = 30.0
+    hand_damping_ns_per_m: float = 10.0   # well below the arm's damping: with the loop's delays a gain near 1 rings
     hand_rot_stiffness_nm_per_rad: float = 15.0
     hand_rot_damping_nms_per_rad: float = 1.0
     # How heavy the person expects the arm to feel (they push ahead of the motion): the arm's damping.
