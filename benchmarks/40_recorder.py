@@ -4,7 +4,6 @@ import os
 import random
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import threading
@@ -196,7 +195,8 @@ def main():
           'a Python thread in the benchmark process; clips started and stopped through the services. '
           'Kept = share of the messages published between the start answer and the stop call found in '
           'the bag (read back with rosbags AnyReader); CPU = recorder process CPU time / clip time.\n')
-    print('| storage | clip | joint states published | kept /joint_states | kept wrench | recorder CPU (one core) | bag MB per minute |')
+    print('| storage | clip | joint states published | kept /joint_states | kept wrench '
+          '| recorder CPU (one core) | bag MB per minute |')
     print('|---|---|---|---|---|---|---|')
     for storage, kept_js, kept_w, n, cpu, mb_min in clips:
         print(f'| {storage} | 10 s | {n} | {kept_js:.4f} | {kept_w:.4f} | {cpu * 100:.0f} % | {mb_min:.1f} |')

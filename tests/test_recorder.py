@@ -5,6 +5,7 @@ joint_state_broadcaster and ur5_sim offer), each message named by a unique heade
 when it published which; then it reads the bag back with rosbags and with the mcap + mcap-ros2-support
 readers and compares stamps.
 """
+import shutil
 import signal
 import subprocess
 import threading
@@ -300,3 +301,45 @@ def test_best_effort_publishers_and_extra_topics_of_project_types_are_recorded(h
         first = reader.deserialize(next(reader.messages([ball_connection]))[2], ball_connection.msgtype)
         assert first.header.frame_id == 'world' and first.position.x == pytest.approx(0.02)
         assert first.velocity.z == -1.0
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A 256 KiB file system (tmpfs), where a 500 Hz clip fills the disk within about a second."""
+    mount_point = tmp_path / 'tiny_disk'
+    mount_point.mkdir()
+    mounted = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=256k', 'tmpfs', str(mount_point)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip(f'cannot mount a small tmpfs here (needs root): {mounted.stderr.strip()}')
+    yield mount_point
+    subprocess.run(['umount', '-l', str(mount_point)], check=False)
+
+
+def test_a_full_disk_stops_the_clip_with_the_reason_and_the_node_keeps_running(harness, tiny_disk):
+    recorder = start_recorder(tiny_disk / 'bags', min_free_space_mb=0.0)
+    try:
+        harness.wait_for_subscriber(recorder)
+        harness.publish_joint_states()
+        time.sleep(0.3)
+        response = harness.start('forward')
+        assert response.success, response.message
+        bag_dir = Path(response.bag_path)
+        # The clip ends itself when a write fails; /recorder/stop then reports why.
+        assert wait_until(lambda: 'disk full' in recorder.output() or not recorder.running(), 60.0)
+        stopped = harness.stop()
+        assert not stopped.success and 'disk full' in stopped.message, stopped.message
+        assert 'recover_bag' in stopped.message
+        # A new clip on the full disk is refused with the reason; the node is still there.
+        again = harness.start('forward')
+        assert not again.success and 'disk full' in again.message, again.message
+        assert recorder.running(), recorder.output()
+    finally:
+        recorder.stop()
+    # What reached the disk is kept; recovering needs room for a copy, so move the bag off the tiny disk.
+    rescued = shutil.copytree(bag_dir, tiny_disk.parent / bag_dir.name)
+    result = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(rescued)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    content = read_with_rosbags(rescued)
+    assert content.custom_data == {'label': 'forward'} and len(content.stamps[JOINT_STATES]) > 100

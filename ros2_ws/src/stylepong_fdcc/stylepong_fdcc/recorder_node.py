@@ -113,10 +113,11 @@ class RecorderNode(Node):
         self.create_timer(1.0, self._discover)
         # Flushes also happen on writes; the timer covers a clip whose topics fall silent.
         self.create_timer(self.flush_period_s / 2.0, self._flush_if_due)
-        start = self.create_service(StartClip, '~/start', self._on_start)
-        stop = self.create_service(Trigger, '~/stop', self._on_stop)
+        self.create_service(StartClip, '~/start', self._on_start)
+        self.create_service(Trigger, '~/stop', self._on_stop)
+        name = self.get_fully_qualified_name()
         self.get_logger().info(
-            f'ready: {start.srv_name} and {stop.srv_name} record {", ".join(self.topics)} into '
+            f'ready: {name}/start and {name}/stop record {", ".join(self.topics)} into '
             f'{self.output_dir} ({self.storage}, flushed every {self.flush_period_s:g} s)')
 
     # --- parameters ---------------------------------------------------------------------------------

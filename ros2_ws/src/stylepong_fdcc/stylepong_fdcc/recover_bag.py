@@ -27,10 +27,11 @@ from pathlib import Path
 import yaml
 from mcap.exceptions import McapError
 from mcap.records import Channel as McapChannel
-from mcap.records import Chunk, DataEnd, Footer, Header, Message, Schema
+from mcap.records import Chunk, Footer, Header, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from rosbags.interfaces import Qos
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore, get_types_from_idl, get_types_from_msg
 
@@ -117,13 +118,13 @@ def _mcap_records(path: Path, problems: list[str], state: dict) -> Iterator[obje
             except (McapError, struct.error, ValueError, UnicodeDecodeError, EOFError) as err:
                 if not seen_header:
                     raise RecoveryError(f'{path} is not an MCAP file ({err})') from err
-                if not state.get('footer'):
-                    problems.append(f'the mcap file is cut after byte {good_end} of {size} '
-                                    f'(no summary or footer; {size - good_end} bytes of an unfinished '
-                                    'record dropped)' if size > good_end else
-                                    'the mcap file has no summary or footer')
-                else:
+                if state.get('footer'):
                     problems.append('the mcap footer is damaged')
+                elif size > good_end:
+                    problems.append(f'the mcap file has no summary or footer and ends in an unfinished '
+                                    f'record ({size - good_end} bytes after byte {good_end} dropped)')
+                else:
+                    problems.append('the mcap file has no summary or footer')
                 return
             good_end = stream.tell()
             if isinstance(record, Header):
@@ -132,8 +133,6 @@ def _mcap_records(path: Path, problems: list[str], state: dict) -> Iterator[obje
                     raise RecoveryError(f'{path} is an MCAP file of profile {record.profile!r}, not ros2')
             elif isinstance(record, Footer):
                 state['footer'] = True
-            elif isinstance(record, DataEnd):
-                state['data_end'] = True
             elif isinstance(record, Chunk):
                 if not record.compression and len(record.data) != record.uncompressed_size:
                     problems.append(f'a damaged chunk ending at byte {good_end} was skipped')
@@ -323,13 +322,8 @@ def _complete_definitions(scan: StorageScan) -> None:
         conn.digest = _definition_hash(conn)
 
 
-def _rewrite(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
-    """Write everything scanned into a fresh bag next to the old one, then swap it in."""
-    work = bag_dir / _WORK_DIR_NAME
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir()
-    # rosbags names its storage file after the bag directory: name it like the file it replaces.
-    new_bag = work / scan.path.stem
+def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
+    """Everything scanned, written as a fresh bag by rosbags (which also writes its metadata.yaml)."""
     plugin = StoragePlugin.MCAP if scan.storage == 'mcap' else StoragePlugin.SQLITE3
     writer = Writer(new_bag, version=ROSBAG2_VERSION, storage_plugin=plugin)
     for key, value in custom_data.items():
@@ -344,9 +338,21 @@ def _rewrite(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str]) -> N
         for cid, log_time_ns, data in messages:
             if cid in connections:
                 writer.write(connections[cid], log_time_ns, data)
+
+
+def _rewrite(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
+    """Write the recovered bag next to the old one, then swap it in."""
+    work = bag_dir / _WORK_DIR_NAME
+    shutil.rmtree(work, ignore_errors=True)
+    # rosbags names its storage file after the bag directory: name it like the file it replaces.
+    new_bag = work / scan.path.stem
+    try:
+        work.mkdir()
+        _write_copy(new_bag, scan, custom_data)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)     # a full disk must not stay fuller
+        raise
     new_storage = new_bag / scan.path.name
-    if not new_storage.is_file():
-        raise RecoveryError(f'rosbags wrote no {scan.path.name} in {new_bag}')
     for suffix in _SQLITE_SIDE_FILES:
         Path(f'{scan.path}{suffix}').unlink(missing_ok=True)
     # Storage first, then metadata: an interruption in between leaves a whole storage file that a
@@ -389,8 +395,9 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
         _complete_definitions(scan)
         try:
             _rewrite(bag_dir, scan, custom_data)
-        except OSError as err:
-            raise RecoveryError(f'{bag_dir}: writing the recovered bag failed: {err}') from err
+        except (OSError, WriterError) as err:
+            raise RecoveryError(f'{bag_dir}: writing the recovered bag failed ({err}); the bag is unchanged') \
+                from err
     outcome = 'needs recovery' if check_only else 'recovered'
     return RecoveryReport(bag_dir, storage, outcome, scan.counts_by_topic(), custom_data, problems)
 

@@ -88,7 +88,8 @@ def test_a_killed_clip_is_recovered_with_everything_flushed_and_its_label(tmp_pa
     assert report.message_counts == {JOINT_STATES: 1000, WRENCH: 0}
     assert any('not closed' in p for p in report.problems)
     assert not (crashed / IN_PROGRESS_NAME).exists()
-    assert sorted(p.name for p in crashed.iterdir()) == sorted(['metadata.yaml', f'{clip.bag_dir.name}{SUFFIX[storage]}'])
+    storage_name = f'{clip.bag_dir.name}{SUFFIX[storage]}'
+    assert sorted(p.name for p in crashed.iterdir()) == sorted(['metadata.yaml', storage_name])
     content = read_with_rosbags(crashed)
     assert content.custom_data == {'label': 'forward'}
     assert content.stamps[JOINT_STATES] == flushed
