@@ -146,3 +146,42 @@ def test_topic_list_echo_hz(talker):
     assert rates, out
     assert 40.0 < rates[-1] < 60.0
     assert re.search(r'\tmin: [0-9.]+s max: [0-9.]+s std dev: [0-9.]+s window: \d+', out)
+
+
+@pytest.fixture
+def trigger_server():
+    """A std_srvs/Trigger service in this process that counts its calls."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from std_srvs.srv import Trigger
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('ros2_command_test_server', context=context)
+    calls = []
+
+    def handle(request, response):
+        calls.append(request)
+        response.success = True
+        response.message = f'call {len(calls)}'
+        return response
+
+    node.create_service(Trigger, '/test/trigger', handle)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    yield calls
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+    thread.join(5)
+
+
+def test_service_list_and_call(trigger_server):
+    listing = subprocess.run(['ros2', 'service', 'list', '-t'], capture_output=True, text=True, timeout=30).stdout
+    assert '/test/trigger [std_srvs/srv/Trigger]' in listing.splitlines()
+    out = subprocess.run(['ros2', 'service', 'call', '/test/trigger', 'std_srvs/srv/Trigger'], capture_output=True,
+                         text=True, timeout=30).stdout
+    assert 'requester: making request: std_srvs.srv.Trigger_Request()' in out
+    assert "response:\nstd_srvs.srv.Trigger_Response(success=True, message='call 1')" in out
+    assert len(trigger_server) == 1
