@@ -1,0 +1,430 @@
+"""The batched table-tennis world: N copies of the cell stepped together in torch (cpu or cuda).
+
+Why it lives here: DESIGN.md gives stylepong_sim everything that simulates the cell (world spec, MuJoCo
+cell, referee) and stylepong_policy everything that learns (spec, task rewards, PPO). This module is a
+second simulator of the same cell, held to the MuJoCo cell by agreement tests, so it sits beside the
+cell and reads the same world spec, robot model and referee rules; the task (rewards, goals, domain
+randomisation, observations) that turns it into an RL environment is stylepong_policy.task.
+
+What it simulates, for every environment at once (layout: the environment axis last, see
+batched_kinematics):
+* the UR5 + paddle under the cell's servo law (world_spec "Arm servo": rate-limited reference,
+  PD clipped to the URDF efforts, ideal gravity compensation, armature, joint speed clip), integrated
+  with the joint-space inertia and Coriolis torques of the one robot model (batched CRBA / RNEA);
+* the ball: gravity and drag, and the cell's analytic contacts (world_spec.contact_response) with the
+  table top, the net's faces and top, and the paddle's blade (faces swept in the blade's moving
+  frame, so nothing tunnels; rim by the end position), one contact per step at its exact fraction;
+* the referee's rules (stylepong_sim.referee) as tensors: own bounces, hits, verdict and reason.
+The cell steps physics at 1 ms; here physics runs at `physics_rate_hz` (default 120 Hz, two steps per
+60 Hz policy step) with the ball integrated by the midpoint rule (exact for gravity, so the coarser
+step loses nothing: landing points agree with the cell's to millimetres) and the arm at
+`arm_substeps` finer steps with the inertia and bias torques held over one physics step.
+Robot-link contacts use capsules fitted to the links' collision meshes (the cell queries the meshes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import torch
+
+from stylepong_sim import batched_kinematics as bk
+from stylepong_sim import referee as rf
+from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model as rm
+
+# Verdicts as indices (the referee's reason strings, one source of truth for their names).
+REASONS: tuple[str, ...] = (
+    rf.REASON_RETURNED, rf.REASON_NO_HIT, rf.REASON_SECOND_BOUNCE_OWN_SIDE, rf.REASON_OWN_SIDE, rf.REASON_NET,
+    rf.REASON_DOUBLE_HIT, rf.REASON_ROBOT_CONTACT, rf.REASON_OUT, rf.REASON_TABLE_CONTACT_BY_ROBOT,
+    rf.REASON_TIMEOUT,
+)
+REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
+NO_VERDICT = -1
+
+# Contact kinds of one physics step.
+_NONE, _TABLE, _NET, _PADDLE, _ROBOT = 0, 1, 2, 3, 4
+
+
+@dataclass
+class PhysicsParams:
+    """Per-environment physical parameters ([N] tensors; [6, N] for the servo gains).
+
+    Defaults are the world spec's nominal values; the task randomises them (domain randomisation).
+    """
+    gravity_m_s2: torch.Tensor
+    drag_k_per_m: torch.Tensor
+    table_restitution: torch.Tensor
+    table_tangential_factor: torch.Tensor
+    paddle_restitution: torch.Tensor
+    paddle_tangential_factor: torch.Tensor
+    kp_nm_per_rad: torch.Tensor
+    kd_nms_per_rad: torch.Tensor
+
+    @staticmethod
+    def nominal(num_envs: int, device: torch.device | str = 'cpu', dtype: torch.dtype = torch.float32
+                ) -> 'PhysicsParams':
+        def full(value: float) -> torch.Tensor:
+            return torch.full((num_envs,), float(value), device=device, dtype=dtype)
+
+        def per_joint(values) -> torch.Tensor:
+            return torch.tensor(values, device=device, dtype=dtype)[:, None].repeat(1, num_envs)
+
+        return PhysicsParams(
+            gravity_m_s2=full(ws.GRAVITY_M_S2), drag_k_per_m=full(ws.DRAG_K_PER_M),
+            table_restitution=full(ws.TABLE_RESTITUTION), table_tangential_factor=full(ws.TABLE_TANGENTIAL_FACTOR),
+            paddle_restitution=full(ws.PADDLE_RESTITUTION),
+            paddle_tangential_factor=full(ws.PADDLE_TANGENTIAL_FACTOR),
+            kp_nm_per_rad=per_joint(ws.ARM_KP_NM_PER_RAD), kd_nms_per_rad=per_joint(ws.ARM_KD_NMS_PER_RAD))
+
+    def assign(self, env_ids: torch.Tensor, other: 'PhysicsParams') -> None:
+        """Copy `other`'s values (for len(env_ids) environments) into these environments."""
+        for f in fields(self):
+            getattr(self, f.name)[..., env_ids] = getattr(other, f.name)
+
+
+@dataclass
+class StepEvents:
+    """What happened during one `BatchedWorld.step` (one policy period), per environment [N]."""
+    paddle_hit: torch.Tensor       # bool: the paddle touched the ball
+    own_bounce: torch.Tensor       # bool: the ball bounced on the robot's half
+    decided: torch.Tensor          # bool: the rally got its verdict in this period
+    success: torch.Tensor          # bool: the verdict (valid where decided)
+    reason: torch.Tensor           # long: index into REASONS (valid where decided)
+
+
+class BatchedWorld:
+    """N table-tennis cells. Construct, `reset_envs` each environment with a ball, then `step` at the policy rate.
+
+    State tensors (environment axis last): q_rad, qd_rad_s, q_ref_rad, q_cmd_rad [6, N]; ball_pos_m,
+    ball_vel_m_s [3, N]; paddle_pos_m [3, N] and paddle_rot [3, 3, N] (blade centre; z = face normal);
+    time_s [N] since the launch; referee state hit, own_bounces, open (no verdict yet), success, reason;
+    landing_xy_m [2, N]: where a returned ball first touched the table (out balls: where the referee
+    called them out), valid once decided after a hit; table_contact_pos_m [3, N]: the ball centre at
+    its latest table contact.
+    """
+
+    def __init__(self, num_envs: int, device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
+                 policy_rate_hz: float = ws.POLICY_RATE_HZ, physics_rate_hz: float = 120.0, arm_substeps: int = 4):
+        if num_envs < 1:
+            raise ValueError('num_envs must be positive')
+        steps = physics_rate_hz / policy_rate_hz
+        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+            raise ValueError(f'physics rate {physics_rate_hz} Hz must be a multiple of the policy rate {policy_rate_hz} Hz')
+        if arm_substeps < 1:
+            raise ValueError('arm_substeps must be at least 1')
+        self.num_envs = int(num_envs)
+        self.device = torch.device(device)
+        self.dtype = dtype
+        self.policy_dt_s = 1.0 / policy_rate_hz
+        self.physics_dt_s = 1.0 / physics_rate_hz
+        self.physics_steps = int(round(steps))
+        self.arm_substeps = int(arm_substeps)
+        self.model = bk.build_arm_model(self.device, dtype)
+        self.params = PhysicsParams.nominal(num_envs, self.device, dtype)
+        n, kw = self.num_envs, dict(device=self.device, dtype=dtype)
+        home = torch.tensor(ws.HOME_JOINT_POSITIONS_RAD, **kw)[:, None]
+        self.q_rad = home.repeat(1, n)
+        self.qd_rad_s = torch.zeros(6, n, **kw)
+        self.q_ref_rad = self.q_rad.clone()
+        self.q_cmd_rad = self.q_rad.clone()
+        self.ball_pos_m = torch.zeros(3, n, **kw)
+        self.ball_vel_m_s = torch.zeros(3, n, **kw)
+        self.time_s = torch.zeros(n, **kw)
+        self.hit = torch.zeros(n, dtype=torch.bool, device=self.device)
+        self.own_bounces = torch.zeros(n, dtype=torch.long, device=self.device)
+        self.open = torch.zeros(n, dtype=torch.bool, device=self.device)
+        self.success = torch.zeros(n, dtype=torch.bool, device=self.device)
+        self.reason = torch.full((n,), NO_VERDICT, dtype=torch.long, device=self.device)
+        self.landing_xy_m = torch.zeros(2, n, **kw)
+        self._armature = torch.diag(torch.tensor(ws.ARM_ARMATURE_KG_M2, **kw))[..., None]   # [6, 6, 1]
+        self.table_contact_pos_m = torch.zeros(3, n, **kw)
+        self._kin = bk.forward_kinematics(self.model, self.q_rad)
+        self._constants()
+
+    def _constants(self) -> None:
+        kw = dict(device=self.device, dtype=self.dtype)
+        self._up = torch.tensor([0.0, 0.0, 1.0], **kw)[:, None]
+        r = ws.BALL_RADIUS_M
+        self._net_lo = torch.tensor([-ws.NET_THICKNESS_M / 2, -ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M], **kw)[:, None]
+        self._net_hi = torch.tensor([ws.NET_THICKNESS_M / 2, ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M],
+                                    **kw)[:, None]
+        self._table_lo = torch.tensor([-ws.HALF_LENGTH_M, -ws.HALF_WIDTH_M, ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M],
+                                      **kw)[:, None, None]
+        self._table_hi = torch.tensor([ws.HALF_LENGTH_M, ws.HALF_WIDTH_M, ws.TABLE_HEIGHT_M], **kw)[:, None, None]
+        self._link_reach_m = self.model.capsule_radius_m + r       # [L, 1]
+        self._blade_radius_m = rm.PADDLE.blade_radius_m
+        self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
+
+    # --- public views (environment axis first, for the task) ---------------------------------------
+    @property
+    def paddle_pos_m(self) -> torch.Tensor:
+        return self._kin.paddle_pos_m
+
+    @property
+    def paddle_rot(self) -> torch.Tensor:
+        return self._kin.paddle_rot
+
+    @property
+    def kinematics(self) -> bk.Kinematics:
+        return self._kin
+
+    # --- resets --------------------------------------------------------------------------------------
+    def reset_envs(self, env_ids: torch.Tensor, q_rad: torch.Tensor, ball_pos_m: torch.Tensor,
+                   ball_vel_m_s: torch.Tensor, params: PhysicsParams | None = None,
+                   qd_rad_s: torch.Tensor | None = None) -> None:
+        """Put the arm of environments env_ids at rest (or qd) at q [6, k], launch a ball [3, k], open a rally."""
+        if env_ids.numel() == 0:
+            return
+        q = torch.maximum(torch.minimum(q_rad, self.model.upper_rad), self.model.lower_rad)
+        self.q_rad[:, env_ids] = q
+        self.qd_rad_s[:, env_ids] = 0.0 if qd_rad_s is None else qd_rad_s
+        self.q_ref_rad[:, env_ids] = q
+        self.q_cmd_rad[:, env_ids] = q
+        self.ball_pos_m[:, env_ids] = ball_pos_m
+        self.ball_vel_m_s[:, env_ids] = ball_vel_m_s
+        self.time_s[env_ids] = 0.0
+        self.hit[env_ids] = False
+        self.own_bounces[env_ids] = 0
+        self.open[env_ids] = True
+        self.success[env_ids] = False
+        self.reason[env_ids] = NO_VERDICT
+        self.landing_xy_m[:, env_ids] = 0.0
+        if params is not None:
+            self.params.assign(env_ids, params)
+        self._kin = bk.forward_kinematics(self.model, self.q_rad)
+
+    # --- stepping ------------------------------------------------------------------------------------
+    def step(self, q_cmd_rad: torch.Tensor) -> StepEvents:
+        """Hold the joint position command q_cmd [6, N] for one policy period; returns its events."""
+        self.q_cmd_rad = torch.maximum(torch.minimum(q_cmd_rad, self.model.upper_rad), self.model.lower_rad)
+        n = self.num_envs
+        zeros = torch.zeros(n, dtype=torch.bool, device=self.device)
+        events = StepEvents(paddle_hit=zeros, own_bounce=zeros.clone(), decided=zeros.clone(),
+                            success=zeros.clone(), reason=torch.full((n,), NO_VERDICT, dtype=torch.long,
+                                                                     device=self.device))
+        was_open = self.open.clone()
+        for _ in range(self.physics_steps):
+            kin_before = self._kin
+            self._arm_step(kin_before)
+            self._kin = bk.forward_kinematics(self.model, self.q_rad)
+            hit, bounce = self._ball_step(kin_before, self._kin)
+            events.paddle_hit = events.paddle_hit | hit
+            events.own_bounce = events.own_bounce | bounce
+        events.decided = was_open & ~self.open
+        events.success = self.success & events.decided
+        events.reason = torch.where(events.decided, self.reason, events.reason)
+        return events
+
+    # --- the arm -------------------------------------------------------------------------------------
+    def _arm_step(self, kin: bk.Kinematics) -> None:
+        """One physics step of the servo law (world_spec), in arm_substeps sub-steps."""
+        m = self.model
+        dt = self.physics_dt_s / self.arm_substeps
+        sp = bk.spatial(m, kin)
+        kp, kd = self.params.kp_nm_per_rad, self.params.kd_nms_per_rad
+        # Damping is explicit: MuJoCo's implicitfast drops a saturated actuator's damping derivative, so
+        # under saturation (a swing's start) the cell's law is the explicit one; at 480 Hz it is stable
+        # for the stiffest joint (Kd dt / I = 0.7 for wrist 3) and agrees with the cell within ~2 %.
+        inertia = bk.mass_matrix(sp) + self._armature
+        inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)     # [6, 6, N]
+        bias = bk.bias_torques(sp, self.qd_rad_s)   # Coriolis and centrifugal; gravity is compensated
+        v_max, effort = m.velocity_limit_rad_s, m.effort_limit_nm
+        step_max = v_max * dt
+        q, qd, q_ref = self.q_rad, self.qd_rad_s, self.q_ref_rad
+        for _ in range(self.arm_substeps):
+            delta = torch.maximum(torch.minimum(self.q_cmd_rad - q_ref, step_max), -step_max)
+            q_ref = q_ref + delta
+            v_ref = delta / dt
+            torque = kp * (q_ref - q) + kd * (v_ref - qd)
+            torque = torch.maximum(torch.minimum(torque, effort), -effort) - bias
+            qdd = inverse[:, 0] * torque[0]
+            for j in range(1, 6):
+                qdd = qdd + inverse[:, j] * torque[j]
+            qd = qd + qdd * dt
+            q = q + qd * dt
+            qd = torch.maximum(torch.minimum(qd, v_max), -v_max)
+        self.q_rad = torch.maximum(torch.minimum(q, m.upper_rad), m.lower_rad)
+        self.qd_rad_s, self.q_ref_rad = qd, q_ref
+
+    # --- the ball ------------------------------------------------------------------------------------
+    def _free_flight(self, v: torch.Tensor, dt) -> tuple[torch.Tensor, torch.Tensor]:
+        """Midpoint rule for gravity + drag over dt ([N] or float): (displacement, new velocity)."""
+        g = self.params.gravity_m_s2
+        k = self.params.drag_k_per_m
+
+        def accel(u):
+            a = -k * torch.sqrt(bk.dot(u, u)) * u
+            return torch.stack((a[0], a[1], a[2] - g))
+
+        v_half = v + 0.5 * dt * accel(v)
+        return v_half * dt, v + dt * accel(v_half)
+
+    def _ball_step(self, kin0: bk.Kinematics, kin1: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
+        """One physics step of the ball and the referee; returns (paddle hit, own-side bounce) flags."""
+        dt = self.physics_dt_s
+        r = ws.BALL_RADIUS_M
+        p0, v0 = self.ball_pos_m, self.ball_vel_m_s
+        displacement, v1 = self._free_flight(v0, dt)
+        p1 = p0 + displacement
+        n = self.num_envs
+        inf = torch.full((n,), 2.0, device=self.device, dtype=self.dtype)   # "no contact" fraction
+
+        # Table top: the ball's bottom crosses the plane on the table.
+        contact_z = ws.TABLE_HEIGHT_M + r
+        f_table = (p0[2] - contact_z) / (p0[2] - p1[2])
+        at = p0 + f_table * (p1 - p0)
+        table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & (at[0].abs() <= ws.HALF_LENGTH_M) \
+            & (at[1].abs() <= ws.HALF_WIDTH_M)
+        f_table = torch.where(table_ok, f_table, inf)
+
+        # Net: its two faces swept exactly; its top and ends by the end position against its box.
+        face_x = ws.NET_THICKNESS_M / 2.0 + r
+        side_net = torch.where(p0[0] >= 0.0, 1.0, -1.0).to(self.dtype)
+        s0, s1 = side_net * p0[0], side_net * p1[0]
+        f_net = (s0 - face_x) / (s0 - s1)
+        at = p0 + f_net * (p1 - p0)
+        net_face = (s0 >= face_x) & (s1 < face_x) & (at[1].abs() <= ws.NET_LENGTH_M / 2) \
+            & (at[2] > ws.TABLE_HEIGHT_M) & (at[2] <= ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M)
+        closest_net = torch.maximum(torch.minimum(p1, self._net_hi), self._net_lo)
+        offset_net = p1 - closest_net
+        dist_net = torch.sqrt(bk.dot(offset_net, offset_net))
+        normal_net_box = offset_net / dist_net.clamp_min(1e-9)
+        net_box = ~net_face & (dist_net < r) & (dist_net > 0.0) & (bk.dot(v1, normal_net_box) < 0.0)
+        f_net = torch.where(net_face, f_net, torch.where(net_box, torch.ones_like(f_net), inf))
+        normal_net = torch.where(net_face, torch.stack((side_net, 0.0 * side_net, 0.0 * side_net)), normal_net_box)
+        centre_net = torch.where(net_face, p0 + f_net.clamp(max=1.0) * (p1 - p0), closest_net + normal_net_box * r)
+        centre_net[0] = torch.where(net_face, side_net * face_x, centre_net[0])
+
+        # Blade faces swept in its moving frame (positions relative to the blade before and after).
+        c0, rot0 = kin0.paddle_pos_m, kin0.paddle_rot
+        c1, rot1 = kin1.paddle_pos_m, kin1.paddle_rot
+        local0 = bk.mat_t_vec(rot0, p0 - c0)
+        local1 = bk.mat_t_vec(rot1, p1 - c1)
+        h, radius = self._blade_half_thickness_m, self._blade_radius_m
+        face_z = h + r
+        side_pad = torch.where(local0[2] >= 0.0, 1.0, -1.0).to(self.dtype)
+        s0, s1 = side_pad * local0[2], side_pad * local1[2]
+        f_face = (s0 - face_z) / (s0 - s1)
+        local_at = local0 + f_face * (local1 - local0)
+        face_hit = (s0 >= face_z) & (s1 < face_z) & (local_at[0] ** 2 + local_at[1] ** 2 <= radius ** 2)
+        local_face = torch.stack((local_at[0], local_at[1], side_pad * face_z))
+        # Rim (and a ball found inside the blade's slab): the end position against the solid disc.
+        rho = torch.sqrt(local1[0] ** 2 + local1[1] ** 2)
+        scale = (radius / rho.clamp_min(1e-9)).clamp(max=1.0)
+        closest_rim = torch.stack((local1[0] * scale, local1[1] * scale, local1[2].clamp(-h, h)))
+        offset_rim = local1 - closest_rim
+        dist_rim = torch.sqrt(bk.dot(offset_rim, offset_rim))
+        rim_normal_local = torch.where(dist_rim > 0.0, offset_rim / dist_rim.clamp_min(1e-9),
+                                       torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad)))
+        normal_pad = bk.mat_vec(rot1, torch.where(face_hit, torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad)),
+                                                  rim_normal_local))
+        surface_local = torch.where(face_hit, local_face - torch.stack((0.0 * s0, 0.0 * s0, side_pad * r)), closest_rim)
+        surface_pad = c1 + bk.mat_vec(rot1, surface_local)
+        u_pad = self._point_velocity(kin1, surface_pad)
+        rim_hit = ~face_hit & (dist_rim < r) & (bk.dot(v1 - u_pad, normal_pad) < 0.0)
+        f_pad = torch.where(face_hit, f_face, torch.where(rim_hit, torch.ones_like(f_face), inf))
+        centre_pad = surface_pad + normal_pad * r
+
+        # The earliest contact wins; robot links only when nothing else was touched.
+        f = torch.minimum(torch.minimum(f_table, f_net), f_pad)
+        kind = torch.where(f > 1.0, _NONE, torch.where(f == f_table, _TABLE, torch.where(f == f_net, _NET, _PADDLE)))
+        robot = (kind == _NONE) & self._touches_links(kin1, p1)
+        f = torch.where(kind == _NONE, torch.ones_like(f), f)
+
+        is_table, is_net, is_pad = kind == _TABLE, kind == _NET, kind == _PADDLE
+        contact = (kind != _NONE)
+        normal = torch.where(is_table, self._up, torch.where(is_net, normal_net, normal_pad))
+        centre = torch.where(is_table, p0 + f * (p1 - p0), torch.where(is_net, centre_net, centre_pad))
+        centre[2] = torch.where(is_table, torch.full_like(f, contact_z), centre[2])
+        surface_velocity = torch.where(is_pad, u_pad, torch.zeros_like(u_pad))
+        restitution = torch.where(is_table, self.params.table_restitution,
+                                  torch.where(is_net, torch.full_like(f, ws.NET_RESTITUTION), self.params.paddle_restitution))
+        tangential = torch.where(is_table, self.params.table_tangential_factor,
+                                 torch.where(is_net, torch.full_like(f, ws.NET_TANGENTIAL_FACTOR),
+                                             self.params.paddle_tangential_factor))
+        v_at = v0 + f * (v1 - v0)
+        relative = (v_at - surface_velocity).T
+        v_out = surface_velocity + ws.contact_response(relative, normal.T, restitution[:, None], tangential[:, None]).T
+        rest = (1.0 - f) * dt
+        displacement, v_after = self._free_flight(v_out, rest)
+        p_new = torch.where(contact, centre + displacement, p1)
+        v_new = torch.where(contact, v_after, v1)
+
+        # --- referee (stylepong_sim.referee, in the same order) ---
+        open_ = self.open
+        verdict = torch.full((n,), NO_VERDICT, dtype=torch.long, device=self.device)
+
+        def decide(mask: torch.Tensor, reason: str) -> None:
+            nonlocal verdict
+            verdict = torch.where(mask & (verdict == NO_VERDICT), REASON_INDEX[reason], verdict)
+
+        own_side = centre[0] < 0.0
+        table_event = open_ & is_table
+        own_bounce = table_event & own_side & ~self.hit
+        self.own_bounces = self.own_bounces + own_bounce.long()
+        decide(table_event & self.hit & ~own_side, rf.REASON_RETURNED)
+        decide(table_event & self.hit & own_side, rf.REASON_OWN_SIDE)
+        decide(own_bounce & (self.own_bounces >= 2), rf.REASON_SECOND_BOUNCE_OWN_SIDE)
+        decide(open_ & is_net & self.hit, rf.REASON_NET)
+        pad_event = open_ & is_pad
+        decide(pad_event & self.hit, rf.REASON_DOUBLE_HIT)
+        first_hit = pad_event & ~self.hit
+        decide(open_ & robot, rf.REASON_ROBOT_CONTACT)
+        self.landing_xy_m = torch.where(table_event & self.hit, centre[:2], self.landing_xy_m)
+        self.table_contact_pos_m = torch.where(is_table, centre, self.table_contact_pos_m)
+        hit_after = self.hit | first_hit
+        decide(open_ & self._robot_touches_table(kin1), rf.REASON_TABLE_CONTACT_BY_ROBOT)
+        # After the step: dead, out and timeout.
+        time_s = self.time_s + dt
+        dead = (p_new[2] <= r) | (p_new[0].abs() > ws.CELL_HALF_EXTENT_M[0]) | (p_new[1].abs() > ws.CELL_HALF_EXTENT_M[1])
+        off_table = (p_new[0].abs() > ws.HALF_LENGTH_M) | (p_new[1].abs() > ws.HALF_WIDTH_M)
+        out = hit_after & (dead | ((p_new[2] - r < ws.TABLE_HEIGHT_M) & off_table & (v_new[2] < 0.0)))
+        newly_out = open_ & out & (verdict == NO_VERDICT)
+        self.landing_xy_m = torch.where(newly_out, p_new[:2], self.landing_xy_m)
+        decide(open_ & out, rf.REASON_OUT)
+        decide(open_ & dead & ~hit_after, rf.REASON_NO_HIT)
+        decide(open_ & (time_s >= ws.BALL_TIMEOUT_S), rf.REASON_TIMEOUT)
+
+        decided = verdict != NO_VERDICT
+        self.reason = torch.where(decided, verdict, self.reason)
+        self.success = self.success | (decided & (verdict == REASON_INDEX[rf.REASON_RETURNED]))
+        self.open = open_ & ~decided
+        self.hit = hit_after
+        self.time_s = time_s
+        self.ball_pos_m, self.ball_vel_m_s = p_new, v_new
+        return first_hit, own_bounce
+
+    def _point_velocity(self, kin: bk.Kinematics, point_m: torch.Tensor) -> torch.Tensor:
+        """World velocity [3, N] of a point [3, N] fixed to the last link, at joint velocities qd."""
+        qd = self.qd_rad_s
+        omega = (kin.axis * qd).sum(1)
+        v_flange = (bk.cross(kin.axis, kin.origin_m[:, -1:] - kin.origin_m) * qd).sum(1)
+        return v_flange + bk.cross(omega, point_m - kin.origin_m[:, -1])
+
+    def _touches_links(self, kin: bk.Kinematics, p: torch.Tensor) -> torch.Tensor:
+        """The ball centre p [3, N] within a ball radius of any link capsule (the handle included)."""
+        a, b = bk.capsule_segments(self.model, kin)     # [3, L, N]
+        ab = b - a
+        ap = p[:, None] - a
+        t = (bk.dot(ap, ab) / bk.dot(ab, ab).clamp_min(1e-12)).clamp(0.0, 1.0)
+        d = ap - t * ab
+        return (bk.dot(d, d) < self._link_reach_m ** 2).any(0)
+
+    def _robot_touches_table(self, kin: bk.Kinematics) -> torch.Tensor:
+        """Any robot geometry (capsules' ends and middles, the blade's lowest point) inside the table top."""
+        a, b = bk.capsule_segments(self.model, kin)
+        points = torch.cat((a, b, 0.5 * (a + b)), dim=1)                       # [3, 3L, N]
+        radii = self.model.capsule_radius_m.repeat(3, 1)                       # [3L, 1]
+        closest = torch.maximum(torch.minimum(points, self._table_hi), self._table_lo)
+        gap = points - closest
+        touching = (bk.dot(gap, gap) < radii ** 2).any(0)
+        # The blade: its lowest point (a disc of radius R, half thickness h, normal n).
+        normal = kin.paddle_rot[:, 2]
+        nz = normal[2].clamp(-1.0, 1.0)
+        in_plane = torch.sqrt((1.0 - nz * nz).clamp_min(0.0))
+        down = torch.stack((nz * normal[0], nz * normal[1], nz * nz - 1.0)) / in_plane.clamp_min(1e-6)
+        lowest = kin.paddle_pos_m + self._blade_radius_m * down
+        lowest_z = lowest[2] - self._blade_half_thickness_m * nz.abs()
+        blade = (lowest[0].abs() <= ws.HALF_LENGTH_M) & (lowest[1].abs() <= ws.HALF_WIDTH_M) \
+            & (lowest_z < ws.TABLE_HEIGHT_M) & (lowest_z > ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M)
+        return touching | blade
