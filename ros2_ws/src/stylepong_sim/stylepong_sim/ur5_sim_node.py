@@ -143,6 +143,11 @@ class Ur5SimNode(Node):
         self._ft_sensor = ForceTorqueSensor(sensing, rng)
         self._joint_clock = SampleClock(p('joint_state_rate_hz').value)
         self._wrench_clock = SampleClock(p('wrench_rate_hz').value)
+        # Anti-aliasing, as a real F/T sensor filters before it decimates: each sample is the mean of the
+        # physics steps since the last one (500 Hz commands on 1 kHz physics shake the tool at 500 Hz;
+        # single-step samples of the tool's inertial force alias into 5-15 N of spurious push).
+        self._wrench_sum = np.zeros(6)
+        self._wrench_steps = 0
         self._ball_clock = SampleClock(p('ball_state_rate_hz').value)
         self._clock_clock = SampleClock(p('clock_rate_hz').value)
         self._hand_timeout_s = p('hand_wrench_timeout_s').value
@@ -220,25 +225,28 @@ class Ur5SimNode(Node):
 
     def _publish_due(self, time_s: float) -> None:
         cell = self._cell
+        stamp = None   # built once per step, only if something is published (publishing copies it)
         if self._joint_clock.due(time_s):
+            stamp = _stamp(time_s)
             msg = self._joint_msg
-            msg.header.stamp = _stamp(time_s)
+            msg.header.stamp = stamp
             msg.position = cell.data.qpos[:6].tolist()
             msg.velocity = cell.data.qvel[:6].tolist()
             msg.effort = cell.joint_efforts_nm.tolist()
             self._joint_pub.publish(msg)
         if self._wrench_clock.due(time_s):
+            stamp = stamp or _stamp(time_s)
             force, torque = self._ft_sensor.measure(*cell.tool_wrench())
             msg = self._wrench_msg
-            msg.header.stamp = _stamp(time_s)
+            msg.header.stamp = stamp
             wrench = msg.wrench
             wrench.force.x, wrench.force.y, wrench.force.z = force.tolist()
             wrench.torque.x, wrench.torque.y, wrench.torque.z = torque.tolist()
             self._wrench_pub.publish(msg)
         if self._clock_clock.due(time_s):
-            self._clock_msg.clock = _stamp(time_s)
+            self._clock_msg.clock = stamp or _stamp(time_s)
             self._clock_pub.publish(self._clock_msg)
-        if self._ball_clock.due(time_s) and cell.ball_in_play:
+        if cell.ball_in_play and self._ball_clock.due(time_s):
             self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
         for observation in self._camera.delivered(time_s):
             msg = self._ball_msg
