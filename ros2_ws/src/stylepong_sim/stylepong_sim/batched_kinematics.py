@@ -127,16 +127,20 @@ def _joint_axis(joint) -> np.ndarray:
 
 
 def _fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """A capsule enclosing a mesh's vertices: segment on the principal axis, radius = farthest vertex."""
+    """A capsule enclosing a mesh's vertices: segment on the principal axis, radius = farthest vertex
+    from that axis, ends pulled in as far as the half-sphere caps still cover every vertex."""
     centre = points.mean(axis=0)
     _, _, vt = np.linalg.svd(points - centre, full_matrices=False)
     axis = vt[0]
     along = (points - centre) @ axis
-    radius = float(np.linalg.norm((points - centre) - np.outer(along, axis), axis=1).max())
-    # The end caps are half-spheres: pull the segment's ends in by the radius, never past each other.
-    lo, hi = along.min() + radius, along.max() - radius
-    if lo > hi:
-        lo = hi = 0.5 * (along.min() + along.max())
+    radial = np.linalg.norm((points - centre) - np.outer(along, axis), axis=1)
+    radius = float(radial.max())
+    reach = np.sqrt(np.maximum(radius ** 2 - radial ** 2, 0.0))   # how far past an end a vertex may be
+    hi = float((along - reach).max())
+    lo = float((along + reach).min())
+    if lo > hi:   # short and fat: a sphere around the middle
+        middle = centre + 0.5 * (along.min() + along.max()) * axis
+        return middle, middle, float(np.linalg.norm(points - middle, axis=1).max())
     return centre + lo * axis, centre + hi * axis, radius
 
 
@@ -261,6 +265,17 @@ def forward_kinematics(model: ArmModel, q_rad: torch.Tensor) -> Kinematics:
 
 def capsule_segments(model: ArmModel, kin: Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
     """World end points [3, L, N] of every collision capsule."""
+    joints = model.capsule_joint.tolist()
+    if joints[:NUM_JOINTS] == list(range(NUM_JOINTS)):
+        # One capsule per link in joint order, then extras: whole-tensor products and views, no gather
+        # (an index gather of the rotations costs more than all the products together).
+        ends = []
+        for local in (model.capsule_a_m, model.capsule_b_m):
+            parts = [kin.origin_m + mat_vec(kin.rot, local[:, :NUM_JOINTS])]
+            for c, j in enumerate(joints[NUM_JOINTS:], start=NUM_JOINTS):
+                parts.append((kin.origin_m[:, j] + mat_vec(kin.rot[:, :, j], local[:, c]))[:, None])
+            ends.append(torch.cat(parts, dim=1))
+        return ends[0], ends[1]
     rot = kin.rot[:, :, model.capsule_joint]       # [3, 3, L, N]
     origin = kin.origin_m[:, model.capsule_joint]  # [3, L, N]
     return origin + mat_vec(rot, model.capsule_a_m), origin + mat_vec(rot, model.capsule_b_m)

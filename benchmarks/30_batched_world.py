@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Policy steps per second of the batched torch world on this CPU, without any network.
+
+One policy step = one 60 Hz action for every environment with all its physics (two 120 Hz ball and
+contact steps, eight 480 Hz arm servo steps, forward kinematics, referee). Two figures per N:
+  world  BatchedWorld.step with joint targets that change every step (a random walk around home),
+         plus the resets of decided rallies with new balls from the vectorised sampler;
+  env    TableTennisEnv.step (the world plus observations with noise and delays, rewards, domain
+         randomisation, resets): what PPO's rollout calls.
+Run by `make bench`; alone: `python3 benchmarks/30_batched_world.py` with ros2_ws/install/setup.bash sourced.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import torch
+
+SIZES = (1024, 4096)
+WARMUP_STEPS = 20
+MEASURED_STEPS = 120
+THREADS = 2
+
+
+def world_rate(num_envs: int) -> tuple[float, int]:
+    """Policy steps per second of BatchedWorld (with resets) and how many rallies were decided."""
+    from stylepong_sim import batched_launcher as bl
+    from stylepong_sim import batched_world as bw
+
+    world = bw.BatchedWorld(num_envs)
+    sampler = bl.IncomingBallSampler(seed=0, batch=max(4096, 2 * num_envs))
+    ids = torch.arange(num_envs)
+    position, velocity, _ = sampler.sample(num_envs)
+    world.reset_envs(ids, world.q_rad.clone(), position, velocity)
+    home = world.q_rad.clone()
+    generator = torch.Generator().manual_seed(0)
+    target = home.clone()
+    decided = 0
+
+    def one_step() -> int:
+        nonlocal target
+        target = (target + 0.1 * torch.randn(target.shape, generator=generator)).clamp(home - 1.0, home + 1.0)
+        events = world.step(target)
+        done = torch.nonzero(events.decided).squeeze(1)
+        if done.numel():
+            p, v, _ = sampler.sample(int(done.numel()))
+            world.reset_envs(done, home[:, done], p, v)
+        return int(done.numel())
+
+    for _ in range(WARMUP_STEPS):
+        one_step()
+    start = time.perf_counter()
+    for _ in range(MEASURED_STEPS):
+        decided += one_step()
+    return num_envs * MEASURED_STEPS / (time.perf_counter() - start), decided
+
+
+def env_rate(num_envs: int) -> float:
+    from stylepong_policy import task
+
+    env = task.make_env(task.TaskConfig(num_envs=num_envs), 'cpu', 0)
+    env.reset()
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(WARMUP_STEPS):
+        env.step(torch.randn(num_envs, env.num_actions, generator=generator))
+    actions = [torch.randn(num_envs, env.num_actions, generator=generator) for _ in range(MEASURED_STEPS)]
+    start = time.perf_counter()
+    for a in actions:
+        env.step(a)
+    return num_envs * MEASURED_STEPS / (time.perf_counter() - start)
+
+
+def main() -> int:
+    torch.set_num_threads(THREADS)
+    load_before = os.getloadavg()[0]
+    rows = []
+    for n in SIZES:
+        world, decided = world_rate(n)
+        rows.append((n, world, env_rate(n), decided))
+    print('## Batched world: policy steps per second (no network)\n')
+    print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched_world.BatchedWorld` on the CPU (torch '
+          f'{torch.__version__}, {THREADS} threads, float32), 60 Hz policy steps each with 2 physics steps at '
+          f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
+          f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
+          f'from the vectorised sampler); "env": `stylepong_policy.task.TableTennisEnv.step` with random '
+          f'actions (observations, noise, delays, rewards, domain randomisation, resets). Target: >= 100,000 '
+          f'policy steps/s at N = 4096. Load average before the run: {load_before:.1f} (other work on the '
+          f'2 cores slows every figure).\n')
+    print('| N | world steps/s | env steps/s | rallies decided (world run) |')
+    print('|---|---|---|---|')
+    for n, world, env, decided in rows:
+        print(f'| {n} | {world:,.0f} | {env:,.0f} | {decided} |')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

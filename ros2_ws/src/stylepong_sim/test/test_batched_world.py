@@ -1,0 +1,290 @@
+"""The batched world's parts: kinematics and dynamics against Pinocchio, the ball's contacts, the referee's
+rules in batch, the servo's limits and the vectorised incoming-ball distribution."""
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import torch
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import batched_kinematics as bk
+from stylepong_sim import batched_launcher as bl
+from stylepong_sim import batched_world as bw
+from stylepong_sim import referee as rf
+from stylepong_sim import world_spec as ws
+
+HOME = torch.tensor(ws.HOME_JOINT_POSITIONS_RAD, dtype=torch.float64)
+
+
+@pytest.fixture(scope='module')
+def model64():
+    return bk.build_arm_model(dtype=torch.float64)
+
+
+def _random_configurations(n, seed=7):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-math.pi, math.pi, size=(n, 6)), rng.uniform(-3.0, 3.0, size=(n, 6))
+
+
+def test_forward_kinematics_matches_pinocchio(model64):
+    q, _ = _random_configurations(20)
+    kin = bk.forward_kinematics(model64, torch.tensor(q).T)
+    model = rm.pinocchio_model()
+    data = model.createData()
+    base = pin.SE3(bk.yaw_rotation(ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
+    frame = model.getFrameId(rm.PADDLE_CENTRE_FRAME)
+    for i in range(len(q)):
+        pin.framesForwardKinematics(model, data, q[i])
+        paddle = base * data.oMf[frame]
+        np.testing.assert_allclose(kin.paddle_pos_m[:, i].numpy(), paddle.translation, atol=1e-12)
+        np.testing.assert_allclose(kin.paddle_rot[..., i].numpy(), paddle.rotation, atol=1e-12)
+        for j in range(6):
+            joint = base * data.oMi[j + 1]
+            np.testing.assert_allclose(kin.origin_m[:, j, i].numpy(), joint.translation, atol=1e-12)
+            np.testing.assert_allclose(kin.rot[:, :, j, i].numpy(), joint.rotation, atol=1e-12)
+
+
+def test_mass_matrix_and_bias_torques_match_pinocchio(model64):
+    q, qd = _random_configurations(20)
+    sp = bk.spatial(model64, bk.forward_kinematics(model64, torch.tensor(q).T))
+    mass = bk.mass_matrix(sp)
+    coriolis = bk.bias_torques(sp, torch.tensor(qd).T)
+    with_gravity = bk.bias_torques(sp, torch.tensor(qd).T, ws.GRAVITY_M_S2)
+    model = rm.pinocchio_model()
+    data = model.createData()
+    for i in range(len(q)):
+        expected = pin.crba(model, data, q[i])
+        expected = np.triu(expected) + np.triu(expected, 1).T
+        np.testing.assert_allclose(mass[..., i].numpy(), expected, atol=1e-12)
+        np.testing.assert_allclose(with_gravity[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)),
+                                   atol=1e-11)
+        model.gravity.linear[:] = 0.0
+        np.testing.assert_allclose(coriolis[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)),
+                                   atol=1e-11)
+        model.gravity.linear[:] = (0.0, 0.0, -ws.GRAVITY_M_S2)
+
+
+def test_link_capsules_enclose_the_collision_meshes():
+    import mujoco
+    mj = rm.mujoco_model()
+    for capsule in bk.link_capsules():
+        if capsule.name == 'paddle_handle':
+            continue
+        body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, capsule.name)
+        a, b = np.array(capsule.a_m), np.array(capsule.b_m)
+        for geom in range(mj.ngeom):
+            if mj.geom_bodyid[geom] != body or mj.geom_type[geom] != mujoco.mjtGeom.mjGEOM_MESH:
+                continue
+            mesh = mj.geom_dataid[geom]
+            vertices = mj.mesh_vert[mj.mesh_vertadr[mesh]:mj.mesh_vertadr[mesh] + mj.mesh_vertnum[mesh]]
+            points = vertices @ bk._quat_to_matrix(mj.geom_quat[geom]).T + mj.geom_pos[geom]
+            t = np.clip((points - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
+            distance = np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
+            assert distance.max() <= capsule.radius_m + 1e-9, capsule.name
+
+
+def _world(n=1, **kwargs):
+    return bw.BatchedWorld(n, dtype=torch.float64, **kwargs)
+
+
+def _launch(world, positions, velocities, hit=None):
+    n = len(positions)
+    ids = torch.arange(n)
+    world.reset_envs(ids, world.q_rad[:, :n].clone(), torch.tensor(positions, dtype=torch.float64).T,
+                     torch.tensor(velocities, dtype=torch.float64).T)
+    if hit is not None:
+        world.hit[ids] = torch.tensor(hit)
+
+
+def _run_to_verdict(world, max_steps=240):
+    command = world.q_rad.clone()
+    for _ in range(max_steps):
+        world.step(command)
+        if not bool(world.open.any()):
+            break
+    return [bw.REASONS[int(r)] if r >= 0 else None for r in world.reason]
+
+
+def test_free_flight_matches_a_fine_reference():
+    world = _world()
+    _launch(world, [(1.2, 0.1, 1.3)], [(-5.0, 0.3, 2.0)])
+    for _ in range(18):     # 0.3 s, before any contact
+        world.step(world.q_rad.clone())
+    p = np.array([1.2, 0.1, 1.3])
+    v = np.array([-5.0, 0.3, 2.0])
+    dt = 1e-5
+    for _ in range(int(round(0.3 / dt))):
+        v = v + (np.array([0.0, 0.0, -ws.GRAVITY_M_S2]) + ws.drag_acceleration(v)) * dt
+        p = p + v * dt
+    np.testing.assert_allclose(world.ball_pos_m[:, 0].numpy(), p, atol=2e-4)
+    np.testing.assert_allclose(world.ball_vel_m_s[:, 0].numpy(), v, atol=2e-3)
+
+
+def test_table_bounce_follows_the_contact_law_and_nothing_tunnels():
+    # Balls dropped fast onto the table (up to 30 m/s: 25 cm per physics step) bounce, none passes through.
+    speeds = [3.0, 10.0, 20.0, 30.0]
+    world = _world(len(speeds))
+    _launch(world, [(-0.5, 0.0, 1.2)] * len(speeds), [(2.0, 0.0, -s) for s in speeds])
+    bounced = torch.zeros(len(speeds), dtype=torch.bool)
+    for _ in range(10):
+        events = world.step(world.q_rad.clone())
+        bounced |= events.own_bounce
+        assert (world.ball_pos_m[2] > ws.TABLE_HEIGHT_M).all()
+    assert bounced.all()
+    assert (world.ball_pos_m[2] > ws.TABLE_HEIGHT_M).all()
+    # A ball bouncing vertically at 4 m/s leaves at restitution x 4 m/s.
+    world = _world()
+    _launch(world, [(-0.5, 0.0, ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M + 0.02)], [(0.0, 0.0, -4.0)])
+    world.step(world.q_rad.clone())
+    assert world.own_bounces[0] == 1
+    # Midpoint flight after the bounce: v_z = e * v_in - g * t_after (drag small at this speed).
+    assert float(world.ball_vel_m_s[2, 0]) == pytest.approx(ws.TABLE_RESTITUTION * 4.0, abs=0.2)
+
+
+def test_fast_ball_does_not_tunnel_through_the_blade():
+    world = _world(3)
+    centre = world.paddle_pos_m[:, 0].numpy()
+    normal = world.paddle_rot[:, 2, 0].numpy()
+    starts, velocities = [], []
+    for speed in (5.0, 15.0, 30.0):
+        starts.append(tuple(centre + 0.2 * normal))
+        velocities.append(tuple(-speed * normal))
+    _launch(world, starts, velocities)
+    hit = torch.zeros(3, dtype=torch.bool)
+    for _ in range(4):
+        hit |= world.step(world.q_rad.clone()).paddle_hit
+    assert hit.all()
+    # The balls left on the face's side, away from the blade.
+    offsets = world.ball_pos_m.numpy().T - centre
+    assert (offsets @ normal > 0).all()
+
+
+@pytest.mark.parametrize('start, velocity, hit, reason', [
+    ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True, rf.REASON_RETURNED),      # over the net onto the far half
+    ((-1.0, 0.0, 1.0), (1.5, 0.0, 0.5), True, rf.REASON_OWN_SIDE),       # short: first bounce on own half
+    ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True, rf.REASON_NET),            # straight into the net
+    ((-1.0, 0.0, 1.05), (12.0, 0.0, 1.0), True, rf.REASON_OUT),          # long
+    ((-1.0, 0.5, 1.0), (0.0, 3.0, 0.5), True, rf.REASON_OUT),            # off the side
+    ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False, rf.REASON_SECOND_BOUNCE_OWN_SIDE),
+    ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False, rf.REASON_NO_HIT),        # falls beside the table
+])
+def test_referee_rules(start, velocity, hit, reason):
+    world = _world()
+    _launch(world, [start], [velocity], hit=[hit])
+    assert _run_to_verdict(world) == [reason]
+    assert bool(world.success[0]) == (reason == rf.REASON_RETURNED)
+
+
+def test_referee_rules_in_one_batch_match_one_by_one():
+    cases = [((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True), ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True),
+             ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False), ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False)]
+    world = _world(len(cases))
+    _launch(world, [c[0] for c in cases], [c[1] for c in cases], hit=[c[2] for c in cases])
+    batch = _run_to_verdict(world)
+    singles = []
+    for start, velocity, hit in cases:
+        single = _world()
+        _launch(single, [start], [velocity], hit=[hit])
+        singles += _run_to_verdict(single)
+    assert batch == singles
+
+
+def test_ball_on_the_arm_is_robot_contact_and_a_second_touch_is_a_double_hit():
+    world = _world(2)
+    kin = world.kinematics
+    forearm = kin.origin_m[:, 2, 0] + 0.5 * (kin.origin_m[:, 3, 0] - kin.origin_m[:, 2, 0])   # mid forearm
+    above = forearm + torch.tensor([0.0, 0.0, 0.3], dtype=torch.float64)
+    centre = world.paddle_pos_m[:, 0]
+    normal = world.paddle_rot[:, 2, 0]
+    _launch(world, [tuple(above.tolist()), tuple((centre + 0.3 * normal).tolist())],
+            [(0.0, 0.0, -3.0), tuple((-4.0 * normal).tolist())], hit=[False, True])
+    assert _run_to_verdict(world, 30) == [rf.REASON_ROBOT_CONTACT, rf.REASON_DOUBLE_HIT]
+
+
+def test_paddle_on_the_table_ends_the_rally():
+    world = _world()
+    _launch(world, [(1.2, 0.0, 1.3)], [(-4.0, 0.0, 1.0)])
+    # Shoulder lift down and elbow stretched: the blade goes down onto the table's end.
+    command = world.q_rad.clone()
+    command[1] += 0.9
+    command[2] -= 0.6
+    for _ in range(90):
+        world.step(command)
+        if not bool(world.open[0]):
+            break
+    assert bw.REASONS[int(world.reason[0])] == rf.REASON_TABLE_CONTACT_BY_ROBOT
+
+
+def test_timeout():
+    world = _world(timeout_s=0.5)
+    _launch(world, [(0.0, 0.0, 2.0)], [(0.0, 0.0, 0.0)])
+    world.params.gravity_m_s2[:] = 0.0   # a ball that hangs in the air
+    assert _run_to_verdict(world) == [rf.REASON_TIMEOUT]
+    assert float(world.time_s[0]) == pytest.approx(0.5, abs=1e-9)
+
+
+def test_servo_respects_velocity_and_effort_limits_and_targets_are_clipped_to_the_joint_range():
+    world = _world()
+    limits = rm.joint_limits()
+    command = HOME[:, None] + torch.tensor([3.0, -3.0, 3.0, -3.0, 3.0, -3.0], dtype=torch.float64)[:, None]
+    peak = torch.zeros(6, dtype=torch.float64)
+    for _ in range(60):
+        world.step(command)
+        peak = torch.maximum(peak, world.qd_rad_s[:, 0].abs())
+    assert (peak <= torch.tensor(limits.velocity_rad_s) + 1e-9).all()
+    assert (peak >= 0.99 * torch.tensor(limits.velocity_rad_s)).all()      # it does run at the limit
+    assert (world.q_cmd_rad[:, 0] <= torch.tensor(limits.upper_rad)).all()
+    assert (world.q_cmd_rad[:, 0] >= torch.tensor(limits.lower_rad)).all()
+
+
+def test_action_delay_holds_the_previous_command():
+    world = _world(2)
+    command = world.q_rad.clone()
+    command[0] += 0.5
+    world.step(command, delay_steps=torch.tensor([0, world.physics_steps]))
+    moved = (world.q_rad[0] - HOME[0]).abs()
+    assert moved[0] > 1e-3 and moved[1] < 1e-9
+
+
+def test_incoming_balls_follow_the_world_spec_distribution():
+    """Same candidates, same verdicts: launch velocities agree with world_spec's aim (its 2 ms Euler flights
+    differ by millimetres) and the accept/reject decisions agree except on borderline draws."""
+    sampler = bl.IncomingBallSampler(seed=11, batch=256)
+    start, velocity, bounce, accepted = sampler._candidates(256)
+    checked, disagreements = 0, 0
+    for i in range(60):
+        st, b = start[:, i].numpy(), bounce[:, i].numpy()
+        speed = float(torch.linalg.vector_norm(velocity[:, i]))
+        reference = ws._aim(st, b, speed)
+        if reference is None:
+            expected = False
+        else:
+            contact_p, contact_v, _, clearance = ws.fly_to_table(st, reference)
+            expected = clearance >= ws.INCOMING.net_clearance_m and ws.rebound_reaches(contact_p, contact_v)
+            if expected and bool(accepted[i]):
+                np.testing.assert_allclose(velocity[:, i].numpy(), reference, atol=0.05)
+                # The launch lands on its drawn bounce point (a fine reference flight).
+                landing, _, _, _ = ws.fly_to_table(st, velocity[:, i].numpy(), dt_s=1e-4)
+                assert np.linalg.norm(landing[:2] - b) < 2e-3
+        checked += 1
+        disagreements += expected != bool(accepted[i])
+    assert checked == 60 and disagreements <= 2
+
+
+def test_incoming_ball_statistics_and_reproducibility():
+    sampler = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=3)
+    position, velocity, bounce = sampler.sample(3000)
+    speed = torch.linalg.vector_norm(velocity, dim=0)
+    d = ws.INCOMING
+    assert speed.min() >= 5.8 - 1e-4 and speed.max() <= 6.6 + 1e-4
+    for axis, bounds in enumerate((d.launch_x_m, d.launch_y_m, d.launch_z_m)):
+        assert position[axis].min() >= bounds[0] and position[axis].max() <= bounds[1]
+    for axis, bounds in enumerate((d.bounce_x_m, d.bounce_y_m)):
+        assert bounce[axis].min() >= bounds[0] and bounce[axis].max() <= bounds[1]
+    # Left and right are symmetric in the distribution; the mean lateral bounce is near the middle.
+    assert abs(float(bounce[1].mean())) < 0.05
+    again = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=3).sample(3000)
+    assert torch.equal(again[0], position) and torch.equal(again[1], velocity)
+    other = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=4).sample(10)
+    assert not torch.equal(other[0], position[:, :10])
