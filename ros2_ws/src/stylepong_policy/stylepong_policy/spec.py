@@ -1,0 +1,148 @@
+"""The observation/action contract between the trained actor and whatever runs it (DESIGN.md).
+
+The batched training env (stylepong_policy.task) and the `player` node both build the actor's
+observation and decode its action here and nowhere else: a train/deploy mismatch fails silently on the
+robot, so test_spec feeds both paths the same state and requires identical tensors. The exporter writes
+SPEC_VERSION, ACTION_RATE_HZ, JOINT_NAMES, OBS_LAYOUT and `action_decoding()` into the actor's sidecar
+JSON; a player refuses an actor whose contract differs from this module's. Change anything here and
+bump SPEC_VERSION.
+
+Observation (one row per environment, float32, in OBS_LAYOUT order, all in the world frame of
+world_spec, SI units):
+  joint_position_offset_rad  q - HOME_JOINT_POSITIONS_RAD, URDF joint order (JOINT_NAMES)
+  joint_velocity_rad_s       qdot
+  ball_position_m            ball centre
+  ball_velocity_m_s          ball velocity
+  goal_xy_m                  centre of the goal region on the opponent's half
+  last_action                the previous action as applied (clipped to [-1, 1])
+What the robot can sense only: the critic's privileged inputs are the task's business.
+Sensing noise and latency are not part of the contract (the real sensors bring their own); the
+training env simulates them with `SensingNoise` and delays before calling `build_observation`.
+
+Action (one row per environment, NUM_ACTIONS = 6, at ACTION_RATE_HZ): joint position targets
+  q_cmd = clip(HOME + ACTION_SCALE_RAD * clip(a, -1, 1), URDF lower limit, URDF upper limit)
+sent to the joint position servo (ur5_sim's or the real driver's forward_position_controller).
+Why absolute targets around home (the paper's choice) and this scale: a stroke's poses lie within about
+1.5 rad of home on every joint (inverse kinematics over the hitting region: 90th percentiles 0.7-1.6 rad).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import torch
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import world_spec as ws
+
+SPEC_VERSION = 1
+ACTION_RATE_HZ = float(ws.POLICY_RATE_HZ)
+JOINT_NAMES: tuple[str, ...] = rm.JOINT_NAMES
+NUM_ACTIONS = len(JOINT_NAMES)
+HOME_JOINT_POSITIONS_RAD: tuple[float, ...] = tuple(float(x) for x in ws.HOME_JOINT_POSITIONS_RAD)
+ACTION_SCALE_RAD: tuple[float, ...] = (1.5,) * NUM_ACTIONS
+ACTION_CLIP = 1.0
+
+OBS_LAYOUT: tuple[tuple[str, int], ...] = (
+    ('joint_position_offset_rad', NUM_ACTIONS),
+    ('joint_velocity_rad_s', NUM_ACTIONS),
+    ('ball_position_m', 3),
+    ('ball_velocity_m_s', 3),
+    ('goal_xy_m', 2),
+    ('last_action', NUM_ACTIONS),
+)
+NUM_OBS = sum(size for _, size in OBS_LAYOUT)
+
+
+def action_decoding() -> dict:
+    """The action's meaning, for the exported actor's sidecar JSON."""
+    limits = rm.joint_limits()
+    return {'kind': 'joint_position_targets', 'home_rad': list(HOME_JOINT_POSITIONS_RAD),
+            'scale_rad': list(ACTION_SCALE_RAD), 'clip': ACTION_CLIP,
+            'lower_limit_rad': [float(x) for x in limits.lower_rad],
+            'upper_limit_rad': [float(x) for x in limits.upper_rad]}
+
+
+def _row_tensor(values, like: torch.Tensor | None = None) -> torch.Tensor:
+    device = like.device if like is not None else None
+    return torch.as_tensor(values, dtype=torch.float32, device=device)
+
+
+def clip_action(action: torch.Tensor) -> torch.Tensor:
+    """The policy's raw output [N, 6] limited to the action range (what is applied and observed back)."""
+    return action.clamp(-ACTION_CLIP, ACTION_CLIP)
+
+
+def decode_action(action: torch.Tensor) -> torch.Tensor:
+    """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6]."""
+    home = _row_tensor(HOME_JOINT_POSITIONS_RAD, action)
+    scale = _row_tensor(ACTION_SCALE_RAD, action)
+    limits = rm.joint_limits()
+    target = home + scale * clip_action(action.to(torch.float32))
+    return torch.maximum(torch.minimum(target, _row_tensor(limits.upper_rad, action)),
+                         _row_tensor(limits.lower_rad, action))
+
+
+def build_observation(joint_positions_rad: torch.Tensor, joint_velocities_rad_s: torch.Tensor,
+                      ball_position_m: torch.Tensor, ball_velocity_m_s: torch.Tensor, goal_xy_m: torch.Tensor,
+                      last_action: torch.Tensor) -> torch.Tensor:
+    """The actor's observation [N, NUM_OBS] from the sensed state (rows = environments, float32).
+
+    joint_* [N, 6] in URDF order, ball_* [N, 3], goal_xy_m [N, 2], last_action [N, 6] (clipped).
+    """
+    home = _row_tensor(HOME_JOINT_POSITIONS_RAD, joint_positions_rad)
+    parts = (joint_positions_rad.to(torch.float32) - home, joint_velocities_rad_s, ball_position_m,
+             ball_velocity_m_s, goal_xy_m, last_action)
+    for (name, size), part in zip(OBS_LAYOUT, parts):
+        if part.shape[-1] != size:
+            raise ValueError(f'{name} needs {size} values per row, got shape {tuple(part.shape)}')
+    return torch.cat([p.to(torch.float32) for p in parts], dim=-1)
+
+
+def joints_in_urdf_order(names: Sequence[str], positions: Sequence[float], velocities: Sequence[float]
+                         ) -> tuple[list[float], list[float]]:
+    """Reorder a JointState's arrays (any order, extra joints allowed) into JOINT_NAMES order.
+
+    Raises ValueError when an arm joint is missing or the arrays' lengths do not match the names.
+    """
+    if len(positions) != len(names) or len(velocities) != len(names):
+        raise ValueError(f'joint state has {len(names)} names, {len(positions)} positions and '
+                         f'{len(velocities)} velocities')
+    index = {name: i for i, name in enumerate(names)}
+    missing = [name for name in JOINT_NAMES if name not in index]
+    if missing:
+        raise ValueError(f'joint state lacks {missing}')
+    return ([float(positions[index[n]]) for n in JOINT_NAMES], [float(velocities[index[n]]) for n in JOINT_NAMES])
+
+
+def player_observation(joint_names: Sequence[str], joint_positions_rad: Sequence[float],
+                       joint_velocities_rad_s: Sequence[float], ball_position_m: Sequence[float],
+                       ball_velocity_m_s: Sequence[float], goal_xy_m: Sequence[float],
+                       last_action: Sequence[float]) -> torch.Tensor:
+    """The deployment path: one observation [1, NUM_OBS] from a JointState's fields (any joint order)
+    and a BallState's position and velocity, the goal and the player's previous (clipped) action."""
+    q, qd = joints_in_urdf_order(joint_names, joint_positions_rad, joint_velocities_rad_s)
+
+    def row(values, size: int, what: str) -> torch.Tensor:
+        t = torch.tensor([float(v) for v in values], dtype=torch.float32)
+        if t.numel() != size:
+            raise ValueError(f'{what} needs {size} values, got {t.numel()}')
+        if not torch.isfinite(t).all():
+            raise ValueError(f'{what} is not finite: {t.tolist()}')
+        return t[None]
+
+    return build_observation(row(q, NUM_ACTIONS, 'joint positions'), row(qd, NUM_ACTIONS, 'joint velocities'),
+                             row(ball_position_m, 3, 'ball position'), row(ball_velocity_m_s, 3, 'ball velocity'),
+                             row(goal_xy_m, 2, 'goal'), row(last_action, NUM_ACTIONS, 'last action'))
+
+
+@dataclass(frozen=True)
+class SensingNoise:
+    """Standard deviations of the simulated sensing noise (Gaussian, independent per value and step)."""
+    joint_position_rad: float = 0.0
+    joint_velocity_rad_s: float = 0.0
+    ball_position_m: float = 0.0
+    ball_velocity_m_s: float = 0.0
+
+    def as_list(self) -> list[float]:
+        return [self.joint_position_rad, self.joint_velocity_rad_s, self.ball_position_m, self.ball_velocity_m_s]

@@ -1,0 +1,411 @@
+"""The table-tennis task: the batched world (stylepong_sim.batched_world) as an RL environment.
+
+Where things live: the world (physics, robot, referee) is a simulator of the cell and sits with the
+cell in stylepong_sim; what makes it a learning problem (observations through stylepong_policy.spec,
+rewards, goals, domain randomisation, sensing noise and latency, resets) is here, beside PPO.
+
+One episode = one incoming ball, from its launch (world_spec's distribution, vectorised) until the
+referee's verdict; the environment then resets itself (new ball, new goal, new randomisation, arm near
+home). `step` returns what PPO needs (see TableTennisEnv.step).
+
+Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus signs they lack):
+  before the hit   bat    w_bat  exp(-d(paddle, ball) / sigma_bat)       (d over `bat_axes`: the paper
+                                                                          uses y only; default y and z)
+  the hit          hit    w_hit  once, when the paddle first touches the ball
+  after the hit    goal   w_goal exp(-|ball - goal| / sigma_goal)        (every step until the verdict)
+  verdict          land   w_land exp(-|landing point - goal| / sigma_land) for a returned ball
+                   success  w_success for a returned ball
+                   illegal  -w_illegal for robot contact, the robot touching the table, a double hit
+  regularisation   acc    w_acc (exp(-|qddot| / sigma_acc) - 1)         (in [-w, 0]: the penalties
+                   dof    w_dof (exp(-|q - home| / sigma_dof) - 1)        only ever lower the reward)
+                   rate   w_rate (exp(-|a_t - a_t-1| / sigma_rate) - 1)
+                   action -w_action max|a_t|
+  r = w_task * (sum of the above) + w_style * r_style, with r_style from `style_reward_fn` (AMP's
+  discriminator on sequences of arm states, a later issue; none by default).
+Goal: the centre of a 0.25 m region drawn uniformly so that the region lies on the opponent's half,
+resampled at every reset. Success (the referee's 'returned') does not need the goal.
+
+Domain randomisation (`randomize`, per episode): table, paddle restitution and tangential factors
+(world_spec ranges), drag (air density and drag coefficient), gravity, the servo's Kp and Kd, the
+sensing noise level (0 to the maximum stds), the ball and joint observation delays and the action
+delay. With randomize=False everything is nominal and noiseless (the evaluation protocol).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+import torch
+
+from stylepong_policy import spec
+from stylepong_sim import batched_launcher as bl
+from stylepong_sim import batched_world as bw
+from stylepong_sim import referee as rf
+from stylepong_sim import world_spec as ws
+
+FAILURE_REASONS: tuple[str, ...] = bw.REASONS
+SUCCESS_INDEX = bw.REASON_INDEX[rf.REASON_RETURNED]
+ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
+ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
+REWARD_TERMS = ('bat', 'hit', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'style')
+
+
+@dataclass
+class TaskConfig:
+    """Every parameter of the environment, its randomisation and its reward (YAML: the `task` section)."""
+    num_envs: int = 4096
+    speed_range_m_s: tuple[float, float] = tuple(ws.SPEED_RANGES_M_S['all'])
+    randomize: bool = True
+    # World
+    physics_rate_hz: float = 120.0
+    arm_substeps: int = 4
+    episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
+    reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
+    goal_radius_m: float = 0.25
+    # Sensing noise: maximum standard deviations; each episode draws a level in [0, 1] times these.
+    noise_joint_position_rad: float = 0.003
+    noise_joint_velocity_rad_s: float = 0.03
+    noise_ball_position_m: float = 0.01
+    noise_ball_velocity_m_s: float = 0.15
+    # Latencies, drawn uniformly per episode in [0, max].
+    max_ball_delay_s: float = 0.025                 # camera tracking
+    max_joint_delay_s: float = 0.008                # joint state
+    max_action_delay_s: float = 1.0 / 60.0          # command to servo (whole physics steps)
+    # Physics randomisation ranges.
+    table_restitution_range: tuple[float, float] = tuple(ws.TABLE_RESTITUTION_RANGE)
+    table_tangential_range: tuple[float, float] = tuple(ws.TABLE_TANGENTIAL_FACTOR_RANGE)
+    paddle_restitution_range: tuple[float, float] = tuple(ws.PADDLE_RESTITUTION_RANGE)
+    paddle_tangential_range: tuple[float, float] = (0.70, 0.80)
+    drag_scale_range: tuple[float, float] = (0.95, 1.05)
+    gravity_range_m_s2: tuple[float, float] = (9.76, 9.86)
+    kp_scale_range: tuple[float, float] = (0.8, 1.2)
+    kd_scale_range: tuple[float, float] = (0.8, 1.2)
+    # Reward weights and scales.
+    w_task: float = 1.0
+    w_style: float = 0.0
+    w_bat: float = 0.1
+    sigma_bat_m: float = 0.3
+    bat_axes: str = 'yz'                            # which of x, y, z the paddle-ball distance uses
+    w_hit: float = 2.0
+    w_goal: float = 0.2
+    sigma_goal_m: float = 1.0
+    w_land: float = 3.0
+    sigma_land_m: float = 0.5
+    w_success: float = 5.0
+    w_illegal: float = 2.0
+    w_acc: float = 0.02
+    sigma_acc_rad_s2: float = 200.0
+    w_dof: float = 0.02
+    sigma_dof_rad: float = 1.0
+    w_rate: float = 0.02
+    sigma_rate: float = 0.5
+    w_action: float = 0.01
+    # AMP later: arm-state sequences of this many policy steps are kept for the discriminator.
+    style_sequence_length: int = 2
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, list):
+                setattr(self, f.name, tuple(float(v) for v in value))
+        self.validate()
+
+    def validate(self) -> None:
+        if self.num_envs < 1:
+            raise ValueError(f'num_envs must be at least 1, got {self.num_envs}')
+        lo, hi = self.speed_range_m_s
+        if not 0.0 < lo <= hi:
+            raise ValueError(f'speed_range_m_s must be (low, high) with 0 < low <= high, got {self.speed_range_m_s}')
+        for f in fields(self):
+            if f.name.endswith('_range') or f.name.endswith('_range_m_s2'):
+                a, b = getattr(self, f.name)
+                if not a <= b:
+                    raise ValueError(f'{f.name} must be (low, high), got {(a, b)}')
+        if not set(self.bat_axes) <= set('xyz') or not self.bat_axes:
+            raise ValueError(f"bat_axes must be letters of 'xyz', got {self.bat_axes!r}")
+        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s'):
+            if getattr(self, name) < 0.0:
+                raise ValueError(f'{name} must not be negative')
+        if self.style_sequence_length < 1:
+            raise ValueError('style_sequence_length must be at least 1')
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+PRIVILEGED_LAYOUT: tuple[tuple[str, int], ...] = (
+    ('true_joint_position_offset_rad', 6), ('true_joint_velocity_rad_s', 6), ('true_ball_position_m', 3),
+    ('true_ball_velocity_m_s', 3), ('paddle_position_m', 3), ('paddle_normal', 3), ('ball_hit', 1),
+    ('own_bounces', 1), ('time_since_launch_s', 1), ('physics', 8), ('noise_std', 4), ('delays_s', 3),
+)
+
+
+@dataclass
+class _Episode:
+    """Per-environment quantities drawn at each reset ([N] unless noted)."""
+    goal_xy_m: torch.Tensor                 # [N, 2]
+    noise_std: torch.Tensor                 # [N, 4]: joint pos, joint vel, ball pos, ball vel
+    ball_delay_steps: torch.Tensor          # in policy steps (fractional)
+    joint_delay_steps: torch.Tensor
+    action_delay_physics_steps: torch.Tensor  # long
+    reward_sums: dict = field(default_factory=dict)
+
+
+class TableTennisEnv:
+    """N table-tennis episodes in parallel (see the module docstring)."""
+
+    HISTORY = 3   # policy steps of sensed state kept for the observation delays
+
+    def __init__(self, cfg: TaskConfig, device: str | torch.device = 'cpu', seed: int = 0):
+        self.cfg = cfg
+        self.device = torch.device(device)
+        self.num_envs = int(cfg.num_envs)
+        self.num_actions = spec.NUM_ACTIONS
+        self.num_obs = spec.NUM_OBS
+        self.num_critic_obs = spec.NUM_OBS + sum(size for _, size in PRIVILEGED_LAYOUT)
+        self.world = bw.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
+                                     arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s)
+        self.policy_dt_s = self.world.policy_dt_s
+        if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \
+                cfg.max_joint_delay_s > (self.HISTORY - 1) * self.policy_dt_s:
+            raise ValueError(f'observation delays above {(self.HISTORY - 1) * self.policy_dt_s:.3f} s are not kept')
+        if cfg.max_action_delay_s > self.policy_dt_s + 1e-9:
+            raise ValueError(f'max_action_delay_s must not exceed one policy period ({self.policy_dt_s:.4f} s)')
+        # Two streams: the balls (the sampler's own generator) and everything else the task draws.
+        self.sampler = bl.IncomingBallSampler(cfg.speed_range_m_s, seed=seed, device=self.device,
+                                              batch=max(1024, 2 * self.num_envs))
+        self.generator = torch.Generator(device=self.device)
+        self.generator.manual_seed(int(seed) * 7919 + 104729)
+        n, kw = self.num_envs, dict(device=self.device, dtype=torch.float32)
+        self._home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, **kw)
+        self._goal_z_m = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+        self._bat_axes = torch.tensor(['xyz'.index(a) for a in cfg.bat_axes], device=self.device)
+        self.last_action = torch.zeros(n, spec.NUM_ACTIONS, **kw)
+        self._qd_prev = torch.zeros(n, spec.NUM_ACTIONS, **kw)
+        self._joint_history = torch.zeros(self.HISTORY, n, 2 * spec.NUM_ACTIONS, **kw)
+        self._ball_history = torch.zeros(self.HISTORY, n, 6, **kw)
+        self.arm_history = torch.zeros(cfg.style_sequence_length, n, ARM_STATE_SIZE, **kw)
+        self.episode = _Episode(goal_xy_m=torch.zeros(n, 2, **kw), noise_std=torch.zeros(n, 4, **kw),
+                                ball_delay_steps=torch.zeros(n, **kw), joint_delay_steps=torch.zeros(n, **kw),
+                                action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
+                                reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS})
+        self.style_reward_fn = None   # callable: arm-state sequences [N, L, 12] -> style reward [N]
+        self._obs = None
+
+    # --- what the outside reads -------------------------------------------------------------------
+    @property
+    def ball_position_m(self) -> torch.Tensor:
+        """True ball positions [N, 3] (rendering, tests)."""
+        return self.world.ball_pos_m.T
+
+    @property
+    def goal_xy_m(self) -> torch.Tensor:
+        return self.episode.goal_xy_m
+
+    def arm_state(self) -> torch.Tensor:
+        """(q, qdot) [N, 12] in URDF order: one frame of the discriminator's input."""
+        return torch.cat((self.world.q_rad.T, self.world.qd_rad_s.T), dim=1)
+
+    def arm_state_sequences(self) -> torch.Tensor:
+        """The last style_sequence_length arm states [N, L, 12], oldest first."""
+        return self.arm_history.flip(0).transpose(0, 1)
+
+    # --- episodes ---------------------------------------------------------------------------------
+    def _uniform(self, shape, bounds) -> torch.Tensor:
+        lo, hi = bounds
+        return lo + (hi - lo) * torch.rand(shape, generator=self.generator, device=self.device)
+
+    def _reset_envs(self, env_ids: torch.Tensor) -> None:
+        k = int(env_ids.numel())
+        if k == 0:
+            return
+        cfg = self.cfg
+        position, velocity, _ = self.sampler.sample(k)
+        q = self._home[:, None].expand(-1, k)
+        if cfg.randomize and cfg.reset_joint_noise_rad > 0.0:
+            q = q + self._uniform((spec.NUM_ACTIONS, k), (-cfg.reset_joint_noise_rad, cfg.reset_joint_noise_rad))
+        params = self._physics_params(k)
+        self.world.reset_envs(env_ids, q, position, velocity, params)
+        # Goal region wholly on the opponent's half.
+        r = cfg.goal_radius_m
+        goal = torch.stack((self._uniform(k, (r, ws.HALF_LENGTH_M - r)),
+                            self._uniform(k, (-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r))), dim=1)
+        self.episode.goal_xy_m[env_ids] = goal
+        if cfg.randomize:
+            self.episode.noise_std[env_ids] = self._uniform((k, 1), (0.0, 1.0)) * torch.tensor(
+                [cfg.noise_joint_position_rad, cfg.noise_joint_velocity_rad_s, cfg.noise_ball_position_m,
+                 cfg.noise_ball_velocity_m_s], device=self.device)
+            self.episode.ball_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_ball_delay_s)) / self.policy_dt_s
+            self.episode.joint_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_joint_delay_s)) / self.policy_dt_s
+            physics_steps = int(math.floor(cfg.max_action_delay_s / self.world.physics_dt_s + 1e-9))
+            self.episode.action_delay_physics_steps[env_ids] = torch.randint(
+                0, physics_steps + 1, (k,), generator=self.generator, device=self.device)
+        else:
+            self.episode.noise_std[env_ids] = 0.0
+            self.episode.ball_delay_steps[env_ids] = 0.0
+            self.episode.joint_delay_steps[env_ids] = 0.0
+            self.episode.action_delay_physics_steps[env_ids] = 0
+        self.last_action[env_ids] = 0.0
+        joints = torch.cat((self.world.q_rad[:, env_ids].T, self.world.qd_rad_s[:, env_ids].T), dim=1)
+        self._qd_prev[env_ids] = joints[:, spec.NUM_ACTIONS:]
+        self._joint_history[:, env_ids] = joints
+        self._ball_history[:, env_ids] = torch.cat((position.T, velocity.T), dim=1).to(torch.float32)
+        self.arm_history[:, env_ids] = joints
+        for name in REWARD_TERMS:
+            self.episode.reward_sums[name][env_ids] = 0.0
+
+    def _physics_params(self, k: int) -> bw.PhysicsParams:
+        params = bw.PhysicsParams.nominal(k, self.device)
+        cfg = self.cfg
+        if not cfg.randomize:
+            return params
+        params.table_restitution = self._uniform(k, cfg.table_restitution_range)
+        params.table_tangential_factor = self._uniform(k, cfg.table_tangential_range)
+        params.paddle_restitution = self._uniform(k, cfg.paddle_restitution_range)
+        params.paddle_tangential_factor = self._uniform(k, cfg.paddle_tangential_range)
+        params.drag_k_per_m = params.drag_k_per_m * self._uniform(k, cfg.drag_scale_range)
+        params.gravity_m_s2 = self._uniform(k, cfg.gravity_range_m_s2)
+        params.kp_nm_per_rad = params.kp_nm_per_rad * self._uniform(k, cfg.kp_scale_range)
+        params.kd_nms_per_rad = params.kd_nms_per_rad * self._uniform(k, cfg.kd_scale_range)
+        return params
+
+    def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Start a new episode in every environment; returns (actor obs, critic obs)."""
+        self._reset_envs(torch.arange(self.num_envs, device=self.device))
+        return self._observations()
+
+    # --- observations -----------------------------------------------------------------------------
+    def _delayed(self, history: torch.Tensor, delay_steps: torch.Tensor) -> torch.Tensor:
+        """history [H, N, D] (newest first) read delay_steps [N] policy steps back, linearly interpolated."""
+        index = delay_steps.floor().long().clamp(0, self.HISTORY - 2)
+        frac = (delay_steps - index).clamp(0.0, 1.0)[:, None]
+        d = history.shape[-1]
+        newer = history.gather(0, index[None, :, None].expand(1, -1, d))[0]
+        older = history.gather(0, (index + 1)[None, :, None].expand(1, -1, d))[0]
+        return newer + frac * (older - newer)
+
+    def _observations(self) -> tuple[torch.Tensor, torch.Tensor]:
+        ep = self.episode
+        joints = self._delayed(self._joint_history, ep.joint_delay_steps)
+        ball = self._delayed(self._ball_history, ep.ball_delay_steps)
+        if self.cfg.randomize:
+            std = torch.cat((ep.noise_std[:, 0:1].expand(-1, 6), ep.noise_std[:, 1:2].expand(-1, 6),
+                             ep.noise_std[:, 2:3].expand(-1, 3), ep.noise_std[:, 3:4].expand(-1, 3)), dim=1)
+            noise = std * torch.randn(std.shape, generator=self.generator, device=self.device)
+            joints = joints + noise[:, :12]
+            ball = ball + noise[:, 12:]
+        obs = spec.build_observation(joints[:, :6], joints[:, 6:], ball[:, :3], ball[:, 3:], ep.goal_xy_m,
+                                     self.last_action)
+        w = self.world
+        p = w.params
+        physics = torch.stack((p.gravity_m_s2, p.drag_k_per_m / ws.DRAG_K_PER_M, p.table_restitution,
+                               p.table_tangential_factor, p.paddle_restitution, p.paddle_tangential_factor,
+                               (p.kp_nm_per_rad / self._kp_nominal).mean(0), (p.kd_nms_per_rad / self._kd_nominal).mean(0)),
+                              dim=1)
+        delays = torch.stack((ep.ball_delay_steps * self.policy_dt_s, ep.joint_delay_steps * self.policy_dt_s,
+                              ep.action_delay_physics_steps.to(torch.float32) * w.physics_dt_s), dim=1)
+        privileged = torch.cat((w.q_rad.T - self._home, w.qd_rad_s.T, w.ball_pos_m.T, w.ball_vel_m_s.T,
+                                w.paddle_pos_m.T, w.paddle_rot[:, 2].T, w.hit[:, None].float(),
+                                w.own_bounces[:, None].float(), w.time_s[:, None], physics, ep.noise_std, delays),
+                               dim=1)
+        return obs, torch.cat((obs, privileged), dim=1)
+
+    @property
+    def _kp_nominal(self) -> torch.Tensor:
+        return torch.tensor(ws.ARM_KP_NM_PER_RAD, device=self.device)[:, None]
+
+    @property
+    def _kd_nominal(self) -> torch.Tensor:
+        return torch.tensor(ws.ARM_KD_NMS_PER_RAD, device=self.device)[:, None]
+
+    # --- stepping ---------------------------------------------------------------------------------
+    def step(self, actions: torch.Tensor):
+        """Advance every environment by one policy period.
+
+        actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_policy.spec).
+        Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, info) where
+        ended episodes are already reset (their obs are the new episode's) and info holds 'time_outs',
+        'ball_done', 'ball_success', 'ball_hit', 'ball_reason' (index into FAILURE_REASONS), 'arm_state'
+        [N, 12] (after the step, before any reset), 'reward_terms' (this step's terms) and 'episode'
+        (mean reward-term sums and rates of the episodes that ended in this step; empty if none).
+        """
+        cfg = self.cfg
+        w = self.world
+        action = spec.clip_action(actions.to(self.device, torch.float32))
+        hit_before = w.hit.clone()
+        events = w.step(spec.decode_action(action).T, self.episode.action_delay_physics_steps)
+
+        q, qd = w.q_rad.T, w.qd_rad_s.T
+        arm_state = torch.cat((q, qd), dim=1)
+        self.arm_history = torch.cat((arm_state[None], self.arm_history[:-1]), dim=0)
+        terms = self._rewards(action, hit_before, events, q, qd)
+        task_reward = sum(terms[name] for name in REWARD_TERMS if name != 'style')
+        if self.style_reward_fn is not None and cfg.w_style != 0.0:
+            terms['style'] = self.style_reward_fn(self.arm_state_sequences())
+        else:
+            terms['style'] = torch.zeros_like(task_reward)
+        reward = cfg.w_task * task_reward + cfg.w_style * terms['style']
+        for name in REWARD_TERMS:
+            self.episode.reward_sums[name] += terms[name]
+
+        self._qd_prev = qd.clone()
+        self.last_action = action
+        self._joint_history = torch.cat((arm_state[None], self._joint_history[:-1]), dim=0)
+        self._ball_history = torch.cat((torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1)[None],
+                                        self._ball_history[:-1]), dim=0)
+
+        dones = events.decided
+        info = {'time_outs': dones & (events.reason == bw.REASON_INDEX[rf.REASON_TIMEOUT]),
+                'ball_done': dones, 'ball_success': events.success, 'ball_hit': events.paddle_hit,
+                'ball_reason': events.reason.clamp_min(0), 'arm_state': arm_state, 'reward_terms': terms,
+                'episode': {}}
+        done_ids = torch.nonzero(dones).squeeze(1)
+        if done_ids.numel():
+            info['episode'] = self._episode_log(done_ids, events)
+            self._reset_envs(done_ids)
+        obs, critic_obs = self._observations()
+        return obs, critic_obs, reward, dones, info
+
+    def _rewards(self, action, hit_before, events: bw.StepEvents, q, qd) -> dict[str, torch.Tensor]:
+        cfg = self.cfg
+        w = self.world
+        ball = w.ball_pos_m.T
+        paddle = w.paddle_pos_m.T
+        before_hit = ~hit_before & ~events.paddle_hit & (events.decided | w.open)
+        offset = (paddle - ball)[:, self._bat_axes]
+        bat = cfg.w_bat * torch.exp(-torch.linalg.vector_norm(offset, dim=1) / cfg.sigma_bat_m) * before_hit
+        hit = cfg.w_hit * events.paddle_hit.float()
+        goal_point = torch.cat((self.episode.goal_xy_m, torch.full_like(ball[:, :1], self._goal_z_m)), dim=1)
+        returning = w.hit & (w.open | events.decided)
+        goal = cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m) * returning
+        success = events.success
+        landing = w.landing_xy_m.T
+        land = cfg.w_land * torch.exp(-torch.linalg.vector_norm(landing - self.episode.goal_xy_m, dim=1)
+                                      / cfg.sigma_land_m) * success
+        illegal_mask = torch.zeros_like(success)
+        for name in ILLEGAL_REASONS:
+            illegal_mask |= events.decided & (events.reason == bw.REASON_INDEX[name])
+        qdd = (qd - self._qd_prev) / self.policy_dt_s
+        acc = cfg.w_acc * (torch.exp(-torch.linalg.vector_norm(qdd, dim=1) / cfg.sigma_acc_rad_s2) - 1.0)
+        dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
+        rate = cfg.w_rate * (torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate)
+                             - 1.0)
+        return {'bat': bat, 'hit': hit, 'goal': goal, 'land': land, 'success': cfg.w_success * success.float(),
+                'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
+                'action': -cfg.w_action * action.abs().amax(dim=1)}
+
+    def _episode_log(self, done_ids: torch.Tensor, events: bw.StepEvents) -> dict[str, float]:
+        log = {f'rew_{name}': float(self.episode.reward_sums[name][done_ids].mean()) for name in REWARD_TERMS}
+        success = events.success[done_ids]
+        log['success_rate'] = float(success.float().mean())
+        log['hit_rate'] = float(self.world.hit[done_ids].float().mean())
+        in_goal = torch.linalg.vector_norm(self.world.landing_xy_m.T[done_ids] - self.episode.goal_xy_m[done_ids],
+                                           dim=1) <= self.cfg.goal_radius_m
+        log['goal_rate'] = float((in_goal & success).float().mean())
+        log['episode_length_s'] = float(self.world.time_s[done_ids].mean())
+        return log
+
+
+def make_env(cfg: TaskConfig, device: str | torch.device = 'cpu', seed: int = 0) -> TableTennisEnv:
+    """The environment for `cfg`; the same seed gives the same balls, goals and randomisation."""
+    return TableTennisEnv(cfg, device, seed)

@@ -1,0 +1,76 @@
+"""The observation/action contract: the player's path and the training env's path give identical tensors."""
+import json
+import random
+
+import pytest
+import torch
+
+from stylepong_description import robot_model as rm
+from stylepong_policy import spec, task
+
+
+def test_layout_and_contract():
+    assert spec.NUM_OBS == sum(size for _, size in spec.OBS_LAYOUT) == 26
+    assert spec.JOINT_NAMES == rm.JOINT_NAMES and spec.NUM_ACTIONS == 6
+    assert spec.ACTION_RATE_HZ == 60.0
+    decoding = json.loads(json.dumps(spec.action_decoding()))
+    assert decoding['home_rad'] == list(spec.HOME_JOINT_POSITIONS_RAD)
+
+
+def test_decode_action_is_home_plus_scaled_clipped_action_within_limits():
+    limits = rm.joint_limits()
+    zero = spec.decode_action(torch.zeros(1, 6))
+    assert torch.equal(zero[0], torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, dtype=torch.float32))
+    big = spec.decode_action(torch.full((1, 6), 50.0))
+    assert torch.equal(big, spec.decode_action(torch.ones(1, 6)))   # clipped to the action range
+    expected = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD) + torch.tensor(spec.ACTION_SCALE_RAD)
+    expected = torch.minimum(expected, torch.tensor(limits.upper_rad, dtype=torch.float32))
+    torch.testing.assert_close(big[0], expected.to(torch.float32))
+
+
+def _player_inputs(env, i, order):
+    """What the player node would read from /joint_states (in `order`, plus a gripper joint) and /ball/state."""
+    q = env.world.q_rad[:, i].tolist()
+    qd = env.world.qd_rad_s[:, i].tolist()
+    names = [spec.JOINT_NAMES[k] for k in order] + ['gripper_joint']
+    positions = [q[k] for k in order] + [0.3]
+    velocities = [qd[k] for k in order] + [0.0]
+    return (names, positions, velocities, env.world.ball_pos_m[:, i].tolist(), env.world.ball_vel_m_s[:, i].tolist(),
+            env.goal_xy_m[i].tolist(), env.last_action[i].tolist())
+
+
+def test_player_path_and_env_path_give_identical_observations():
+    """Noise and latency off (the protocol's nominal env): the same state through both paths."""
+    env = task.make_env(task.TaskConfig(num_envs=8, randomize=False), 'cpu', seed=5)
+    obs, _ = env.reset()
+    generator = torch.Generator().manual_seed(0)
+    rng = random.Random(0)
+    for step in range(40):
+        for i in range(env.num_envs):
+            order = list(range(6))
+            rng.shuffle(order)
+            player = spec.player_observation(*_player_inputs(env, i, order))
+            assert player.dtype == obs.dtype and player.shape == (1, env.num_obs)
+            assert torch.equal(player[0], obs[i]), (step, i, player[0] - obs[i])
+        obs, _, _, _, _ = env.step(torch.randn(env.num_envs, 6, generator=generator))
+
+
+def test_env_sends_the_decoded_action_to_the_servo():
+    env = task.make_env(task.TaskConfig(num_envs=4, randomize=False), 'cpu', seed=1)
+    env.reset()
+    action = torch.tensor([[0.3, -0.2, 0.5, 2.0, -1.5, 0.0]] * 4)
+    env.step(action)
+    assert torch.equal(env.world.q_cmd_rad.T, spec.decode_action(action).to(env.world.q_cmd_rad.dtype))
+    assert torch.equal(env.last_action, spec.clip_action(action))
+
+
+def test_player_path_rejects_bad_input():
+    names, q, qd = list(spec.JOINT_NAMES), [0.0] * 6, [0.0] * 6
+    with pytest.raises(ValueError, match='lacks'):
+        spec.player_observation(names[:5], q[:5], qd[:5], [0, 0, 1], [0, 0, 0], [1, 0], [0] * 6)
+    with pytest.raises(ValueError, match='not finite'):
+        spec.player_observation(names, q, qd, [0, float('nan'), 1], [0, 0, 0], [1, 0], [0] * 6)
+    with pytest.raises(ValueError, match='names'):
+        spec.player_observation(names, q[:4], qd, [0, 0, 1], [0, 0, 0], [1, 0], [0] * 6)
+    with pytest.raises(ValueError, match='goal'):
+        spec.player_observation(names, q, qd, [0, 0, 1], [0, 0, 0], [1, 0, 0], [0] * 6)

@@ -1,0 +1,206 @@
+"""The table-tennis task: interface, seeding, goals, randomisation, rewards and resets."""
+import math
+
+import pytest
+import torch
+
+from stylepong_policy import spec, task
+from stylepong_sim import referee as rf
+from stylepong_sim import world_spec as ws
+
+
+def _env(n=16, seed=0, **overrides):
+    return task.make_env(task.TaskConfig(num_envs=n, **overrides), 'cpu', seed)
+
+
+def test_interface_shapes_and_types():
+    env = _env(8)
+    obs, critic = env.reset()
+    assert obs.shape == (8, env.num_obs) and critic.shape == (8, env.num_critic_obs)
+    assert env.num_actions == 6 and env.device == torch.device('cpu')
+    obs, critic, reward, dones, info = env.step(torch.zeros(8, 6))
+    assert obs.shape == (8, env.num_obs) and critic.shape == (8, env.num_critic_obs)
+    assert reward.shape == (8,) and reward.dtype == torch.float32 and dones.dtype == torch.bool
+    for key in ('time_outs', 'ball_done', 'ball_success', 'ball_hit'):
+        assert info[key].shape == (8,) and info[key].dtype == torch.bool
+    assert info['ball_reason'].dtype == torch.int64 and info['arm_state'].shape == (8, 12)
+    assert task.FAILURE_REASONS[task.SUCCESS_INDEX] == rf.REASON_RETURNED
+    assert torch.isfinite(obs).all() and torch.isfinite(critic).all()
+
+
+def test_same_seed_same_episodes_other_seed_others():
+    def rollout(seed):
+        env = _env(6, seed)
+        obs, _ = env.reset()
+        generator = torch.Generator().manual_seed(3)
+        trace = [obs]
+        for _ in range(30):
+            obs, _, reward, _, _ = env.step(torch.randn(6, 6, generator=generator))
+            trace += [obs, reward[:, None]]
+        return torch.cat(trace, dim=1)
+    assert torch.equal(rollout(4), rollout(4))
+    assert not torch.equal(rollout(4), rollout(5))
+
+
+def test_goals_lie_on_the_opponents_half_and_are_redrawn_each_episode():
+    env = _env(256, randomize=False)
+    env.reset()
+    goal = env.goal_xy_m.clone()
+    r = env.cfg.goal_radius_m
+    assert (goal[:, 0] >= r).all() and (goal[:, 0] <= ws.HALF_LENGTH_M - r).all()
+    assert (goal[:, 1].abs() <= ws.HALF_WIDTH_M - r).all()
+    assert goal[:, 0].max() - goal[:, 0].min() > 0.5 and goal[:, 1].max() - goal[:, 1].min() > 0.5
+    ended = torch.zeros(256, dtype=torch.bool)
+    for _ in range(120):
+        _, _, _, dones, _ = env.step(torch.zeros(256, 6))
+        ended |= dones
+        if ended.sum() > 20:
+            break
+    assert ended.any()
+    assert (env.goal_xy_m[ended] != goal[ended]).all(dim=1).all()
+
+
+def test_domain_randomisation_within_ranges_and_off_when_disabled():
+    cfg = task.TaskConfig(num_envs=256)
+    env = task.make_env(cfg, 'cpu', 0)
+    env.reset()
+    p = env.world.params
+    for value, bounds in ((p.table_restitution, cfg.table_restitution_range),
+                          (p.paddle_restitution, cfg.paddle_restitution_range),
+                          (p.gravity_m_s2, cfg.gravity_range_m_s2)):
+        assert value.min() >= bounds[0] and value.max() <= bounds[1] and value.std() > 0
+    assert env.episode.noise_std.max() > 0 and env.episode.action_delay_physics_steps.max() > 0
+    nominal = _env(16, randomize=False)
+    nominal.reset()
+    assert (nominal.world.params.table_restitution == ws.TABLE_RESTITUTION).all()
+    assert (nominal.episode.noise_std == 0).all() and (nominal.episode.ball_delay_steps == 0).all()
+
+
+def test_observation_delay_shows_an_older_ball():
+    env = _env(4, randomize=False)
+    env.reset()
+    for _ in range(5):
+        env.step(torch.zeros(4, 6))
+    env.episode.ball_delay_steps[:] = torch.tensor([0.0, 1.0, 2.0, 0.5])
+    obs, _ = env._observations()
+    ball = slice(12, 15)
+    history = env._ball_history
+    torch.testing.assert_close(obs[0, ball], history[0, 0, :3])
+    torch.testing.assert_close(obs[1, ball], history[1, 1, :3])
+    torch.testing.assert_close(obs[2, ball], history[2, 2, :3])
+    torch.testing.assert_close(obs[3, ball], 0.5 * (history[0, 3, :3] + history[1, 3, :3]))
+
+
+def _force_return(env, i, start, velocity):
+    """Put env i's ball in flight as if the paddle had just struck it."""
+    w = env.world
+    w.ball_pos_m[:, i] = torch.tensor(start)
+    w.ball_vel_m_s[:, i] = torch.tensor(velocity)
+    w.hit[i] = True
+    w.open[i] = True
+
+
+def test_rewards_for_a_return_a_miss_and_illegal_contact():
+    env = _env(3, randomize=False)
+    env.reset()
+    goal = env.goal_xy_m[0]
+    _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))     # returned over the net
+    _force_return(env, 1, (-0.5, 0.0, 0.9), (6.0, 0.0, 0.0))      # into the net
+    kin = env.world.kinematics
+    forearm = kin.origin_m[:, 2, 2] + 0.5 * (kin.origin_m[:, 3, 2] - kin.origin_m[:, 2, 2])
+    env.world.ball_pos_m[:, 2] = forearm + torch.tensor([0.0, 0.0, 0.2])
+    env.world.ball_vel_m_s[:, 2] = torch.tensor([0.0, 0.0, -3.0])
+    totals = torch.zeros(3)
+    outcome = [None] * 3
+    for _ in range(90):
+        _, _, reward, dones, info = env.step(torch.zeros(3, 6))
+        for i in range(3):
+            if outcome[i] is None:
+                totals[i] += reward[i]
+                if dones[i]:
+                    outcome[i] = (task.FAILURE_REASONS[int(info['ball_reason'][i])], bool(info['ball_success'][i]),
+                                  float(info['reward_terms']['success'][i]), float(info['reward_terms']['illegal'][i]))
+        if all(o is not None for o in outcome):
+            break
+    assert outcome[0][:2] == (rf.REASON_RETURNED, True) and outcome[0][2] == env.cfg.w_success
+    assert outcome[1][:2] == (rf.REASON_NET, False) and outcome[1][2] == 0.0 and outcome[1][3] == 0.0
+    assert outcome[2][:2] == (rf.REASON_ROBOT_CONTACT, False) and outcome[2][3] == -env.cfg.w_illegal
+    assert totals[0] > totals[1] > totals[2]
+    del goal
+
+
+def test_regularisation_terms_only_ever_lower_the_reward():
+    env = _env(64)
+    env.reset()
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(30):
+        _, _, _, _, info = env.step(3.0 * torch.randn(64, 6, generator=generator))
+        terms = info['reward_terms']
+        for name in ('acc', 'dof', 'rate', 'action', 'illegal'):
+            assert (terms[name] <= 0).all(), name
+        for name in ('bat', 'hit', 'goal', 'land', 'success'):
+            assert (terms[name] >= 0).all(), name
+    # At rest at home with a zero action the regularisation costs nothing.
+    still = _env(2, randomize=False)
+    still.reset()
+    _, _, _, _, info = still.step(torch.zeros(2, 6))
+    for name in ('dof', 'rate', 'action'):
+        assert info['reward_terms'][name].abs().max() < 1e-6, name
+
+
+def test_done_envs_restart_with_a_new_ball_and_the_arm_near_home():
+    env = _env(32, randomize=False)
+    env.reset()
+    seen = False
+    for _ in range(150):
+        obs, _, _, dones, info = env.step(torch.ones(32, 6) * 0.3)
+        if dones.any():
+            seen = True
+            i = int(torch.nonzero(dones)[0])
+            assert float(env.world.time_s[i]) == 0.0 and bool(env.world.open[i])
+            assert not bool(env.world.hit[i])
+            home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD)
+            torch.testing.assert_close(obs[i, :6], env.world.q_rad[:, i] - home)
+            assert obs[i, 12] > 0.5   # the new ball starts on the opponent's side
+            assert (obs[i, 20:26] == 0).all()   # no previous action in a new episode
+            break
+    assert seen
+
+
+def test_timeouts_are_reported_for_bootstrapping():
+    env = _env(2, randomize=False, episode_length_s=0.25)
+    env.reset()
+    env.world.params.gravity_m_s2[:] = 0.0
+    env.world.ball_vel_m_s[:] = 0.0
+    for _ in range(20):
+        _, _, _, dones, info = env.step(torch.zeros(2, 6))
+        if dones.any():
+            break
+    assert dones.all() and info['time_outs'].all()
+    assert task.FAILURE_REASONS[int(info['ball_reason'][0])] == rf.REASON_TIMEOUT
+
+
+def test_style_reward_slot_and_arm_state_sequences():
+    env = _env(4, style_sequence_length=3, w_style=0.5)
+    env.reset()
+    seen = []
+    env.style_reward_fn = lambda sequences: (seen.append(sequences.shape), torch.ones(4))[1]
+    _, _, reward, _, info = env.step(torch.zeros(4, 6))
+    assert seen == [(4, 3, 12)]
+    torch.testing.assert_close(info['reward_terms']['style'], torch.ones(4))
+    task_part = sum(info['reward_terms'][n] for n in task.REWARD_TERMS if n != 'style')
+    torch.testing.assert_close(reward, task_part + 0.5)
+    sequences = env.arm_state_sequences()
+    torch.testing.assert_close(sequences[:, -1], info['arm_state'])   # newest last
+
+
+def test_config_validation():
+    with pytest.raises(ValueError):
+        task.TaskConfig(num_envs=0)
+    with pytest.raises(ValueError):
+        task.TaskConfig(speed_range_m_s=(6.0, 4.0))
+    with pytest.raises(ValueError):
+        task.TaskConfig(bat_axes='w')
+    cfg = task.TaskConfig(speed_range_m_s=[4.0, 4.8])          # YAML gives lists
+    assert cfg.speed_range_m_s == (4.0, 4.8)
+    assert math.isclose(task.TaskConfig().goal_radius_m, 0.25)
