@@ -44,18 +44,20 @@ class StrokeShape:
 
 
 # Home puts the blade centre 0.10 m behind the end line and 0.13 m above the table's height, facing +x.
-# Back-swings stay behind the end line; hits are just above the end line, 0.19-0.21 m above the table
-# (where a ball that bounced on the robot's half is met); follow-throughs rise forwards over the table.
+# Back-swings stay behind the end line, and only 0.10 m behind home: further back the wrist passes over
+# the base's axis (the UR5's shoulder singularity), where a dragged arm flips its shoulder. Hits are
+# just above the end line, 0.18 m above the table (where a ball that bounced on the robot's half is met);
+# follow-throughs rise forwards over the table, short of the arm's reach (elbow bent by more than 1 rad).
 STROKES = {
-    'forward': StrokeShape(back_offset_m=(-0.20, -0.06, -0.06), hit_offset_m=(0.06, 0.0, 0.06),
-                           follow_offset_m=(0.20, -0.02, 0.20), back_yaw_rad=-0.25, hit_yaw_rad=0.0,
+    'forward': StrokeShape(back_offset_m=(-0.10, -0.06, -0.07), hit_offset_m=(0.06, 0.0, 0.05),
+                           follow_offset_m=(0.16, -0.02, 0.13), back_yaw_rad=-0.20, hit_yaw_rad=0.0,
                            follow_yaw_rad=0.15),
-    'leftward': StrokeShape(back_offset_m=(-0.16, -0.02, -0.05), hit_offset_m=(0.04, 0.20, 0.07),
-                            follow_offset_m=(0.12, 0.36, 0.18), back_yaw_rad=-0.10, hit_yaw_rad=0.30,
-                            follow_yaw_rad=0.50),
-    'rightward': StrokeShape(back_offset_m=(-0.16, 0.04, -0.05), hit_offset_m=(0.05, -0.18, 0.07),
-                             follow_offset_m=(0.13, -0.30, 0.18), back_yaw_rad=0.10, hit_yaw_rad=-0.30,
-                             follow_yaw_rad=-0.50),
+    'leftward': StrokeShape(back_offset_m=(-0.10, -0.06, -0.05), hit_offset_m=(0.03, 0.16, 0.05),
+                            follow_offset_m=(0.06, 0.28, 0.11), back_yaw_rad=-0.10, hit_yaw_rad=0.30,
+                            follow_yaw_rad=0.45),
+    'rightward': StrokeShape(back_offset_m=(-0.10, 0.08, -0.05), hit_offset_m=(0.05, -0.18, 0.05),
+                             follow_offset_m=(0.12, -0.30, 0.12), back_yaw_rad=0.10, hit_yaw_rad=-0.30,
+                             follow_yaw_rad=-0.45),
 }
 
 
@@ -63,7 +65,7 @@ STROKES = {
 class TeacherConfig:
     """Timing of the stroke and the hand's impedance (units in the names)."""
     backswing_s: float = 0.8
-    forward_swing_s: float = 1.4
+    forward_swing_s: float = 1.6
     end_hold_s: float = 0.3            # recorded at rest after the follow-through
     approach_speed_m_s: float = 0.25   # getting to the ready pose (not recorded)
     approach_min_s: float = 1.0
@@ -71,7 +73,7 @@ class TeacherConfig:
     settle_position_m: float = 0.015
     settle_angle_rad: float = 0.05
     settle_speed_m_s: float = 0.01
-    hand_stiffness_n_per_m: float = 400.0
+    hand_stiffness_n_per_m: float = 200.0
     hand_damping_ns_per_m: float = 10.0   # well below the arm's damping: with the loop's delays a gain near 1 rings
     hand_rot_stiffness_nm_per_rad: float = 15.0
     hand_rot_damping_nms_per_rad: float = 1.0

@@ -79,6 +79,16 @@ def test_the_hand_pulls_towards_the_via_point_and_never_pushes_harder_than_its_l
     assert far[1] > 0 and far[5] > 0
 
 
+def singularity_margins(q: np.ndarray) -> tuple[float, float]:
+    """Smallest singular value of tool0's Jacobian, and wrist_1's distance (m) from the base's axis."""
+    model, data = KIN.model, KIN.data
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    jacobian = pin.getFrameJacobian(model, data, KIN.frame_id(rm.TOOL_FRAME), pin.LOCAL_WORLD_ALIGNED)
+    wrist = data.oMf[KIN.frame_id('wrist_1_link')].translation
+    return float(np.linalg.svd(jacobian, compute_uv=False)[-1]), float(np.hypot(wrist[0], wrist[1]))
+
+
 class DragLoop:
     """drag_teach's controller on an arm that follows its commands exactly; the hand acts at tool0."""
 
@@ -134,5 +144,8 @@ def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits():
         assert max(speed for _, _, speed in record) < 1.0
         joints = np.array([q for q, _, _ in record])
         assert np.all(joints > limits.lower_rad + 0.05) and np.all(joints < limits.upper_rad - 0.05)
+        # Clear of the singularities where a dragged arm flips: elbow bent, wrist away from the base axis.
+        assert np.min(np.abs(joints[:, 2])) > 1.0, swing
+        assert min(singularity_margins(q)[1] for q in joints[::10]) > 0.1, swing
         # The paddle ends the stroke where the follow-through is.
         assert np.linalg.norm(KIN.pose(loop.q, centre_id).translation - teacher.path.follow) < 0.03
