@@ -18,10 +18,13 @@ API (all units SI; joint vectors have 6 entries in URDF order, stylepong_descrip
     cell.step(n_steps=1) / cell.step_for(duration_s)        advance physics in steps of world_spec.PHYSICS_DT_S
     cell.time_s, cell.joint_positions_rad, cell.joint_velocities_rad_s, cell.joint_efforts_nm,
     cell.joint_targets_rad
-    cell.tool_wrench() -> (force_n, torque_nm)  what a wrist F/T sensor between wrist_3 and the tool measures,
-                                                in tool0 axes about tool0's origin: the wrench the environment
-                                                applies on the tool (paddle weight, hand, robot contacts)
-                                                minus the tool's inertial force; static: exactly that wrench
+    cell.tool_wrench(include_inertia=False) -> (force_n, torque_nm)
+                                                what a wrist F/T sensor between wrist_3 and the tool reads, in
+                                                tool0 axes about tool0's origin: the wrench the environment applies
+                                                on the tool (its weight, the hand, contacts on tool or paddle).
+                                                include_inertia=True: the physical sensor's reading, which also
+                                                carries the tool's own inertia (minus its mass times acceleration);
+                                                both agree when the tool is at rest
     cell.ball_in_play, cell.ball_id, cell.ball_position_m, cell.ball_velocity_m_s  (None without a ball)
     cell.pop_events() -> list[referee.RallyEvent]           events since the last call, in order
     cell.paddle_pose(), cell.tool_pose() -> (position_m, rotation 3x3: columns = frame axes in world)
@@ -33,10 +36,11 @@ net and floor (MuJoCo contacts), never with itself. Joint efforts = servo torque
 
 Ball (2.7 g, no spin): integrated here, not by MuJoCo, every physics step dt (the batched world does the same):
     v' = v + (g + drag_acceleration(v)) dt,  p' = p + v' dt                 (semi-implicit Euler)
-  then the earliest contact within the step is found with swept tests on the straight segment p -> p'
-  (table top and the faces of net and blade: exact crossing times, so nothing tunnels at any speed; the
-  net's top edge and ends, the blade's rim and the other robot links: the ball's end position, which at
-  <= 30 m/s moves less than half of any of those obstacles' thickness plus the ball's diameter per step).
+  then the earliest contact within the step is found on the straight segment p -> p' (for the blade, the
+  segment in the blade's moving frame). Table top and the faces of net and blade: exact crossing times,
+  so nothing tunnels through them at any speed. The net's top edge and ends, the blade's rim and the
+  other robot links: the ball's end position against the obstacle; up to 15 m/s relative speed the ball
+  moves at most 15 mm per step, less than its radius, so no contact is missed or seen from the wrong side.
   At a contact at fraction f of the step, with outward unit normal n and the surface's velocity u at the
   contact point:  v_out = u + world_spec.contact_response(v' - u, n, restitution, tangential_factor);
   the ball is put on the surface and flies the rest of the step, p' = p_contact + v_out (1 - f) dt.
@@ -140,6 +144,9 @@ class Cell:
                                      and m.geom_size[g].max() > 0.006])
         # A link's geom can touch the ball only if the ball centre is within its bounding sphere + radius.
         self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + ws.BALL_RADIUS_M) ** 2
+        self._tool_subtree = np.array([b for b in range(m.nbody) if self._is_in_subtree(b, self._tool_body)])
+        self._tree_root = m.body_rootid[self._tool_body]
+        self._tool_weight_n = np.array([0.0, 0.0, -ws.GRAVITY_M_S2 * m.body_subtreemass[self._tool_body]])
         force_adr = m.sensor_adr[m.sensor(scene.FT_FORCE_SENSOR).id]
         torque_adr = m.sensor_adr[m.sensor(scene.FT_TORQUE_SENSOR).id]
         self._force_slice = slice(force_adr, force_adr + 3)
@@ -255,11 +262,22 @@ class Cell:
     def joint_targets_rad(self) -> np.ndarray:
         return self._q_cmd.copy()
 
-    def tool_wrench(self) -> tuple[np.ndarray, np.ndarray]:
-        # MuJoCo's force/torque sensors give what the parent (wrist_3) exerts on the tool subtree; the
-        # environment's wrench on the tool is its opposite (exactly so when the tool is at rest).
-        sensordata = self.data.sensordata
-        return -sensordata[self._force_slice], -sensordata[self._torque_slice]
+    def tool_wrench(self, include_inertia: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        d = self.data
+        if include_inertia:
+            # MuJoCo's force/torque sensors give what the parent (wrist_3) exerts on the tool's subtree; the
+            # sensor reads its opposite: environment's wrench minus the subtree's inertial wrench.
+            return -d.sensordata[self._force_slice], -d.sensordata[self._torque_slice]
+        # Weight of the subtree at its centre of mass, plus the external forces MuJoCo collected on its
+        # bodies (contacts and xfrc_applied, i.e. the hand): spatial forces at the tree's centre of mass.
+        tool = self._tool_body
+        origin, rotation = d.xpos[tool], d.xmat[tool].reshape(3, 3)
+        weight = self._tool_weight_n
+        external = d.cfrc_ext[self._tool_subtree].sum(axis=0)
+        force = weight + external[3:]
+        torque = (np.cross(d.subtree_com[tool] - origin, weight) + external[:3]
+                  + np.cross(d.subtree_com[self._tree_root] - origin, external[3:]))
+        return rotation.T @ force, rotation.T @ torque
 
     @property
     def ball_in_play(self) -> bool:
@@ -284,13 +302,15 @@ class Cell:
         return self._body_pose(self._tool_body)
 
     # --- internals: robot ------------------------------------------------------------------------
-    def _is_robot_body(self, body: int) -> bool:
-        root = self.model.body(rm.BASE_FRAME).id
+    def _is_in_subtree(self, body: int, root: int) -> bool:
         while body != 0:
             if body == root:
                 return True
             body = self.model.body_parentid[body]
         return False
+
+    def _is_robot_body(self, body: int) -> bool:
+        return self._is_in_subtree(body, self.model.body(rm.BASE_FRAME).id)
 
     def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
         q = np.asarray(q_rad, dtype=float)

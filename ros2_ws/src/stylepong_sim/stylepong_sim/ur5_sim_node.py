@@ -11,7 +11,8 @@ Publishes (QoS reliable, depth 10, as ros2_control's broadcasters; events depth 
                                                                       position, velocity, effort (servo + gravity)
   /force_torque_sensor_broadcaster/wrench  geometry_msgs/WrenchStamped wrench_rate_hz (500), frame tool0: the
                                                                       wrench the environment applies on the tool
-                                                                      (paddle weight, hand, contacts) about tool0
+                                                                      (paddle weight, hand, contacts) about tool0;
+                                                                      ft_include_inertia adds the tool's inertia
   /ball/state                              stylepong_msgs/BallState   ball_state_rate_hz (120), frame world,
                                                                       stamp = instant observed; nothing at all
                                                                       while no ball is in play
@@ -120,6 +121,8 @@ class Ur5SimNode(Node):
         declare('ft_torque_noise_std_nm', 0.0, _descriptor('F/T: torque noise (std, per axis)', low=0.0, high=10.0))
         declare('ft_force_bias_n', [0.0, 0.0, 0.0], _descriptor('F/T: constant force bias, tool0 axes'))
         declare('ft_torque_bias_nm', [0.0, 0.0, 0.0], _descriptor('F/T: constant torque bias, tool0 axes'))
+        declare('ft_include_inertia', False, _descriptor(
+            "F/T: also feel the tool's own inertia (a physical sensor does); false: the environment's wrench only"))
         declare('sensing_seed', 0, _descriptor('Seed of the sensor noise', low=0, high=2**31 - 1, integer=True))
         declare('record_video', '', _descriptor("'' = off; a path ending in .mp4, or a folder for PNG frames"))
         declare('video_fps', 30.0, _descriptor('Video frames per simulated second', low=1.0, high=240.0))
@@ -151,6 +154,7 @@ class Ur5SimNode(Node):
         self._ball_clock = SampleClock(p('ball_state_rate_hz').value)
         self._clock_clock = SampleClock(p('clock_rate_hz').value)
         self._hand_timeout_s = p('hand_wrench_timeout_s').value
+        self._ft_include_inertia = bool(p('ft_include_inertia').value)
         self._max_lag_s = p('max_lag_s').value
         self._video = None
         video_path = p('record_video').value
@@ -236,7 +240,7 @@ class Ur5SimNode(Node):
             self._joint_pub.publish(msg)
         if self._wrench_clock.due(time_s):
             stamp = stamp or _stamp(time_s)
-            force, torque = self._ft_sensor.measure(*cell.tool_wrench())
+            force, torque = self._ft_sensor.measure(*cell.tool_wrench(self._ft_include_inertia))
             msg = self._wrench_msg
             msg.header.stamp = stamp
             wrench = msg.wrench
