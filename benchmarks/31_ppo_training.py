@@ -12,6 +12,8 @@ import sys
 import tempfile
 import time
 
+os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see train.py), before torch loads
+
 import torch
 
 NUM_ENVS = int(os.environ.get('BENCH_PPO_NUM_ENVS', 4096))

@@ -13,9 +13,16 @@ strokes in the MuJoCo model of the cell.
 """
 from __future__ import annotations
 
+import os
+
+# Before torch loads OpenMP: idle OpenMP threads sleep instead of spinning. On 2 cores shared with other
+# work, spinning threads made a PPO update 4-5x slower than one thread; sleeping ones cost ~nothing.
+os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
+# MuJoCo picks its GL back end when first imported (the world imports it): headless EGL for --video.
+os.environ.setdefault('MUJOCO_GL', 'egl')
+
 import argparse
 import json
-import os
 import pathlib
 import sys
 import time
@@ -155,7 +162,6 @@ def _record_step(tracks, env, obs, info, decided) -> None:
 def render_video(recording: Recording, path: pathlib.Path, camera: str = 'overview', hold_s: float = 0.5) -> int:
     """Replay the recorded strokes in the cell's MuJoCo model (kinematics only: joint positions and the
     ball marker set each frame) and encode them with the cell's video recorder. Returns frames written."""
-    os.environ.setdefault('MUJOCO_GL', 'egl')
     import mujoco
     from stylepong_description.robot_model import JOINT_NAMES
     from stylepong_sim import scene

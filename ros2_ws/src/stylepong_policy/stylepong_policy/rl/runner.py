@@ -111,6 +111,8 @@ class EpisodeStatistics:
         self.failure_reasons = list(failure_reasons)
         self.current_return = torch.zeros(num_envs, device=device)
         self.current_length = torch.zeros(num_envs, device=device)
+        # 'ball_hit' may flag only the step of the paddle contact: remember it until the ball is decided.
+        self.hit_this_ball = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.returns: deque[float] = deque(maxlen=history)
         self.lengths: deque[float] = deque(maxlen=history)
         self.reset_iteration()
@@ -135,11 +137,13 @@ class EpisodeStatistics:
             self.current_length[done_idx] = 0.0
             self.episodes += int(done_idx.numel())
         ball_done = info.get('ball_done')
+        if 'ball_hit' in info:
+            self.hit_this_ball |= info['ball_hit']
         if ball_done is not None and bool(ball_done.any()):
             self.balls += int(ball_done.sum())
             self.successes += int((info['ball_success'] & ball_done).sum())
-            if 'ball_hit' in info:
-                self.hits += int((info['ball_hit'] & ball_done).sum())
+            self.hits += int((self.hit_this_ball & ball_done).sum())
+            self.hit_this_ball &= ~ball_done
             if 'ball_reason' in info and self.failure_reasons:
                 reasons = info['ball_reason'][ball_done].clamp(0, len(self.failure_reasons) - 1)
                 self.reason_counts += torch.bincount(reasons.cpu(), minlength=len(self.failure_reasons))
