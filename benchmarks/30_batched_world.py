@@ -39,9 +39,15 @@ def world_rate(num_envs: int) -> tuple[float, int]:
     decided = 0
 
     def one_step() -> int:
+        with bw.torch_threads(1):   # as the task runs it: see batched_world.torch_threads
+            return reset_decided(world.step(next_target()))
+
+    def next_target() -> torch.Tensor:
         nonlocal target
         target = (target + 0.1 * torch.randn(target.shape, generator=generator)).clamp(home - 1.0, home + 1.0)
-        events = world.step(target)
+        return target
+
+    def reset_decided(events) -> int:
         done = torch.nonzero(events.decided).squeeze(1)
         if done.numel():
             p, v, _ = sampler.sample(int(done.numel()))
@@ -80,7 +86,8 @@ def main() -> int:
         rows.append((n, world, env_rate(n), decided))
     print('## Batched world: policy steps per second (no network)\n')
     print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched_world.BatchedWorld` on the CPU (torch '
-          f'{torch.__version__}, {THREADS} threads, float32), 60 Hz policy steps each with 2 physics steps at '
+          f'{torch.__version__}, float32; the caller has {THREADS} threads, the world steps with 1: see '
+          f'`batched_world.torch_threads`), 60 Hz policy steps each with 2 physics steps at '
           f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
           f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
           f'from the vectorised sampler); "env": `stylepong_policy.task.TableTennisEnv.step` with random '

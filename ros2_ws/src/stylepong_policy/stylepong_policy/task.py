@@ -59,6 +59,7 @@ class TaskConfig:
     # World
     physics_rate_hz: float = 120.0
     arm_substeps: int = 4
+    cpu_threads: int = 1                            # torch threads while the env steps (0: leave as set)
     episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
     reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
     goal_radius_m: float = 0.25
@@ -163,8 +164,11 @@ class TableTennisEnv:
         self.num_actions = spec.NUM_ACTIONS
         self.num_obs = spec.NUM_OBS
         self.num_critic_obs = spec.NUM_OBS + sum(size for _, size in PRIVILEGED_LAYOUT)
+        threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
         self.world = bw.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
-                                     arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s)
+                                     arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
+                                     cpu_threads=None)
+        self.cpu_threads = threads
         self.policy_dt_s = self.world.policy_dt_s
         if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \
                 cfg.max_joint_delay_s > (self.HISTORY - 1) * self.policy_dt_s:
@@ -271,8 +275,9 @@ class TableTennisEnv:
 
     def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Start a new episode in every environment; returns (actor obs, critic obs)."""
-        self._reset_envs(torch.arange(self.num_envs, device=self.device))
-        return self._observations()
+        with bw.torch_threads(self.cpu_threads):
+            self._reset_envs(torch.arange(self.num_envs, device=self.device))
+            return self._observations()
 
     # --- observations -----------------------------------------------------------------------------
     def _delayed(self, history: torch.Tensor, delay_steps: torch.Tensor) -> torch.Tensor:
@@ -329,6 +334,10 @@ class TableTennisEnv:
         [N, 12] (after the step, before any reset), 'reward_terms' (this step's terms) and 'episode'
         (mean reward-term sums and rates of the episodes that ended in this step; empty if none).
         """
+        with bw.torch_threads(self.cpu_threads):
+            return self._step(actions)
+
+    def _step(self, actions: torch.Tensor):
         cfg = self.cfg
         w = self.world
         action = spec.clip_action(actions.to(self.device, torch.float32))
