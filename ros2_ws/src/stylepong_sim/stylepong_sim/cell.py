@@ -56,13 +56,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mujoco
-import numpy as np
+from stylepong_sim import headless  # noqa: F401  (before mujoco: the cell's model can be rendered)
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import referee as rf
-from stylepong_sim import scene
-from stylepong_sim import world_spec as ws
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from stylepong_description import robot_model as rm  # noqa: E402
+from stylepong_sim import referee as rf  # noqa: E402
+from stylepong_sim import scene  # noqa: E402
+from stylepong_sim import world_spec as ws  # noqa: E402
 
 MAX_LAUNCH_SPEED_M_S = 30.0
 FRAME_WORLD = 'world'

@@ -15,11 +15,8 @@ conaffinity 1) but never each other (the URDF's collision meshes of neighbouring
 from __future__ import annotations
 
 import math
-import os
 
-# MuJoCo picks its OpenGL back end when first imported; without a display only EGL (or OSMesa) renders.
-if 'MUJOCO_GL' not in os.environ and not os.environ.get('DISPLAY'):
-    os.environ['MUJOCO_GL'] = 'egl'
+from stylepong_sim import headless  # noqa: F401  (before mujoco)
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
@@ -101,6 +98,8 @@ def _add_ball(spec: mujoco.MjSpec) -> None:
 
 
 def _add_looks(spec: mujoco.MjSpec) -> None:
+    spec.add_texture(name='sky', type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+                     width=64, height=64, rgb1=[0.55, 0.6, 0.68], rgb2=[0.12, 0.13, 0.16])
     spec.add_texture(name='floor_grid', type=mujoco.mjtTexture.mjTEXTURE_2D,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
                      rgb1=[0.32, 0.32, 0.34], rgb2=[0.27, 0.27, 0.29])
@@ -111,7 +110,7 @@ def _add_looks(spec: mujoco.MjSpec) -> None:
     spec.worldbody.add_light(name='ceiling', pos=[-0.5, 0.0, 4.0], dir=[0.0, 0.0, -1.0], castshadow=False,
                              diffuse=[0.7, 0.7, 0.7])
     # Side view of the robot's half, and the opponent's view of the robot.
-    for name, position, target in (('overview', (-0.9, 2.9, 1.9), (-1.0, 0.0, 0.85)),
+    for name, position, target in (('overview', (-0.5, 2.3, 1.65), (-1.25, 0.0, 0.85)),
                                    ('robot_view', (2.6, 0.0, 1.9), (-1.5, 0.0, 0.8))):
         spec.worldbody.add_camera(name=name, pos=list(position), quat=_look_at_quat(position, target), fovy=55.0)
 

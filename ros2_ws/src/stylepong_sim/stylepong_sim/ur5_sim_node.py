@@ -35,11 +35,7 @@ config/realistic_sensing.yaml. record_video: '' (off), a path ending in .mp4, or
 """
 from __future__ import annotations
 
-import os
-
-# MuJoCo picks its OpenGL back end on import: headless video needs EGL (before anything imports mujoco).
-if 'MUJOCO_GL' not in os.environ and not os.environ.get('DISPLAY'):
-    os.environ['MUJOCO_GL'] = 'egl'
+from stylepong_sim import headless  # noqa: F401  (before mujoco: headless video)
 
 import math  # noqa: E402
 import sys  # noqa: E402

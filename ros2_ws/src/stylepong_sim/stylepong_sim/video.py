@@ -1,7 +1,7 @@
 """Headless video of the cell: MuJoCo's offscreen renderer to an MP4 file or a folder of PNG frames.
 
 Free of ROS. Rendering needs MUJOCO_GL=egl (or osmesa) before mujoco is first imported when there is no
-display; stylepong_sim.scene sets egl in that case. A 640x480 frame costs about 15-20 ms of CPU.
+display; stylepong_sim.headless (imported by cell, scene and this module first) sets egl in that case. A 640x480 frame costs about 15-20 ms of CPU.
     recorder = VideoRecorder(cell.model, 'rally.mp4', fps=30)   # or a folder path: frame_000000.png, ...
     if recorder.clock.due(cell.time_s): recorder.capture(cell.data)
     recorder.close()                                            # finishes the MP4 (needed to play it)
@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import pathlib
 
-import mujoco
-import numpy as np
+from stylepong_sim import headless  # noqa: F401  (before mujoco)
 
-from stylepong_sim import scene
-from stylepong_sim.sensing import SampleClock
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from stylepong_sim import scene  # noqa: E402
+from stylepong_sim.sensing import SampleClock  # noqa: E402
 
 
 class VideoRecorder:
@@ -28,7 +30,11 @@ class VideoRecorder:
         self.camera = camera
         self.clock = SampleClock(fps)
         self.frames = 0
-        self._renderer = mujoco.Renderer(model, height, width)
+        try:
+            self._renderer = mujoco.Renderer(model, height, width)
+        except mujoco.FatalError as error:
+            raise RuntimeError(f'no OpenGL context ({error}); without a display set MUJOCO_GL=egl (or osmesa) '
+                               'before anything imports mujoco') from error
         self._writer = None
         if self.path.suffix.lower() == '.mp4':
             import imageio_ffmpeg
