@@ -45,7 +45,7 @@ PARAMETERS = {
     'virtual_link_inertia_kg_m2': (_DEFAULTS.virtual_link_inertia_kg_m2, 'virtual model: their rotational inertia'),
     'virtual_end_mass_kg': (_DEFAULTS.virtual_end_mass_kg, 'virtual model: mass of the last link'),
     'virtual_end_inertia_kg_m2': (_DEFAULTS.virtual_end_inertia_kg_m2, 'virtual model: its rotational inertia'),
-    'max_period_s': (_DEFAULTS.max_period_s, 'a longer gap between cycles is integrated as this long'),
+    'max_late_periods': (_DEFAULTS.max_late_periods, 'a longer gap between cycles (a stall) is integrated as this many periods'),
     'gravity_compensation': (_DEFAULTS.gravity_compensation, "remove the paddle's weight from the sensor wrench"),
     'lowpass_cutoff_hz': (_DEFAULTS.lowpass_cutoff_hz, 'first-order low-pass on the wrench'),
     'force_deadband_n': (_DEFAULTS.force_deadband_n, 'force magnitudes below this are ignored'),
@@ -59,6 +59,7 @@ PARAMETERS = {
     'velocity_limit_scale': (_DEFAULTS.velocity_limit_scale, "fraction of the URDF's joint velocity limits"),
     'acceleration_limit_rad_s2': (list(_DEFAULTS.acceleration_limit_rad_s2), 'joint acceleration limits, rad/s^2'),
     'watchdog_timeout_s': (_DEFAULTS.watchdog_timeout_s, 'no fresh wrench or joint state for this long: decelerate and hold'),
+    'resume_ramp_s': (_DEFAULTS.resume_ramp_s, 'after a hold, the wrench fades back in over this time'),
 }
 
 

@@ -62,7 +62,8 @@ Safety layer (what FZI cartesian_controllers' users ask for, notes/anchors.md)
   its velocity limit times the nominal period from the previous one, even after a late tick (the
   command then catches up with the simulated arm over the next cycles).
 - Watchdog: no valid wrench or joint state for `watchdog_timeout_s` (50 ms): the simulated arm
-  decelerates at the acceleration limit along its path and holds; it resumes when both are fresh.
+  decelerates at the acceleration limit along its path and holds; it resumes when both are fresh,
+  fading the wrench back in over `resume_ramp_s` (a hand that kept pushing must not make it lurch).
 - The simulated q, qdot are synchronised from the measured joints only when control is (re-)enabled,
   never each cycle: re-syncing would feed the servo's tracking error back in as motion (drift,
   spring-back). While enabled the command is the simulated arm, which is at rest unless pushed.
@@ -99,7 +100,9 @@ class FdccConfig:
     virtual_end_inertia_kg_m2: float = 0.01
     control_frame: str = rm.TOOL_FRAME
     nominal_period_s: float = 0.002           # 1 / control rate
-    max_period_s: float = 0.02                # a longer gap (a stalled process) is integrated as this
+    # A gap between cycles longer than this many nominal periods (a stalled process, not a skipped tick)
+    # is integrated as this many: after a stall the arm carries on instead of jumping to catch up.
+    max_late_periods: float = 2.0
     # Wrench conditioning.
     gravity_compensation: bool = True
     lowpass_cutoff_hz: float = 20.0
@@ -116,6 +119,7 @@ class FdccConfig:
     acceleration_limit_rad_s2: tuple[float, ...] = (8.0, 8.0, 8.0, 12.0, 12.0, 12.0)
     # Watchdog.
     watchdog_timeout_s: float = 0.05
+    resume_ramp_s: float = 0.2                # after a hold the wrench fades back in over this time
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad setting."""
@@ -130,9 +134,9 @@ class FdccConfig:
         if self.dynamics_model not in DYNAMICS_MODELS:
             raise ValueError(f'dynamics_model must be one of {DYNAMICS_MODELS}, got {self.dynamics_model!r}')
         positive = ('virtual_link_mass_kg', 'virtual_link_inertia_kg_m2', 'virtual_end_mass_kg',
-                    'virtual_end_inertia_kg_m2', 'nominal_period_s', 'max_period_s', 'lowpass_cutoff_hz',
+                    'virtual_end_inertia_kg_m2', 'nominal_period_s', 'lowpass_cutoff_hz',
                     'max_force_n', 'max_torque_nm', 'reject_force_n', 'reject_torque_nm', 'tare_window_s',
-                    'watchdog_timeout_s')
+                    'watchdog_timeout_s', 'resume_ramp_s')
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -143,8 +147,8 @@ class FdccConfig:
                 raise ValueError(f'{name} must be a non-negative number, got {value!r}')
         if not 0 < self.velocity_limit_scale <= 1.0:
             raise ValueError(f'velocity_limit_scale must be in (0, 1], got {self.velocity_limit_scale!r}')
-        if self.max_period_s < self.nominal_period_s:
-            raise ValueError('max_period_s must be at least nominal_period_s')
+        if not (math.isfinite(self.max_late_periods) and self.max_late_periods >= 1.0):
+            raise ValueError(f'max_late_periods must be at least 1, got {self.max_late_periods!r}')
         if self.max_force_n >= self.reject_force_n or self.max_torque_nm >= self.reject_torque_nm:
             raise ValueError('the clamp (max_force_n, max_torque_nm) must lie below the rejection thresholds')
 
@@ -392,7 +396,7 @@ class FdccSolver:
 
         Returns the new joint positions (the command).
         """
-        dt = min(float(dt_s), self.config.max_period_s)
+        dt = min(float(dt_s), self.config.max_late_periods * self.config.nominal_period_s)
         if not dt > 0:
             return self.q.copy()
         model, data = self.model, self.data
@@ -419,7 +423,7 @@ class FdccSolver:
 
     def brake(self, dt_s: float) -> np.ndarray:
         """Decelerate along the current path at the acceleration limits (watchdog); returns the command."""
-        dt = min(float(dt_s), self.config.max_period_s)
+        dt = min(float(dt_s), self.config.max_late_periods * self.config.nominal_period_s)
         if dt > 0:
             qdot = decelerate(self.qdot, dt, self.limits)
             self.q, self.qdot = limit_motion(self.q, self.qdot, qdot, dt, self.limits)
@@ -470,6 +474,7 @@ class DragTeachController:
         self._joint_time_s: float | None = None
         self._wrench_time_s: float | None = None
         self._tick_time_s: float | None = None
+        self._resumed_s: float | None = 0.0     # when the inputs last became fresh again
         self.rejected_wrenches = 0
         self.rejected_joint_states = 0
 
@@ -538,8 +543,13 @@ class DragTeachController:
             self.synced = True
             return TickResult(self.solver.q.copy(), 'running')
         if not self.inputs_fresh(time_s):
+            self._resumed_s = None
             return TickResult(self.solver.brake(dt), 'holding')
-        return TickResult(self.solver.step(self.conditioner.output(), dt), 'running')
+        if self._resumed_s is None:
+            self._resumed_s = time_s
+        # After a hold the hand may be pushing hard against the stopped arm: fade the wrench back in.
+        ramp = min(1.0, (time_s - self._resumed_s) / self.config.resume_ramp_s)
+        return TickResult(self.solver.step(ramp * self.conditioner.output(), dt), 'running')
 
 
 # ---------------------------------------------------------------------------------------------------

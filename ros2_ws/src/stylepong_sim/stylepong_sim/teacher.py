@@ -64,6 +64,7 @@ STROKES = {
 @dataclass(frozen=True)
 class TeacherConfig:
     """Timing of the stroke and the hand's impedance (units in the names)."""
+    lead_in_s: float = 0.3             # recorded at rest at the ready pose before the back-swing
     backswing_s: float = 0.8
     forward_swing_s: float = 1.6
     end_hold_s: float = 0.3            # recorded at rest after the follow-through
@@ -82,6 +83,10 @@ class TeacherConfig:
     expected_rot_damping_nms_per_rad: float = 3.0
     max_force_n: float = 35.0
     max_torque_nm: float = 3.5
+    # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
+    # when the paddle is further than this from the via-point, and stops beyond the second distance.
+    lag_slowdown_m: float = 0.03
+    lag_stop_m: float = 0.08
 
     def validate(self) -> None:
         for name, value in self.__dict__.items():
@@ -90,12 +95,21 @@ class TeacherConfig:
         for name in ('backswing_s', 'forward_swing_s', 'approach_speed_m_s', 'approach_min_s', 'max_force_n'):
             if getattr(self, name) <= 0:
                 raise ValueError(f'{name} must be positive')
+        if self.lag_stop_m <= self.lag_slowdown_m:
+            raise ValueError('lag_stop_m must exceed lag_slowdown_m')
         if not 1.5 <= self.stroke_s <= 3.0:
-            raise ValueError(f'a stroke takes 1.5-3 s like a slow drag, got {self.stroke_s:.2f} s')
+            raise ValueError(f'a stroke (back-swing to follow-through) takes 1.5-3 s like a slow drag, '
+                             f'got {self.stroke_s:.2f} s')
 
     @property
     def stroke_s(self) -> float:
-        return self.backswing_s + self.forward_swing_s + self.end_hold_s
+        """Back-swing, forward swing and follow-through."""
+        return self.backswing_s + self.forward_swing_s
+
+    @property
+    def clip_s(self) -> float:
+        """What is recorded: the stroke with the pose held at rest before and after it."""
+        return self.lead_in_s + self.stroke_s + self.end_hold_s
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -165,13 +179,17 @@ class StrokePath:
 
     @property
     def duration_s(self) -> float:
-        return self.config.stroke_s
+        return self.config.clip_s
 
     def hit_time_s(self) -> float:
-        return self.config.backswing_s + 0.5 * self.config.forward_swing_s
+        return self.config.lead_in_s + self.config.backswing_s + 0.5 * self.config.forward_swing_s
 
     def at(self, t_s: float) -> ViaPoint:
+        """The via-point t_s into the clip (lead-in, stroke, end hold)."""
         c = self.config
+        t_s = t_s - c.lead_in_s
+        if t_s < 0.0:
+            return ViaPoint(self.ready.copy(), np.zeros(3), 0.0, 0.0)
         if t_s < c.backswing_s:
             s, ds = minimum_jerk(t_s / c.backswing_s)
             ds /= c.backswing_s
@@ -243,6 +261,9 @@ class VirtualTeacher:
         self._phase_start_s: float | None = None
         self._approach_from: ViaPoint | None = None
         self._approach_s = config.approach_min_s
+        self._stroke_clock_s = 0.0          # time along the stroke's path; slower than t when the arm lags
+        self._stroke_rate = 1.0
+        self._last_update_s: float | None = None
 
     # --- the moving target of the paddle centre ---
     def via_point(self, t_s: float) -> ViaPoint:
@@ -257,8 +278,16 @@ class VirtualTeacher:
         if self.phase == 'ready':
             return self.path.at(0.0)
         if self.phase == 'stroke':
-            return self.path.at(min(elapsed, self.path.duration_s))
+            via = self.path.at(min(self._stroke_clock_s, self.path.duration_s))
+            return ViaPoint(via.position_m, self._stroke_rate * via.velocity_m_s, via.yaw_rad,
+                            self._stroke_rate * via.yaw_rate_rad_s)
         return self.path.at(self.path.duration_s)
+
+    def _advance_stroke_clock(self, t_s: float, centre_position_m: np.ndarray) -> None:
+        c = self.config
+        lag_m = float(np.linalg.norm(centre_position_m - self.path.at(self._stroke_clock_s).position_m))
+        self._stroke_rate = min(1.0, max(0.0, (c.lag_stop_m - lag_m) / (c.lag_stop_m - c.lag_slowdown_m)))
+        self._stroke_clock_s += self._stroke_rate * max(0.0, t_s - self._last_update_s)
 
     def _yaw_of(self, rotation: np.ndarray) -> float:
         """Yaw about world z taking the home blade orientation to `rotation` (its vertical-axis part)."""
@@ -278,13 +307,16 @@ class VirtualTeacher:
             self._approach_s = max(self.config.approach_min_s, distance / self.config.approach_speed_m_s, angle / 0.5)
         if self.phase == 'released':
             return np.zeros(6)
+        if self.phase == 'stroke':
+            self._advance_stroke_clock(t_s, centre.translation)
+        self._last_update_s = t_s
         via = self.via_point(t_s)
         if self.phase == 'approach' and t_s - self._phase_start_s >= self._approach_s:
             self.phase, self._phase_start_s = 'settling', t_s
         if self.phase == 'settling':
             if self.at_rest_on(q, qdot, self.path.at(0.0)) or t_s - self._phase_start_s > self.config.settle_timeout_s:
                 self.phase, self._phase_start_s = 'ready', t_s
-        if self.phase == 'stroke' and t_s - self._phase_start_s >= self.path.duration_s:
+        if self.phase == 'stroke' and self._stroke_clock_s >= self.path.duration_s:
             self.phase, self._phase_start_s = 'finished', t_s
         if self.phase == 'settling':
             via = self.path.at(0.0)
@@ -310,6 +342,7 @@ class VirtualTeacher:
         if self.phase != 'ready':
             raise RuntimeError(f'the stroke can start only from the ready pose (phase {self.phase})')
         self.phase, self._phase_start_s = 'stroke', t_s
+        self._stroke_clock_s, self._stroke_rate = 0.0, 1.0
 
     def release(self) -> None:
         self.phase = 'released'

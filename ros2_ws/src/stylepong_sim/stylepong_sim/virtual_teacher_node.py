@@ -40,6 +40,7 @@ PARAMETERS = {
     'grip_frame': (rm.TOOL_FRAME, 'robot frame whose origin the simulator applies /sim/hand_wrench at'),
     'wrench_frame_id': ('world', 'header frame of the hand wrench (its axes)'),
     'joint_state_timeout_s': (0.1, 'older joint states: the hand lets go until fresh ones arrive'),
+    'lead_in_s': (_DEFAULTS.lead_in_s, 'recorded at rest at the ready pose before the back-swing'),
     'backswing_s': (_DEFAULTS.backswing_s, 'duration of the back-swing'),
     'forward_swing_s': (_DEFAULTS.forward_swing_s, 'back-swing to follow-through, through the hitting point'),
     'end_hold_s': (_DEFAULTS.end_hold_s, 'recorded at rest after the follow-through'),
@@ -85,7 +86,8 @@ class VirtualTeacherNode(Node):
         self.start_client = self.create_client(StartClip, '/recorder/start')
         self.stop_client = self.create_client(Trigger, '/recorder/stop')
         self.create_timer(1.0 / p['rate_hz'], self._on_tick)
-        self.get_logger().info(f'teaching a {p["swing"]} stroke ({config.stroke_s:.1f} s), label {self.label!r}')
+        self.get_logger().info(f'teaching a {p["swing"]} stroke ({config.stroke_s:.1f} s, a {config.clip_s:.1f} s clip), '
+                               f'label {self.label!r}')
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9

@@ -1,0 +1,80 @@
+"""virtual_teacher drags the simulated arm through each stroke while the recorder records it:
+ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/record_demos.sh runs them
+(the cell at half real time, drag_teach and the teacher on its clock: loaded machines stay in step)."""
+import pathlib
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import world_spec as ws
+from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig
+from tests.node_process import NodeProcess, wait_until
+
+KIN = CellKinematics()
+CENTRE = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
+TOOL = KIN.frame_id(rm.TOOL_FRAME)
+HOME_CENTRE = KIN.pose(np.array(ws.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
+
+
+def read_clip(bag: pathlib.Path):
+    """Header times (s), positions and velocities (URDF order) of the clip's joint states."""
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == '/joint_states']
+        rows = []
+        for connection, _, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            index = [list(msg.name).index(n) for n in rm.JOINT_NAMES]
+            rows.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+                         np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
+    return np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
+
+
+def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> np.ndarray:
+    """tool0 speed (m/s) over windows of header time: the stroke's motion, not the servo's 500 Hz shake."""
+    positions = np.array([KIN.pose(a, TOOL).translation for a in q])
+    ahead = np.searchsorted(times_s, times_s + window_s)
+    valid = ahead < len(times_s)
+    return (np.linalg.norm(positions[ahead[valid]] - positions[valid], axis=1)
+            / (times_s[ahead[valid]] - times_s[valid]))
+
+
+def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
+    sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.5}).start()
+    drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
+    recorder = NodeProcess('stylepong_fdcc', 'recorder', params={'output_dir': str(tmp_path)}).start()
+    limits = rm.joint_limits()
+    hits = {}
+    try:
+        for swing in SWINGS:
+            teacher = NodeProcess('stylepong_sim', 'virtual_teacher', params={'swing': swing, 'use_sim_time': True}).start()
+            try:
+                assert wait_until(lambda: not teacher.running(), 90.0), f'{swing}: the teacher never finished'
+            finally:
+                code = teacher.stop()
+            assert code == 0, f'{swing} teacher failed:\n{teacher.output()[-3000:]}\n{recorder.output()[-2000:]}'
+            bags = sorted(tmp_path.glob(f'{swing}_*'))
+            assert len(bags) == 1, f'{swing}: bags {bags}'
+            assert f'label: {swing}' in (bags[0] / 'metadata.yaml').read_text()
+            times, q, _ = read_clip(bags[0])
+            duration_s = times[-1] - times[0]
+            config = TeacherConfig()
+            assert config.stroke_s <= duration_s <= config.clip_s + 0.5, f'{swing}: a {duration_s:.2f} s clip'
+            assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
+            speeds = tool_speeds(times, q)
+            assert 0.3 < speeds.max() < 1.0, f'{swing}: peak tool speed {speeds.max():.2f} m/s'
+            assert speeds[0] < 0.05 and speeds[-1] < 0.05, f'{swing}: the clip does not start and end at rest'
+            # The paddle went back, then forwards through the stroke's hitting point.
+            path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
+            centres = np.array([KIN.pose(a, CENTRE).translation for a in q])
+            miss = np.min(np.linalg.norm(centres - path.hit, axis=1))
+            assert miss < 0.04, f'{swing}: the paddle passed {miss * 100:.1f} cm from the hitting point'
+            assert np.min(np.linalg.norm(centres - path.back, axis=1)) < 0.04
+            assert np.linalg.norm(centres[-1] - path.follow) < 0.04
+            hits[swing] = centres[np.argmin(np.linalg.norm(centres - path.hit, axis=1))]
+    finally:
+        recorder.stop()
+        drag.stop()
+        sim.stop()
+    assert hits['leftward'][1] > hits['forward'][1] + 0.1 > hits['rightward'][1] + 0.2
