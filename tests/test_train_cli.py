@@ -1,9 +1,10 @@
 """`ros2 run stylepong_policy train` and `evaluate` end to end, as a user runs them (issue 6, Done when)."""
 import json
+import signal
 import subprocess
 import time
 
-import pytest
+from tests.node_process import NodeProcess, wait_until
 
 TRAIN_LIMIT_S = 120.0   # the issue's bound for `train --iterations 2 --num-envs 256`
 
@@ -64,3 +65,26 @@ def test_evaluate_refuses_an_actor_without_its_sidecar(tmp_path, ros_env):
 def test_train_rejects_an_evaluation_seed(tmp_path, ros_env):
     result = ros2_run('train', '--seed', '1000', '--out', str(tmp_path / 'r'), env=ros_env, timeout_s=60)
     assert result.returncode == 2 and 'evaluation range' in result.stderr
+
+
+def test_ctrl_c_saves_a_checkpoint_and_exports(tmp_path, ros_env):
+    run_dir = tmp_path / 'run'
+    train = NodeProcess('stylepong_policy', 'train', '--iterations', '1000', '--num-envs', '64', '--out', str(run_dir),
+                        '--no-progress', '--no-tensorboard', env=ros_env).start()
+    try:
+        assert wait_until(lambda: _iterations_logged(run_dir) >= 2, timeout_s=120, period_s=0.2), train.output()
+        train.signal(signal.SIGINT)
+        train.process.wait(60)
+    finally:
+        code = train.stop()
+    assert code == 130, train.output()
+    summary = json.loads((run_dir / 'summary.json').read_text())
+    assert summary['iterations'] >= 2
+    assert (run_dir / 'ppo_actor.pt').is_file() and 'resume with --resume' in train.output()
+
+
+def _iterations_logged(run_dir) -> int:
+    try:
+        return len((run_dir / 'progress.csv').read_text().strip().splitlines()) - 1
+    except OSError:
+        return 0

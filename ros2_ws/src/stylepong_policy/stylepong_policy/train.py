@@ -21,6 +21,7 @@ import json
 import math
 import pathlib
 import platform
+import signal
 import sys
 import time
 
@@ -123,6 +124,10 @@ def write_summary(runner: OnPolicyRunner, run_dir: pathlib.Path, config_source: 
     return summary
 
 
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
@@ -162,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f'train: {env.num_envs} envs on {device}, config {config_source}, run dir {run_dir}, '
           f'iterations {runner.iteration} -> {cfg.runner.iterations}', flush=True)
 
+    # SIGTERM (a session or job manager stopping us) ends training like Ctrl-C: checkpoint kept, actor exported.
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     started = time.perf_counter()
     runner.learn(cfg.runner.iterations)
     if runner.iteration == 0:
