@@ -149,3 +149,25 @@ def test_non_finite_env_output_stops_training(tmp_path):
     runner = make_runner(tmp_path, env=NanTask(num_envs=16, seed=0))
     with pytest.raises(FloatingPointError, match='non-finite'):
         runner.learn(1, progress_bar=False)
+
+
+def test_ball_statistics_count_a_hit_flagged_before_the_verdict():
+    """The env flags 'ball_hit' on the contact step; the ball is decided steps later."""
+    from stylepong_policy.rl.runner import EpisodeStatistics
+    stats = EpisodeStatistics(3, torch.device('cpu'), ('returned', 'no_hit', 'net'))
+    false3 = torch.zeros(3, dtype=torch.bool)
+
+    def step(hit, done, success, reason):
+        info = {'ball_hit': torch.tensor(hit), 'ball_done': torch.tensor(done), 'ball_success': torch.tensor(success),
+                'ball_reason': torch.tensor(reason), 'time_outs': false3}
+        stats.record(torch.ones(3), torch.tensor(done), info)
+
+    step([True, False, False], [False, False, False], [False, False, False], [0, 0, 0])
+    step([False, False, False], [True, True, False], [True, False, False], [0, 1, 0])
+    step([False, False, True], [False, False, True], [False, False, False], [0, 0, 2])
+    step([False, False, False], [True, False, False], [False, False, False], [1, 0, 0])   # env 0's next ball
+    summary = stats.summary()
+    assert summary['balls'] == 4 and summary['success_rate'] == 0.25
+    assert summary['hit_rate'] == 0.5          # env 0's first ball and env 2's ball; not env 0's second
+    assert summary['ball/no_hit'] == 0.5 and summary['ball/net'] == 0.25
+    assert summary['mean_return'] == pytest.approx((2 + 2 + 3 + 2) / 4)
