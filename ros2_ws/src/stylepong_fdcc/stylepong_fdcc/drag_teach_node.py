@@ -119,6 +119,7 @@ class DragTeachNode(Node):
         self.stats = CycleStatistics(config.nominal_period_s)
         self._index_cache: tuple[tuple[str, ...], np.ndarray | None] = ((), None)
         self._state = ''
+        self._last_warning: dict[str, float] = {}
 
         self.command_pub = self.create_publisher(Float64MultiArray, '/forward_position_controller/commands', 10)
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data)
@@ -135,8 +136,18 @@ class DragTeachNode(Node):
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _warn(self, text: str) -> None:
-        self.get_logger().warn(text, throttle_duration_sec=WARN_THROTTLE_S)
+    def _warn(self, kind: str, text, info: bool = False) -> None:
+        """A warning (or info) throttled per kind of event. `text` may be a callable: under a flood of
+        bad messages the message is built, and the logger called, only once per WARN_THROTTLE_S."""
+        now = time.monotonic()
+        if now - self._last_warning.get(kind, -math.inf) < WARN_THROTTLE_S:
+            return
+        self._last_warning[kind] = now
+        text = text() if callable(text) else text
+        if info:   # rclpy ties a severity to its call site: one call per severity
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warn(text)
 
     # --- inputs ---
     def _joint_indices(self, names) -> np.ndarray | None:
@@ -152,27 +163,27 @@ class DragTeachNode(Node):
     def _on_joint_state(self, msg: JointState) -> None:
         indices = self._joint_indices(msg.name)
         if indices is None or len(msg.position) != len(msg.name):
-            self._warn(f'joint state rejected: it must name every joint of {rm.JOINT_NAMES} with a position')
+            self._warn('joint names', f'joint state rejected: it must name every joint of {rm.JOINT_NAMES} with a position')
             return
         fault = self.controller.on_joint_positions(np.asarray(msg.position, dtype=float)[indices], self._now_s())
         if fault:
-            self._warn(f'joint state rejected: {fault}')
+            self._warn('joint values', f'joint state rejected: {fault}')
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         f, t = msg.wrench.force, msg.wrench.torque
         fault = self.controller.on_wrench(np.array([f.x, f.y, f.z, t.x, t.y, t.z]), self._now_s())
         if fault:
-            self._warn(f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
+            self._warn('wrench', lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
 
     def _on_target_pose(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in BASE_FRAMES:
-            self._warn(f'target pose rejected: frame {msg.header.frame_id!r}, expected {rm.BASE_FRAME!r}')
+            self._warn('target frame', f'target pose rejected: frame {msg.header.frame_id!r}, expected {rm.BASE_FRAME!r}')
             return
         p, o = msg.pose.position, msg.pose.orientation
         rotation = quaternion_to_rotation(o.x, o.y, o.z, o.w)
         position = np.array([p.x, p.y, p.z])
         if rotation is None or not np.all(np.isfinite(position)):
-            self._warn('target pose rejected: non-finite position or orientation')
+            self._warn('target values', 'target pose rejected: non-finite position or orientation')
             return
         self.controller.set_target(position, rotation)
 
@@ -210,12 +221,8 @@ class DragTeachNode(Node):
                        'running': 'running: following the sensor wrench',
                        'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
                        'disabled': 'disabled'}
-            # rclpy ties a severity to its call site: one call per severity. Throttled: a flaky sensor
-            # toggles between running and holding many times a second.
-            if result.state == 'holding':
-                self.get_logger().warn(reasons[result.state], throttle_duration_sec=WARN_THROTTLE_S)
-            else:
-                self.get_logger().info(reasons[result.state], throttle_duration_sec=WARN_THROTTLE_S)
+            # Throttled per state: a flaky sensor toggles between running and holding many times a second.
+            self._warn(result.state, reasons[result.state], info=result.state != 'holding')
             self._state = result.state
 
     def log_statistics(self) -> None:

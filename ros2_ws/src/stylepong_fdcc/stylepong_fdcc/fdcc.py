@@ -98,7 +98,6 @@ class FdccConfig:
     virtual_link_inertia_kg_m2: float = 1e-6
     virtual_end_mass_kg: float = 1.0
     virtual_end_inertia_kg_m2: float = 0.01
-    control_frame: str = rm.TOOL_FRAME
     nominal_period_s: float = 0.002           # 1 / control rate
     # A gap between cycles longer than this many nominal periods (a stalled process, not a skipped tick)
     # is integrated as this many: after a stall the arm carries on instead of jumping to catch up.
@@ -349,9 +348,8 @@ class FdccSolver:
         self.config = config
         self.model = dynamics_model(config)
         self.data = self.model.createData()
-        self.frame_id = self.model.getFrameId(config.control_frame)
-        if self.frame_id >= self.model.nframes:
-            raise ValueError(f'unknown control frame {config.control_frame!r}')
+        # The control frame is the sensor's: the wrench arrives about tool0's origin.
+        self.frame_id = self.model.getFrameId(rm.TOOL_FRAME)
         self.limits = JointMotionLimits.from_config(config)
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)
