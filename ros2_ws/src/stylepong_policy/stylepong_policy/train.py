@@ -17,6 +17,7 @@ import os
 os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
 
 import argparse
+import dataclasses
 import json
 import math
 import pathlib
@@ -179,14 +180,16 @@ def main(argv: list[str] | None = None) -> int:
         runner.actor_critic, run_dir / ACTOR_NAME, current_spec_contract(),
         training={'iterations': runner.iteration, 'samples': runner.env_steps, 'seed': cfg.runner.seed,
                   'wall_time_s': round(runner.wall_time_s, 1), 'config': CONFIG_NAME,
-                  'devices': sorted({s['device'] for s in runner.sessions})})
+                  'devices': sorted({s['device'] for s in runner.sessions}),
+                  'task': dataclasses.asdict(task_cfg)})
     write_summary(runner, run_dir, config_source, actor_path)
     if (run_dir / CSV_NAME).is_file():
         plot_learning_curve(run_dir / CSV_NAME, run_dir / CURVE_NAME,
                             title=f'PPO, seed {cfg.runner.seed}, {env.num_envs} envs')
     stats = runner.last_stats
+    success = stats.get('success_rate', math.nan)
     print(f'train: iteration {runner.iteration}, {runner.env_steps} samples, '
-          f'success {stats.get("success_rate", float("nan")):.3f}, this session '
+          f'success {"n/a (no ball decided)" if math.isnan(success) else f"{success:.3f}"}, this session '
           f'{time.perf_counter() - started:.1f} s, whole run {runner.wall_time_s:.1f} s; '
           f'actor {actor_path} (+ {sidecar.name})', flush=True)
     if runner.interrupted:

@@ -193,7 +193,6 @@ def toy_success_rate(actor_critic: ActorCritic, toy, episodes_steps: int = 30) -
 def test_ppo_learns_the_toy_task(tmp_path):
     toy = load_toy_task()
     seed_everything(0)
-    torch.set_num_threads(2)
     env = toy.ReachTask(num_envs=256, seed=0)
     runner = OnPolicyRunner(env, toy_config(), tmp_path, failure_reasons=toy.FAILURE_REASONS, tensorboard=False)
     before = toy_success_rate(runner.actor_critic, toy)
