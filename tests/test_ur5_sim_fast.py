@@ -15,6 +15,7 @@ def test_real_time_factor_0_runs_faster_than_the_wall_clock(ros_env):
             probe.spin_for(3.0)
             last = probe.clock[-1]
             speed_up = (last.stamp_s - first.stamp_s) / (last.received_s - first.received_s)
+            print(f'real_time_factor 0: /clock advanced {speed_up:.2f}x wall time')
             assert speed_up >= 1.5, speed_up
             # Still a live node: services answer while it races.
             assert probe.launch(randomize=True, seed=3).success
