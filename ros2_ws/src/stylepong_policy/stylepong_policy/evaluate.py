@@ -71,7 +71,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--json', type=pathlib.Path, help='write the results here')
     parser.add_argument('--video', type=pathlib.Path, help='render a few strokes of the first seed to this MP4')
     parser.add_argument('--video-strokes', type=int, default=4, help='strokes in the video')
-    parser.add_argument('--camera', default='overview', help="scene camera for the video ('overview', 'robot_view')")
+    parser.add_argument('--camera', default='overview', help="camera of the cell's scene for the video (overview, robot_view)")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--randomize', action='store_true', help='evaluate with domain randomisation on')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
@@ -215,6 +215,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f'evaluate: device {args.device!r} requested but CUDA is not available', file=sys.stderr)
         return 2
     torch.set_num_threads(args.num_threads)
+    if args.video is not None:
+        from stylepong_sim.scene import CAMERAS
+        if args.camera not in CAMERAS:
+            print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
+            return 2
+    if args.first_seed < 1000:
+        print(f'evaluate: warning: seeds below 1000 are training seeds (DESIGN.md); reported figures use 1000 and up',
+              file=sys.stderr)
     from stylepong_policy import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S
     overrides = {'speed_range_m_s': tuple(SPEED_RANGES_M_S[args.speed]), 'randomize': bool(args.randomize)}
