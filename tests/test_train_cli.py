@@ -31,7 +31,8 @@ def test_train_two_iterations_then_evaluate_and_resume(tmp_path, ros_env):
 
     out_json = tmp_path / 'eval.json'
     evaluate = ros2_run('evaluate', '--actor', str(run_dir / 'ppo_actor.pt'), '--seeds', '2', '--first-seed', '1000',
-                        '--balls', '16', '--speed', 'high', '--json', str(out_json), env=ros_env, timeout_s=180)
+                        '--balls', '16', '--speed', 'high', '--json', str(out_json),
+                        '--video', str(tmp_path / 'strokes.mp4'), '--video-strokes', '1', env=ros_env, timeout_s=180)
     assert evaluate.returncode == 0, evaluate.stdout + evaluate.stderr
     result = json.loads(out_json.read_text())
     assert result['seeds'] == [1000, 1001] and result['balls'] == 32 and len(result['per_seed']) == 2
@@ -39,6 +40,7 @@ def test_train_two_iterations_then_evaluate_and_resume(tmp_path, ros_env):
     successes = round(sum(result['per_seed']) * 16)
     assert successes + sum(result['failures'].values()) == 32
     assert '"success_rate"' in evaluate.stdout
+    assert result['video']['frames'] > 30 and (tmp_path / 'strokes.mp4').stat().st_size > 10_000
 
     # A second command continues the same run (its own config, from the last checkpoint) to 3 iterations.
     resume = ros2_run('train', '--out', str(run_dir), '--resume', '--iterations', '3', '--num-envs', '256',
