@@ -102,7 +102,8 @@ class Ur5SimNode(Node):
         # Dynamically typed so that `-p real_time_factor:=0` (an integer) works as well as 0.0.
         declare('real_time_factor', 1.0, ParameterDescriptor(
             description='Simulated seconds per wall-clock second; 0 = as fast as possible', dynamic_typing=True))
-        declare('max_lag_s', 0.1, _descriptor('Largest backlog (sim s) caught up after a stall', low=0.001, high=10.0))
+        declare('max_lag_s', 0.25, _descriptor('Largest backlog (sim s) caught up after a stall', low=0.001,
+                                                high=10.0))
         declare('home_joint_positions_rad', list(ws.HOME_JOINT_POSITIONS_RAD),
                 _descriptor('Start and reset pose, 6 joint positions (rad) in URDF order'))
         declare('joint_state_rate_hz', 500.0, _descriptor('/joint_states rate', low=1.0, high=max_rate_hz))
@@ -258,7 +259,7 @@ class Ur5SimNode(Node):
         if self._clock_clock.due(time_s):
             self._clock_msg.clock = stamp or _stamp(time_s)
             self._clock_pub.publish(self._clock_msg)
-        if cell.ball_in_play and self._ball_clock.due(time_s):
+        if self._ball_clock.due(time_s) and cell.ball_in_play:   # the camera's frames keep their grid
             self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
         for observation in self._camera.delivered(time_s):
             msg = self._ball_msg
