@@ -146,11 +146,6 @@ class Ur5SimNode(Node):
         self._ft_sensor = ForceTorqueSensor(sensing, rng)
         self._joint_clock = SampleClock(p('joint_state_rate_hz').value)
         self._wrench_clock = SampleClock(p('wrench_rate_hz').value)
-        # Anti-aliasing, as a real F/T sensor filters before it decimates: each sample is the mean of the
-        # physics steps since the last one (500 Hz commands on 1 kHz physics shake the tool at 500 Hz;
-        # single-step samples of the tool's inertial force alias into 5-15 N of spurious push).
-        self._wrench_sum = np.zeros(6)
-        self._wrench_steps = 0
         self._ball_clock = SampleClock(p('ball_state_rate_hz').value)
         self._clock_clock = SampleClock(p('clock_rate_hz').value)
         self._hand_timeout_s = p('hand_wrench_timeout_s').value
