@@ -1,6 +1,6 @@
 """virtual_teacher drags the simulated arm through each stroke while the recorder records it:
 ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/record_demos.sh runs them
-(the cell at half real time, drag_teach and the teacher on its clock: loaded machines stay in step)."""
+(the cell at a quarter of real time, drag_teach and the teacher on its clock: loaded machines stay in step)."""
 import pathlib
 
 import numpy as np
@@ -41,7 +41,7 @@ def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> n
 
 
 def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
-    sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.5}).start()
+    sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
     recorder = NodeProcess('stylepong_fdcc', 'recorder', params={'output_dir': str(tmp_path)}).start()
     limits = rm.joint_limits()

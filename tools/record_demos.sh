@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# Record demonstration clips through the real pipeline: ur5_sim + drag_teach + recorder, and the
+# virtual teacher playing the person for each swing (one labelled rosbag2 bag per clip).
+#
+#   tools/record_demos.sh                      the seven shipped clips into ros2_ws/bags
+#                                              (forward x3, leftward x2, rightward x2, interleaved)
+#   tools/record_demos.sh --out DIR SWING...   the given swings (forward|leftward|rightward) into DIR
+#
+# The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
+# clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
+# and nothing gets out of step with the arm. Needs the workspace built (make setup). Uses ROS_DOMAIN_ID
+# if set, else a random one (printed).
+set -eo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+OUT=$ROOT/ros2_ws/bags
+if [ "${1:-}" = "--out" ]; then
+  OUT=$(realpath -m "$2")
+  shift 2
+fi
+SWINGS=("$@")
+[ ${#SWINGS[@]} -gt 0 ] || SWINGS=(forward leftward rightward forward leftward rightward forward)
+for swing in "${SWINGS[@]}"; do
+  case $swing in forward|leftward|rightward) ;; *) echo "[record] unknown swing '$swing'" >&2; exit 2;; esac
+done
+
+set +u
+# shellcheck disable=SC1091
+source "$ROOT/ros2_ws/install/setup.bash"
+export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
+export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
+REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
+mkdir -p "$OUT"
+LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
+say() { printf '[record] %s\n' "$*"; }
+
+PIDS=()
+stop_all() {
+  # Newest first: the recorder closes its bag before the arm's nodes go away.
+  for (( i=${#PIDS[@]}-1; i>=0; i-- )); do kill -INT "${PIDS[i]}" 2>/dev/null || true; done
+  for pid in "${PIDS[@]}"; do
+    for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$pid" 2>/dev/null || true
+  done
+  PIDS=()
+}
+trap stop_all EXIT
+trap 'exit 130' INT TERM
+
+say "ROS_DOMAIN_ID=$ROS_DOMAIN_ID, node logs in $LOGS"
+ros2 run stylepong_sim ur5_sim --ros-args -p real_time_factor:="$REAL_TIME_FACTOR" >"$LOGS/ur5_sim.log" 2>&1 &
+PIDS+=($!)
+ros2 run stylepong_fdcc drag_teach --ros-args -p use_sim_time:=true >"$LOGS/drag_teach.log" 2>&1 &
+PIDS+=($!)
+ros2 run stylepong_fdcc recorder --ros-args -p output_dir:="$OUT" >"$LOGS/recorder.log" 2>&1 &
+PIDS+=($!)
+say "started ur5_sim (real_time_factor $REAL_TIME_FACTOR), drag_teach and the recorder (clips into $OUT)"
+
+recorded=()
+for swing in "${SWINGS[@]}"; do
+  say "teaching a $swing stroke"
+  if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p use_sim_time:=true \
+      >"$LOGS/virtual_teacher_$swing.log" 2>&1; then
+    say "the $swing stroke failed; its log:"
+    tail -n 20 "$LOGS/virtual_teacher_$swing.log" >&2
+    exit 1
+  fi
+  bag=$(sed -n "s/.*recording '$swing' into \(.*\)$/\1/p" "$LOGS/virtual_teacher_$swing.log" | tail -n 1)
+  say "recorded $bag"
+  recorded+=("$bag")
+done
+stop_all
+say "${#recorded[@]} clip(s) in $OUT"
+printf '%s\n' "${recorded[@]}" >"$LOGS/recorded.txt"
