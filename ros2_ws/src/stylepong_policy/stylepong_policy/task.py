@@ -12,6 +12,9 @@ Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus sig
   before the hit   bat    w_bat  exp(-d(paddle, ball) / sigma_bat)       (d over `bat_axes`: the paper
                                                                           uses y only; default y and z)
   the hit          hit    w_hit  once, when the paddle first touches the ball
+                   aim    w_aim  exp(-|predicted landing - goal| / sigma_aim), once, at the hit, gated
+                          softly on the drag-free flight from the ball's new state clearing the net (the
+                          landing point to goal, credited to the stroke that sets it)
   after the hit    goal   w_goal exp(-|ball - goal| / sigma_goal)        (every step until the verdict)
   verdict          land   w_land exp(-|landing point - goal| / sigma_land) for a returned ball
                    success  w_success for a returned ball
@@ -47,7 +50,7 @@ FAILURE_REASONS: tuple[str, ...] = bw.REASONS
 SUCCESS_INDEX = bw.REASON_INDEX[rf.REASON_RETURNED]
 ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
-REWARD_TERMS = ('bat', 'hit', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'style')
+REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'style')
 
 
 @dataclass
@@ -88,7 +91,9 @@ class TaskConfig:
     sigma_bat_m: float = 0.3
     bat_axes: str = 'yz'                            # which of x, y, z the paddle-ball distance uses
     w_hit: float = 2.0
-    w_goal: float = 0.2
+    w_aim: float = 3.0
+    sigma_aim_m: float = 0.7
+    w_goal: float = 0.5
     sigma_goal_m: float = 1.0
     w_land: float = 3.0
     sigma_land_m: float = 0.5
@@ -387,6 +392,7 @@ class TableTennisEnv:
         goal_point = torch.cat((self.episode.goal_xy_m, torch.full_like(ball[:, :1], self._goal_z_m)), dim=1)
         returning = w.hit & (w.open | events.decided)
         goal = cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m) * returning
+        aim = cfg.w_aim * self._aim_quality(events.paddle_hit)
         success = events.success
         landing = w.landing_xy_m.T
         land = cfg.w_land * torch.exp(-torch.linalg.vector_norm(landing - self.episode.goal_xy_m, dim=1)
@@ -399,9 +405,30 @@ class TableTennisEnv:
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
         rate = cfg.w_rate * (torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate)
                              - 1.0)
-        return {'bat': bat, 'hit': hit, 'goal': goal, 'land': land, 'success': cfg.w_success * success.float(),
+        return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land, 'success': cfg.w_success * success.float(),
                 'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
                 'action': -cfg.w_action * action.abs().amax(dim=1)}
+
+    def _aim_quality(self, just_hit: torch.Tensor) -> torch.Tensor:
+        """How well the ball's drag-free flight from its state now heads for the goal, where it was just hit.
+
+        exp(-|landing - goal| / sigma_aim) on the table plane, times a soft gate on the height at which it
+        passes the net (a logistic of the clearance, 2 cm wide: a near miss still earns a little, so the
+        gradient points over the net); 0 for a ball heading away from the net or landing before it. [N]
+        """
+        w = self.world
+        p, v = w.ball_pos_m, w.ball_vel_m_s
+        g = w.params.gravity_m_s2
+        drop = (p[2] - self._goal_z_m).clamp_min(0.0)
+        t_land = (v[2] + torch.sqrt(v[2] * v[2] + 2.0 * g * drop)) / g
+        land_x = p[0] + v[0] * t_land
+        land_y = p[1] + v[1] * t_land
+        t_net = (-p[0] / v[0].clamp_min(1e-3)).clamp(min=0.0)
+        z_net = p[2] + v[2] * t_net - 0.5 * g * t_net * t_net
+        clearance = z_net - (ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M + ws.BALL_RADIUS_M)
+        over_net = torch.sigmoid(clearance / 0.02) * ((v[0] > 0.0) & (t_net < t_land))
+        distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2 + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)
+        return torch.exp(-distance / self.cfg.sigma_aim_m) * over_net * just_hit
 
     def _episode_log(self, done_ids: torch.Tensor, events: bw.StepEvents) -> dict[str, float]:
         log = {f'rew_{name}': float(self.episode.reward_sums[name][done_ids].mean()) for name in REWARD_TERMS}

@@ -204,3 +204,18 @@ def test_config_validation():
     cfg = task.TaskConfig(speed_range_m_s=[4.0, 4.8])          # YAML gives lists
     assert cfg.speed_range_m_s == (4.0, 4.8)
     assert math.isclose(task.TaskConfig().goal_radius_m, 0.25)
+
+
+def test_aim_credits_a_stroke_towards_the_goal_only_over_the_net():
+    env = _env(3, randomize=False)
+    env.reset()
+    env.episode.goal_xy_m[:] = torch.tensor([0.8, 0.0])
+    w = env.world
+    w.ball_pos_m[:] = torch.tensor([[-1.3, 0.0, 1.0]] * 3).T
+    # Drag-free: 4 m/s forward for 0.525 s lands on the goal; vz from z(T) = table + radius.
+    t = 2.1 / 4.0
+    vz = (ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M - 1.0 + 0.5 * ws.GRAVITY_M_S2 * t * t) / t
+    w.ball_vel_m_s[:] = torch.tensor([[4.0, 0.0, vz], [-4.0, 0.0, vz], [6.0, 0.0, -1.0]]).T
+    quality = env._aim_quality(torch.ones(3, dtype=torch.bool))
+    assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0   # over, away, into the net
+    assert (env._aim_quality(torch.zeros(3, dtype=torch.bool)) == 0).all()
