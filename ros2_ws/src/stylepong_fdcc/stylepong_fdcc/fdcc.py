@@ -24,25 +24,30 @@ control period dt):
 
 which is stable for any gain and period and makes the admittance independent of the control rate: for
 a push of impulse I the tool comes to rest I / K_D further on whatever the rate (a 10 N, 1 s push at
-250 Hz and at 1000 Hz ends within 0.1 % of each other, test_fdcc_solver.py). Gains are in physical
+250 Hz and at 1000 Hz ends 0.33 m away with both models, the two within 0.11 % of each other;
+test_fdcc_solver.py requires 5 %). Gains are in physical
 units: K_D in N s/m (x, y, z) and N m s/rad (rx, ry, rz); K_P in N/m and N m/rad; K_P = 0 for dragging.
 
 Dynamics model (`dynamics_model`)
 ---------------------------------
 "virtual" (default): like FZI cartesian_controllers, every moving link gets a small mass (0.1 kg at its
 joint origin, inertia 1e-6 kg m^2) and the last link a larger one (1 kg, 0.01 kg m^2); "urdf": the
-URDF's own inertias (UR5 + paddle, 21 kg) with gravity off. Measured with `python3 -m
-stylepong_fdcc.fdcc` (solver alone, home pose, default damping 30 N s/m and 3 N m s/rad, a 10 N push along
-+x of base_link for 1 s at 500 Hz):
+URDF's own inertias (UR5 + paddle, 21 kg) with gravity off. A 10 N push along +x of base_link for 1 s
+from the home pose, default damping (30 N s/m, 3 N m s/rad), 500 Hz:
 
-    model    rise to 90 % speed   push: displacement / direction cosine   coasts after release   at rest (|qdot|<0.05) after
-    virtual        0.03 s                 0.331 m / 1.000                       0.002 m                 0.02 s
-    urdf           0.56 s                 0.212 m / 0.993                       0.113 m                 1.26 s
+    solver alone, a perfect servo (`python3 -m stylepong_fdcc.fdcc`):
+    model    rise to 90 % speed   moved during the push   coasts after release   at rest after release
+    virtual        0.12 s               0.306 m                 0.023 m                 0.19 s
+    urdf           0.64 s               0.225 m                 0.102 m                 1.19 s
+    through the MuJoCo cell (stylepong_sim.cell: servo, F/T sensor; 4 ms transport each way):
+    virtual        0.10 s               0.277 m                 0.020 m                 0.14 s
+    urdf           0.55 s               0.198 m                 0.094 m                 0.99 s
 
-The URDF model makes the arm feel like its 21 kg: a push first has to accelerate the arm's effective
-mass (3-11 kg at the tool, depending on direction), so the arm lags the hand, keeps going for 11 cm
-after the hand stops and drifts sideways while it accelerates. The virtual model follows the hand
-within a few hundredths of a second and stops where the hand stops, so it is the default.
+Both end 0.29-0.33 m along +x (impulse / damping, direction cosine 0.9999). The URDF model feels like
+its mass: its effective mass at the tool is 4.0-10.7 kg depending on direction (1.1-1.3 kg for the
+virtual model), so the arm lags the hand for half a second, and after the hand lets go it carries on
+for another 10 cm and a second. The virtual model follows the hand within a tenth of a second and
+stops where the hand stops, which is what a person dragging it expects, so it is the default.
 
 Safety layer (what FZI cartesian_controllers' users ask for, notes/anchors.md)
 ------------------------------------------------------------------------------

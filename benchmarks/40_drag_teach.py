@@ -1,0 +1,119 @@
+#!/usr/bin/env python3
+"""drag_teach: compute time per control cycle, and the rate it achieves at 500 Hz against ur5_sim.
+
+1. The controller alone (no ROS): one joint state, one sensor wrench and one control cycle, repeated,
+   with a push that changes every cycle (a person's hand), timed with perf_counter.
+2. The node: `ros2 run stylepong_sim ur5_sim` and `ros2 run stylepong_fdcc drag_teach` (defaults:
+   500 Hz, wall clock) for DURATION_S; drag_teach reports on Ctrl-C what it measured itself: cycles,
+   achieved rate, missed ticks (periods without a cycle) and compute time per cycle (its timer
+   callback: controller plus publishing).
+Prints one Markdown section for BENCHMARKS.md (`make bench`).
+"""
+import os
+import pathlib
+import random
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+DURATION_S = 20.0
+CYCLES = 20000
+
+
+def controller_cycles() -> np.ndarray:
+    from stylepong_description import robot_model as rm
+    from stylepong_fdcc.fdcc import DragTeachController, FdccConfig, gravity_wrench_on_tool, tool_load_from_model
+    from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
+
+    controller = DragTeachController(FdccConfig())
+    model = rm.pinocchio_model()
+    data = model.createData()
+    load = tool_load_from_model(model)
+    q = np.array(HOME_JOINT_POSITIONS_RAD)
+    import pinocchio as pin
+    pin.framesForwardKinematics(model, data, q)
+    rotation = data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
+    weight = gravity_wrench_on_tool(load, rotation, np.array(model.gravity.linear))
+    t = 0.0
+    for _ in range(200):                                   # start-up and tare, not timed
+        controller.on_joint_positions(q, t)
+        controller.on_wrench(weight, t)
+        controller.tick(t)
+        t += 0.002
+    times = np.empty(CYCLES)
+    for k in range(CYCLES):
+        push = np.array([8.0 * np.sin(k * 0.004), 6.0 * np.cos(k * 0.003), 0.0])
+        wrench = weight + np.concatenate([rotation.T @ push, np.zeros(3)])
+        started = time.perf_counter()
+        controller.on_joint_positions(q, t)
+        controller.on_wrench(wrench, t)
+        result = controller.tick(t)
+        times[k] = time.perf_counter() - started
+        q = result.command                                  # a perfect servo
+        t += 0.002
+    return times
+
+
+def node_run() -> tuple[str, tuple[float, float, float]]:
+    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               PYTHONUNBUFFERED='1')
+    logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_'))
+    sim_log, drag_log = open(logs / 'ur5_sim.log', 'w'), open(logs / 'drag_teach.log', 'w')
+    sim = subprocess.Popen(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], stdout=sim_log, stderr=subprocess.STDOUT,
+                           env=env, start_new_session=True)
+    drag = subprocess.Popen(['ros2', 'run', 'stylepong_fdcc', 'drag_teach'], stdout=drag_log,
+                            stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        while 'running' not in (logs / 'drag_teach.log').read_text():
+            if time.monotonic() > deadline or drag.poll() is not None:
+                raise RuntimeError('drag_teach did not start:\n' + (logs / 'drag_teach.log').read_text())
+            time.sleep(0.2)
+        time.sleep(DURATION_S)
+    finally:
+        for process in (drag, sim):
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGINT)
+                try:
+                    process.wait(10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(process.pid, signal.SIGKILL)
+                    process.wait()
+        sim_log.close()
+        drag_log.close()
+    stats = re.search(r'\d+ cycles in .*?rejected', (logs / 'drag_teach.log').read_text())
+    if not stats:
+        raise RuntimeError('drag_teach printed no statistics:\n' + (logs / 'drag_teach.log').read_text()[-2000:])
+    return stats.group(0), os.getloadavg()   # noqa: the load is read while the nodes just stopped
+
+
+def main() -> int:
+    times_us = controller_cycles() * 1e6
+    stats, load = node_run()
+    print('## drag_teach: compute time per cycle, achieved rate, missed ticks at 500 Hz\n')
+    print('`python3 benchmarks/40_drag_teach.py`. (1) The FDCC controller alone (`DragTeachController`, '
+          f'virtual dynamics model, all safety stages), {CYCLES} cycles of joint state + sensor wrench + '
+          'control step with a changing push. (2) `ros2 run stylepong_fdcc drag_teach` (defaults: 500 Hz, '
+          f'wall clock) against `ros2 run stylepong_sim ur5_sim` for {DURATION_S:.0f} s from start-up; '
+          'the node\'s own count at Ctrl-C (compute = its timer callback, controller and publishing; a '
+          'missed tick is a 2 ms period without a cycle).\n')
+    print('| what | mean | p99 | max |')
+    print('|---|---|---|---|')
+    print(f'| controller cycle, no ROS | {times_us.mean():.0f} us | {np.percentile(times_us, 99):.0f} us | '
+          f'{times_us.max():.0f} us |')
+    print(f'\nNode against ur5_sim: {stats}.\n')
+    print(f'Load average of the machine at the end: {load[0]:.2f} (1 min), {load[1]:.2f} (5 min) on '
+          f'{os.cpu_count()} cores: other work on this shared machine takes cycles from the node, which '
+          'shows as missed ticks.')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
