@@ -1,18 +1,21 @@
 """drag_teach against the MuJoCo cell: `ros2 run stylepong_sim ur5_sim` + `ros2 run stylepong_fdcc drag_teach`,
-both with their defaults, driven and watched through their topics (issue 4, Done when 1-3)."""
+both with their defaults, driven and watched through their topics (issue 4, Done when 1-3), then its
+services (enable, tare) and, with stiffness, a target pose on ~/target_pose."""
 import subprocess
 import sys
 import threading
 import time
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import rclpy
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
 
 from stylepong_description import robot_model as rm
 from stylepong_sim.teacher import CellKinematics
@@ -158,7 +161,8 @@ def test_a_10_n_push_along_x_moves_the_tool_along_x_and_it_stays_where_it_was_le
 FLOODER = """
 import math, sys, time
 import rclpy
-from geometry_msgs.msg import WrenchStamped
+import pinocchio as pin
+from geometry_msgs.msg import PoseStamped, WrenchStamped
 GARBAGE = ([math.nan] * 6, [math.inf, 0, 0, 0, 0, 0], [0, 0, 0, 0, -math.inf, 0], [1e6, 0, 0, 0, 0, 0],
            [0, -1e6, 0, 0, 0, 0], [0, 0, 1e6, 0, 0, 1e6], [-1e6, 1e6, -1e6, 0, 0, 0], [0, 0, 0, 1e6, -1e6, 0],
            [1.0, math.nan, 2.0, 0, 0, 0])
@@ -206,3 +210,58 @@ def test_a_flood_of_nan_inf_and_huge_wrenches_never_makes_a_bad_command(cell):
     count = len(probe.commands_between(0.0, time.monotonic()))
     assert wait_until(lambda: len(probe.commands_between(0.0, time.monotonic())) > count + 50, 5.0)
     assert 'wrench rejected' in drag.output()
+
+
+def test_disabled_it_publishes_nothing_enabled_it_resumes_where_the_arm_is_and_it_tares(cell):
+    probe, _, _ = cell
+    node = probe.node
+    enable = node.create_client(SetBool, '/drag_teach/enable')
+    tare = node.create_client(Trigger, '/drag_teach/tare')
+    assert enable.wait_for_service(10.0) and tare.wait_for_service(10.0)
+
+    def call(client, request):
+        future = client.call_async(request)
+        assert wait_until(future.done, 10.0)
+        return future.result()
+
+    assert call(enable, SetBool.Request(data=False)).success
+    time.sleep(0.3)                                    # commands already on their way
+    quiet_from = time.monotonic()
+    time.sleep(1.0)
+    assert not probe.commands_between(quiet_from, time.monotonic()), 'commands while disabled'
+    held = probe.latest_q()
+    assert call(enable, SetBool.Request(data=True)).success
+    assert wait_until(lambda: len(probe.commands_between(quiet_from + 1.0, time.monotonic())) > 20, 5.0)
+    first = probe.commands_between(quiet_from + 1.0, time.monotonic())[0][1]
+    assert np.max(np.abs(first - held)) < 1e-3         # re-synchronised with the arm: no jump
+    response = call(tare, Trigger.Request())
+    assert response.success and 'bias force' in response.message
+
+
+def test_with_stiffness_it_is_a_compliance_controller_around_the_target_pose(ros_env):
+    stiffness = [300.0, 300.0, 300.0, 30.0, 30.0, 30.0]
+    sim = NodeProcess('stylepong_sim', 'ur5_sim').start()
+    drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'stiffness': stiffness}).start()
+    probe = CellProbe()
+    try:
+        assert wait_until(probe.commanding, 60.0), drag.output()[-2000:]
+        time.sleep(0.5)
+        start = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))      # tool0 in base_link
+        target = start.translation + np.array([0.05, -0.03, 0.04])
+        publisher = probe.node.create_publisher(PoseStamped, '/drag_teach/target_pose', 10)
+        msg = PoseStamped()
+        msg.header.frame_id = rm.BASE_FRAME
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in target)
+        x, y, z, w = pin.Quaternion(start.rotation).coeffs()
+        msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = x, y, z, w
+        assert wait_until(lambda: publisher.get_subscription_count() > 0, 10.0)
+        publisher.publish(msg)
+
+        def at_target() -> bool:
+            reached = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))
+            return np.linalg.norm(reached.translation - target) < 0.005
+        assert wait_until(at_target, 10.0), 'the tool never reached the target pose'
+    finally:
+        probe.close()
+        drag.stop()
+        sim.stop()
