@@ -10,6 +10,7 @@ Subscribes /joint_states, /forward_position_controller/commands (only to see tha
 """
 from __future__ import annotations
 
+import signal
 import sys
 
 import numpy as np
@@ -215,7 +216,8 @@ class VirtualTeacherNode(Node):
 
 
 def main(args=None) -> int:
-    # Our own Ctrl-C handling: the context must outlive it to let go of the paddle and stop the recorder.
+    # Our own Ctrl-C handling: a flag, not an exception inside a callback, and the context outlives it
+    # so that the node can still let go of the paddle and close the clip.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = VirtualTeacherNode()
@@ -223,21 +225,25 @@ def main(args=None) -> int:
         print(f'virtual_teacher: {error}', file=sys.stderr)
         rclpy.try_shutdown()
         return 1
-    code = 130
+    interrupted = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda number, frame: interrupted.append(number))
     # The events executor costs a fraction of the standard one's CPU time per callback (1000+ a second).
     executor = EventsExecutor()
     executor.add_node(node)
     try:
-        while rclpy.ok() and node.exit_code is None:
+        while rclpy.ok() and node.exit_code is None and not interrupted:
             executor.spin_once(timeout_sec=0.1)
-        code = node.exit_code if node.exit_code is not None else 1
+        if interrupted:
+            node.get_logger().info('interrupted: letting go of the paddle')
+            node.release_hand()
+            node.stop_recording_now(executor)
+            code = 130
+        else:
+            code = node.exit_code if node.exit_code is not None else 1
         for _ in range(5):                   # make sure the zero wrench gets out
             node.release_hand()
             executor.spin_once(timeout_sec=0.01)
-    except KeyboardInterrupt:
-        node.release_hand()
-        node.stop_recording_now(executor)
-        node.release_hand()
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
