@@ -65,7 +65,8 @@ Safety layer (what FZI cartesian_controllers' users ask for, notes/anchors.md)
   accelerations within `acceleration_limit_rad_s2`; velocity and acceleration are limited by scaling
   the whole joint vector, so the tool keeps its direction. A command never moves a joint more than
   its velocity limit times the nominal period from the previous one, even after a late tick (the
-  command then catches up with the simulated arm over the next cycles).
+  command then catches up with the simulated arm over the next cycles). A stall longer than
+  `max_late_periods` control periods is integrated as that many: the arm carries on, it does not jump.
 - Watchdog: no valid wrench or joint state for `watchdog_timeout_s` (50 ms): the simulated arm
   decelerates at the acceleration limit along its path and holds; it resumes when both are fresh,
   fading the wrench back in over `resume_ramp_s` (a hand that kept pushing must not make it lurch).
