@@ -21,7 +21,7 @@ PY
 
 # One demonstration clip end to end: ur5_sim + drag_teach + recorder, the virtual teacher dragging the arm.
 DEMO_DIR=runs/demo
-echo "[demo] recording one forward stroke: ur5_sim + drag_teach + recorder + virtual_teacher (about a minute)"
+echo "[demo] recording one forward stroke: ur5_sim + drag_teach + recorder + virtual_teacher (under a minute)"
 tools/record_demos.sh --out "$DEMO_DIR" forward
 BAG=$(ls -d "$DEMO_DIR"/forward_* | sort | tail -n 1)
 python3 - "$BAG" <<'PY'
