@@ -23,12 +23,13 @@ MEASURED_STEPS = 120
 THREADS = 2
 
 
-def world_rate(num_envs: int) -> tuple[float, int]:
-    """Policy steps per second of BatchedWorld (with resets) and how many rallies were decided."""
+def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]:
+    """Policy steps per second of BatchedWorld (with resets), rallies decided, seconds to the first step."""
     from stylepong_sim import batched_launcher as bl
     from stylepong_sim import batched_world as bw
 
-    world = bw.BatchedWorld(num_envs)
+    started = time.perf_counter()
+    world = bw.BatchedWorld(num_envs, compile=compile)
     sampler = bl.IncomingBallSampler(seed=0, batch=max(4096, 2 * num_envs))
     ids = torch.arange(num_envs)
     position, velocity, _ = sampler.sample(num_envs)
@@ -54,12 +55,14 @@ def world_rate(num_envs: int) -> tuple[float, int]:
             world.reset_envs(done, home[:, done], p, v)
         return int(done.numel())
 
-    for _ in range(WARMUP_STEPS):
+    one_step()
+    first_step_s = time.perf_counter() - started
+    for _ in range(WARMUP_STEPS - 1):
         one_step()
     start = time.perf_counter()
     for _ in range(MEASURED_STEPS):
         decided += one_step()
-    return num_envs * MEASURED_STEPS / (time.perf_counter() - start), decided
+    return num_envs * MEASURED_STEPS / (time.perf_counter() - start), decided, first_step_s
 
 
 def env_rate(num_envs: int) -> float:
@@ -82,8 +85,9 @@ def main() -> int:
     load_before = os.getloadavg()[0]
     rows = []
     for n in SIZES:
-        world, decided = world_rate(n)
-        rows.append((n, world, env_rate(n), decided))
+        world, decided, _ = world_rate(n)
+        compiled, _, compile_s = world_rate(n, compile=True)
+        rows.append((n, world, compiled, compile_s, env_rate(n), decided))
     print('## Batched world: policy steps per second (no network)\n')
     print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched_world.BatchedWorld` on the CPU (torch '
           f'{torch.__version__}, float32; the caller has {THREADS} threads, the world steps with 1: see '
@@ -91,13 +95,16 @@ def main() -> int:
           f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
           f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
           f'from the vectorised sampler); "env": `stylepong_policy.task.TableTennisEnv.step` with random '
-          f'actions (observations, noise, delays, rewards, domain randomisation, resets). Target: >= 100,000 '
-          f'policy steps/s at N = 4096. Load average before the run: {load_before:.1f} (other work on the '
+          f'actions (observations, noise, delays, rewards, domain randomisation, resets). "torch.compile": '
+          f'`BatchedWorld(compile=True)` (TaskConfig.compile_world), the same physics fused by inductor '
+          f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). Load average before the run: {load_before:.1f} (other work on the '
           f'2 cores slows every figure).\n')
-    print('| N | world steps/s | env steps/s | rallies decided (world run) |')
-    print('|---|---|---|---|')
-    for n, world, env, decided in rows:
-        print(f'| {n} | {world:,.0f} | {env:,.0f} | {decided} |')
+    print('| N | world steps/s (eager) | world steps/s (torch.compile) | env steps/s (eager) | '
+          'rallies decided in the eager world run |')
+    print('|---|---|---|---|---|')
+    for n, world, compiled, compile_s, env, decided in rows:
+        print(f'| {n} | {world:,.0f} | {compiled:,.0f} (first step after {compile_s:.0f} s of compilation) | '
+              f'{env:,.0f} | {decided} |')
     return 0
 
 

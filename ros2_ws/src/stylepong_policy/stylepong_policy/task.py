@@ -63,6 +63,7 @@ class TaskConfig:
     physics_rate_hz: float = 120.0
     arm_substeps: int = 4
     cpu_threads: int = 1                            # torch threads while the env steps (0: leave as set)
+    compile_world: bool = False                     # torch.compile the world's stages (3x faster, ~1 min start)
     episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
     reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
     goal_radius_m: float = 0.25
@@ -172,7 +173,7 @@ class TableTennisEnv:
         threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
         self.world = bw.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
                                      arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
-                                     cpu_threads=None)
+                                     cpu_threads=None, compile=cfg.compile_world)
         self.cpu_threads = threads
         self.policy_dt_s = self.world.policy_dt_s
         if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \

@@ -126,7 +126,7 @@ class BatchedWorld:
     def __init__(self, num_envs: int, device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
                  policy_rate_hz: float = ws.POLICY_RATE_HZ, physics_rate_hz: float = 120.0, arm_substeps: int = 4,
                  timeout_s: float = ws.BALL_TIMEOUT_S, dynamics_every: int | None = None,
-                 cpu_threads: int | None = 1):
+                 cpu_threads: int | None = 1, compile: bool = False):
         if num_envs < 1:
             raise ValueError('num_envs must be positive')
         steps = physics_rate_hz / policy_rate_hz
@@ -170,6 +170,14 @@ class BatchedWorld:
         self.table_contact_pos_m = torch.zeros(3, n, **kw)
         self._kin = bk.forward_kinematics(self.model, self.q_rad)
         self._constants()
+        self._forward_kinematics = bk.forward_kinematics
+        if compile:
+            # torch.compile (inductor) fuses each stage's hundreds of small operations into a few loops:
+            # measured 3-4x faster per stage on this CPU, after 1-2 minutes of compilation at start.
+            self._forward_kinematics = torch.compile(bk.forward_kinematics, dynamic=False)
+            self._arm_dynamics = torch.compile(self._arm_dynamics, dynamic=False)
+            self._arm_step = torch.compile(self._arm_step, dynamic=False)
+            self._ball_step = torch.compile(self._ball_step, dynamic=False)
 
     def _constants(self) -> None:
         kw = dict(device=self.device, dtype=self.dtype)
@@ -245,7 +253,7 @@ class BatchedWorld:
             if k % self.dynamics_every == 0:
                 inverse, bias = self._arm_dynamics(kin_before)
             self._arm_step(inverse, bias)
-            self._kin = bk.forward_kinematics(self.model, self.q_rad)
+            self._kin = self._forward_kinematics(self.model, self.q_rad)
             hit, bounce = self._ball_step(kin_before, self._kin)
             events.paddle_hit = events.paddle_hit | hit
             events.own_bounce = events.own_bounce | bounce
