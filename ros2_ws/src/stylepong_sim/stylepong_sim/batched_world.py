@@ -18,8 +18,10 @@ batched_kinematics):
 The cell steps physics at 1 ms; here physics runs at `physics_rate_hz` (default 120 Hz, two steps per
 60 Hz policy step) with the ball integrated by the midpoint rule (exact for gravity, so the coarser
 step loses nothing: landing points agree with the cell's to millimetres) and the arm at
-`arm_substeps` finer steps with the inertia and bias torques held over one physics step.
-Robot-link contacts use capsules fitted to the links' collision meshes (the cell queries the meshes).
+`arm_substeps` finer steps per physics step (480 Hz), with the inertia and bias torques updated once per
+policy step (`dynamics_every`). Joint trajectories agree with the cell's within 2 % RMS, ball landings
+within 6 mm (test_batched_world_agreement). Robot-link contacts use capsules fitted to the links'
+collision meshes (the cell queries the meshes themselves).
 """
 from __future__ import annotations
 
@@ -28,10 +30,10 @@ from dataclasses import dataclass, fields
 
 import torch
 
+from stylepong_description import robot_model as rm
 from stylepong_sim import batched_kinematics as bk
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
-from stylepong_description import robot_model as rm
 
 # Verdicts as indices (the referee's reason strings, one source of truth for their names).
 REASONS: tuple[str, ...] = (
@@ -43,7 +45,7 @@ REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
 NO_VERDICT = -1
 
 # Contact kinds of one physics step.
-_NONE, _TABLE, _NET, _PADDLE, _ROBOT = 0, 1, 2, 3, 4
+_NONE, _TABLE, _NET, _PADDLE = 0, 1, 2, 3
 
 
 @contextlib.contextmanager
