@@ -16,7 +16,6 @@ sys.path.insert(0, str(ROOT))
 os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(1, 101))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
-import numpy as np  # noqa: E402
 
 from stylepong_sim import world_spec as ws  # noqa: E402
 from stylepong_sim.cell import Cell  # noqa: E402

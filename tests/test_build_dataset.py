@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from tests.joint_state_bags import (
-    EPOCH_NS,
     Swing,
     read_with_rosbags,
     truncate_file,

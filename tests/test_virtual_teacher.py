@@ -4,7 +4,6 @@ ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/r
 import pathlib
 
 import numpy as np
-import pytest
 from rosbags.highlevel import AnyReader
 
 from stylepong_description import robot_model as rm

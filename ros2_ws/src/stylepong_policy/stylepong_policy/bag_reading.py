@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
+from stylepong_fdcc.clip_writer import IN_PROGRESS_NAME
+
 JOINT_STATE_TYPES = ('sensor_msgs/msg/JointState', 'sensor_msgs/JointState')
 STORAGE_SUFFIXES = ('.mcap', '.db3')
 COMPRESSED_STORAGE_SUFFIXES = ('.mcap.zstd', '.db3.zstd')
@@ -448,21 +450,12 @@ class _Source:
     has_metadata: bool
 
 
-def _recorder_in_progress_name() -> str | None:
-    try:
-        from stylepong_fdcc.clip_writer import IN_PROGRESS_NAME
-    except ImportError:
-        return None
-    return IN_PROGRESS_NAME
-
-
 def _open_sources(bag: pathlib.Path, info: dict | None) -> list[_Source]:
     from rosbags.rosbag2 import Reader
     if info is not None:
         return [_Source(Reader(bag), bag, True)]
-    in_progress = _recorder_in_progress_name()
-    if bag.is_dir() and in_progress and (bag / in_progress).is_file():
-        raise BagError(f'a recording still in progress or never closed ({in_progress} is there, metadata.yaml '
+    if bag.is_dir() and (bag / IN_PROGRESS_NAME).is_file():
+        raise BagError(f'a recording still in progress or never closed ({IN_PROGRESS_NAME} is there, metadata.yaml '
                        'is not): let it finish, or rebuild it with ros2 run stylepong_fdcc recover_bag')
     files = [bag] if bag.is_file() else _storage_files(bag)
     for path in files:

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from stylepong_fdcc.clip_writer import label_from_bag_dir_name
 from stylepong_policy.bag_reading import BagError, find_bags, median_rate_hz, one_line, read_joint_states
 from stylepong_policy.dataset import (
     DEFAULT_RATE_HZ,
@@ -46,14 +47,9 @@ def label_from_name(name: str) -> str | None:
     The recorder's own names (<label>_<YYYYmmdd>_<HHMMSS>_<ms>, any label it accepts) are parsed by
     the recorder's function; other names count when they look like <letters>_<digit>...
     """
-    try:
-        from stylepong_fdcc.clip_writer import label_from_bag_dir_name
-    except ImportError:   # the recorder's package is not installed: only the general form is known
-        label_from_bag_dir_name = None
-    if label_from_bag_dir_name is not None:
-        label = label_from_bag_dir_name(name)
-        if label:
-            return label
+    label = label_from_bag_dir_name(name)
+    if label:
+        return label
     match = _DIRECTORY_LABEL.match(name)
     return match.group(1) if match else None
 

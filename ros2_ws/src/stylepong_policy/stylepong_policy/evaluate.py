@@ -221,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
     if args.first_seed < 1000:
-        print(f'evaluate: warning: seeds below 1000 are training seeds (DESIGN.md); reported figures use 1000 and up',
+        print('evaluate: warning: seeds below 1000 are training seeds (DESIGN.md); reported figures use 1000 and up',
               file=sys.stderr)
     from stylepong_policy import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S

@@ -1,0 +1,83 @@
+"""The virtual teacher dragging drag_teach's FDCC controller on a perfect servo (no ROS, no MuJoCo)."""
+import numpy as np
+import pinocchio as pin
+
+from stylepong_description import robot_model as rm
+from stylepong_fdcc.fdcc import DragTeachController, FdccConfig, gravity_wrench_on_tool, tool_load_from_model
+from stylepong_sim import world_spec as ws
+from stylepong_sim.teacher import CellKinematics, VirtualTeacher
+
+HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+KIN = CellKinematics()
+
+
+def singularity_margins(q: np.ndarray) -> tuple[float, float]:
+    """Smallest singular value of tool0's Jacobian, and wrist_1's distance (m) from the base's axis."""
+    model, data = KIN.model, KIN.data
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    jacobian = pin.getFrameJacobian(model, data, KIN.frame_id(rm.TOOL_FRAME), pin.LOCAL_WORLD_ALIGNED)
+    wrist = data.oMf[KIN.frame_id('wrist_1_link')].translation
+    return float(np.linalg.svd(jacobian, compute_uv=False)[-1]), float(np.hypot(wrist[0], wrist[1]))
+
+
+class DragLoop:
+    """drag_teach's controller on an arm that follows its commands exactly; the hand acts at tool0."""
+
+    def __init__(self, dt_s: float = 0.002):
+        self.kin = KIN
+        self.tool = KIN.frame_id(rm.TOOL_FRAME)
+        self.load = tool_load_from_model(KIN.model)
+        self.controller = DragTeachController(FdccConfig(nominal_period_s=dt_s))
+        self.q, self.qdot, self.t, self.dt = HOME.copy(), np.zeros(6), 0.0, dt_s
+        for _ in range(100):   # drag_teach runs (and tares) before the teacher takes the paddle
+            self.step(np.zeros(6))
+
+    def step(self, hand_world: np.ndarray) -> None:
+        tool = self.kin.pose(self.q, self.tool)
+        rotation_base = self.kin.base.rotation.T @ tool.rotation
+        sensor = np.concatenate([tool.rotation.T @ hand_world[:3], tool.rotation.T @ hand_world[3:]])
+        sensor += gravity_wrench_on_tool(self.load, rotation_base, np.array(KIN.model.gravity.linear))
+        self.controller.on_joint_positions(self.q, self.t)
+        self.controller.on_wrench(sensor, self.t)
+        command = self.controller.tick(self.t).command
+        if command is not None:
+            self.qdot, self.q = (command - self.q) / self.dt, command
+        self.t += self.dt
+
+    def teach(self, swing: str):
+        teacher = VirtualTeacher(swing)
+        record, start = [], None
+        while self.t < 20.0:
+            wrench = teacher.update(self.t, self.q, self.qdot)
+            if teacher.phase == 'ready':
+                teacher.begin_stroke(self.t)
+                start = self.t
+            if teacher.phase == 'finished':
+                teacher.release()
+                assert np.all(teacher.update(self.t, self.q, self.qdot) == 0.0)
+                return teacher, record, self.t - start
+            self.step(wrench)
+            if teacher.phase == 'stroke':
+                record.append((self.q.copy(), teacher.via_point(self.t), np.linalg.norm(
+                    self.kin.twist(self.q, self.qdot, self.tool)[:3])))
+        raise AssertionError(f'the {swing} stroke did not finish (phase {teacher.phase})')
+
+
+def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits():
+    loop = DragLoop()
+    centre_id = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
+    limits = rm.joint_limits()
+    for swing in ('forward', 'leftward', 'rightward', 'forward'):   # each starts where the last one ended
+        teacher, record, duration_s = loop.teach(swing)
+        assert 1.5 <= duration_s <= 3.5
+        errors = [np.linalg.norm(KIN.pose(q, centre_id).translation - via.position_m) for q, via, _ in record]
+        assert max(errors) < 0.03, swing
+        assert max(speed for _, _, speed in record) < 1.0
+        joints = np.array([q for q, _, _ in record])
+        assert np.all(joints > limits.lower_rad + 0.05) and np.all(joints < limits.upper_rad - 0.05)
+        # Clear of the singularities where a dragged arm flips: elbow bent, wrist away from the base axis.
+        assert np.min(np.abs(joints[:, 2])) > 1.0, swing
+        assert min(singularity_margins(q)[1] for q in joints[::10]) > 0.1, swing
+        # The paddle ends the stroke where the follow-through is.
+        assert np.linalg.norm(KIN.pose(loop.q, centre_id).translation - teacher.path.follow) < 0.03
