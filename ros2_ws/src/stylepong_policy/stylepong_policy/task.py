@@ -346,6 +346,10 @@ class TableTennisEnv:
     def _step(self, actions: torch.Tensor):
         cfg = self.cfg
         w = self.world
+        if actions.shape != (self.num_envs, self.num_actions):
+            raise ValueError(f'actions must have shape {(self.num_envs, self.num_actions)}, got {tuple(actions.shape)}')
+        if not bool(torch.isfinite(actions).all()):
+            raise ValueError('actions contain NaN or inf')
         action = spec.clip_action(actions.to(self.device, torch.float32))
         hit_before = w.hit.clone()
         events = w.step(spec.decode_action(action).T, self.episode.action_delay_physics_steps)

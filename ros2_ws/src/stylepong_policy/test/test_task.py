@@ -219,3 +219,13 @@ def test_aim_credits_a_stroke_towards_the_goal_only_over_the_net():
     quality = env._aim_quality(torch.ones(3, dtype=torch.bool))
     assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0   # over, away, into the net
     assert (env._aim_quality(torch.zeros(3, dtype=torch.bool)) == 0).all()
+
+
+def test_bad_actions_are_refused_with_a_clear_error():
+    env = _env(2)
+    env.reset()
+    with pytest.raises(ValueError, match='NaN'):
+        env.step(torch.tensor([[0.0] * 6, [float('nan')] + [0.0] * 5]))
+    with pytest.raises(ValueError, match='shape'):
+        env.step(torch.zeros(2, 5))
+    env.step(torch.zeros(2, 6))   # and the env still works
