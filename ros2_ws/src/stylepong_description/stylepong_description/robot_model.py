@@ -16,6 +16,7 @@ import functools
 import hashlib
 import os
 import pathlib
+import sys
 import sysconfig
 import tempfile
 import xml.etree.ElementTree as ET
@@ -58,19 +59,15 @@ PADDLE = PaddleSpec()
 
 
 def example_robot_data_dir() -> pathlib.Path:
-    """Where example-robot-data's `share/example-robot-data` lives (installed by pip as a cmeel wheel)."""
-    candidates = [pathlib.Path(sysconfig.get_paths()['purelib']) / 'cmeel.prefix/share/example-robot-data']
-    try:
-        import example_robot_data  # noqa: F401  (present with the loaders package only)
-        candidates.append(pathlib.Path(example_robot_data.getModelPath('ur_description/urdf/ur5_robot.urdf'))
-                          .parent / 'share/example-robot-data')
-    except Exception:  # noqa: BLE001 - the loaders package is optional
-        pass
+    """`share/example-robot-data` of the example-robot-data wheel (cmeel installs it under site-packages)."""
+    relative = 'cmeel.prefix/share/example-robot-data'
+    candidates = [pathlib.Path(sysconfig.get_paths()['purelib']) / relative]
+    candidates += [pathlib.Path(p) / relative for p in sys.path if p]
     for path in candidates:
         if (path / 'robots/ur_description/urdf/ur5_robot.urdf').is_file():
             return path
-    raise FileNotFoundError('example-robot-data is not installed: pip install example-robot-data '
-                            f'(looked in {", ".join(str(c) for c in candidates)})')
+    raise FileNotFoundError('example-robot-data is not installed (pip install example-robot-data); looked in '
+                            + ', '.join(dict.fromkeys(str(c) for c in candidates)))
 
 
 def _cylinder_inertia(mass_kg: float, radius_m: float, length_m: float) -> tuple[float, float]:
