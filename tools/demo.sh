@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# `make demo`: run the parts of the pipeline that exist, saying what each step did.
+# `make demo`: the pipeline end to end in simulation, saying what each step did: record one
+# demonstration clip by kinesthetic teaching, build the reference-motion dataset, and evaluate the
+# shipped policy with a video of its strokes. Everything it writes goes to runs/demo/.
 set -eo pipefail
 cd "$(dirname "$0")/.."
 echo "[demo] loading the UR5 + paddle model in Pinocchio and MuJoCo"
@@ -56,3 +58,23 @@ print(f'[demo] clip {bag}: label {label!r}, {len(stamps)} joint states over {sta
       f'tool0 travelled {travel:.2f} m, peak speed {speed.max():.2f} m/s')
 PY
 echo "[demo] the bag is in $BAG (read it with rosbags or the mcap tools; the seven shipped clips are in ros2_ws/bags)"
+
+# The training bridge: the new clip and the seven shipped ones -> 60 Hz reference motions, x2/x3/x5.
+echo "[demo] building the reference-motion dataset from $BAG and the shipped clips in ros2_ws/bags"
+ros2 run stylepong_policy build_dataset "$BAG" ros2_ws/bags -o "$DEMO_DIR/dataset.npz" --plot "$DEMO_DIR/dataset.png" \
+  | grep '^wrote .*clips' | sed 's/^/[demo] /'
+echo "[demo] dataset in $DEMO_DIR/dataset.npz, its clips plotted in $DEMO_DIR/dataset.png"
+
+# The shipped PPO baseline actor returning balls in the batched world, with a video of a few strokes.
+ACTOR=ros2_ws/src/stylepong_policy/models/ppo_actor.pt
+echo "[demo] evaluating the shipped actor $ACTOR: 2 seeds x 200 balls, all speeds, rendering 4 strokes"
+ros2 run stylepong_policy evaluate --actor "$ACTOR" --seeds 2 --first-seed 1000 --balls 200 --speed all \
+  --json "$DEMO_DIR/evaluation.json" --video "$DEMO_DIR/strokes.mp4" | grep '^seed'
+python3 - "$DEMO_DIR/evaluation.json" <<'PY'
+import json
+import sys
+
+result = json.load(open(sys.argv[1]))
+print(f"[demo] success rate {result['success_rate']:.3f}, hit rate {result['hit_rate']:.3f} over {result['balls']} balls "
+      f"(results in {sys.argv[1]}); the strokes are in {sys.argv[1].rsplit('/', 1)[0]}/strokes.mp4")
+PY
