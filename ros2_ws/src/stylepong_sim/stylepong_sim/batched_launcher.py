@@ -54,6 +54,26 @@ def _crossing_fraction(y0, y1, d0, d1, level, dt):
     return tau
 
 
+def _rk4_flight_step(s, z, vs, vz, dt: float, drag_k_per_m, gravity_m_s2):
+    """One RK4 step of a drag-and-gravity flight in the vertical plane of its heading.
+
+    (s, z): distance along the heading and height (m); (vs, vz) their rates (m/s). Tensors, any shape.
+    """
+    def accel(us, uz):
+        speed = torch.sqrt(us * us + uz * uz)
+        return -drag_k_per_m * speed * us, -gravity_m_s2 - drag_k_per_m * speed * uz
+
+    a1s, a1z = accel(vs, vz)
+    a2s, a2z = accel(vs + 0.5 * dt * a1s, vz + 0.5 * dt * a1z)
+    a3s, a3z = accel(vs + 0.5 * dt * a2s, vz + 0.5 * dt * a2z)
+    a4s, a4z = accel(vs + dt * a3s, vz + dt * a3z)
+    s1 = s + dt * (vs + dt / 6.0 * (a1s + a2s + a3s))
+    z1 = z + dt * (vz + dt / 6.0 * (a1z + a2z + a3z))
+    vs1 = vs + dt / 6.0 * (a1s + 2 * a2s + 2 * a3s + a4s)
+    vz1 = vz + dt / 6.0 * (a1z + 2 * a2z + 2 * a3z + a4z)
+    return s1, z1, vs1, vz1
+
+
 def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad: torch.Tensor,
                   net_distance_m: torch.Tensor, gravity_m_s2: float = ws.GRAVITY_M_S2,
                   drag_k_per_m: float = ws.DRAG_K_PER_M) -> tuple[torch.Tensor, torch.Tensor]:
@@ -78,19 +98,8 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
     net_top = ws.NET_HEIGHT_M
     dt = FLIGHT_DT_S
 
-    def accel(us, uz):
-        speed = torch.sqrt(us * us + uz * uz)
-        return -drag_k_per_m * speed * us, -gravity_m_s2 - drag_k_per_m * speed * uz
-
     for step in range(int(MAX_FLIGHT_S / dt)):
-        a1s, a1z = accel(vs, vz)
-        a2s, a2z = accel(vs + 0.5 * dt * a1s, vz + 0.5 * dt * a1z)
-        a3s, a3z = accel(vs + 0.5 * dt * a2s, vz + 0.5 * dt * a2z)
-        a4s, a4z = accel(vs + dt * a3s, vz + dt * a3z)
-        s1 = s + dt * (vs + dt / 6.0 * (a1s + a2s + a3s))
-        z1 = z + dt * (vz + dt / 6.0 * (a1z + a2z + a3z))
-        vs1 = vs + dt / 6.0 * (a1s + 2 * a2s + 2 * a3s + a4s)
-        vz1 = vz + dt / 6.0 * (a1z + 2 * a2z + 2 * a3z + a4z)
+        s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, drag_k_per_m, gravity_m_s2)
         crosses_net = active & (s < net_distance_m) & (s1 >= net_distance_m)
         if bool(crosses_net.any()):
             tau = _crossing_fraction(s, s1, vs, vs1, net_distance_m, dt)
@@ -133,19 +142,8 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
     reached = torch.zeros_like(s, dtype=torch.bool)
     active = torch.ones_like(reached)
 
-    def accel(us, uz):
-        speed = torch.sqrt(us * us + uz * uz)
-        return -ws.DRAG_K_PER_M * speed * us, -ws.GRAVITY_M_S2 - ws.DRAG_K_PER_M * speed * uz
-
     for step in range(int(1.5 / dt)):
-        a1s, a1z = accel(vs, vz)
-        a2s, a2z = accel(vs + 0.5 * dt * a1s, vz + 0.5 * dt * a1z)
-        a3s, a3z = accel(vs + 0.5 * dt * a2s, vz + 0.5 * dt * a2z)
-        a4s, a4z = accel(vs + dt * a3s, vz + dt * a3z)
-        s1 = s + dt * (vs + dt / 6.0 * (a1s + a2s + a3s))
-        z1 = z + dt * (vz + dt / 6.0 * (a1z + a2z + a3z))
-        vs1 = vs + dt / 6.0 * (a1s + 2 * a2s + 2 * a3s + a4s)
-        vz1 = vz + dt / 6.0 * (a1z + 2 * a2z + 2 * a3z + a4z)
+        s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, ws.DRAG_K_PER_M, ws.GRAVITY_M_S2)
         for tau in (0.25, 0.5, 0.75, 1.0):
             zi = _hermite(z, z1, vz, vz1, tau, dt)
             si = _hermite(s, s1, vs, vs1, tau, dt)
