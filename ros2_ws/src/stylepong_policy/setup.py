@@ -25,7 +25,6 @@ setup(
             'build_dataset = stylepong_policy.build_dataset:main',
             'train = stylepong_policy.train:main',
             'evaluate = stylepong_policy.evaluate:main',
-            'player = stylepong_policy.player_node:main',
         ],
     },
 )
