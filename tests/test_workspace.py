@@ -1,4 +1,5 @@
 """Issue 2: the workspace after `source ros2_ws/install/setup.bash`: interfaces, index, `ros2` command."""
+import contextlib
 import os
 import pathlib
 import re
@@ -97,16 +98,31 @@ def test_run_prefix_goes_in_front(fake_package):
     process.wait(10)
 
 
-@pytest.fixture
-def talker():
-    """A BallState publisher at 50 Hz in this process."""
+@contextlib.contextmanager
+def spinning_node(name: str):
+    """A node of this process spinning in a thread (its own context) while the `ros2` command runs."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from stylepong_msgs.msg import BallState
     context = rclpy.Context()
     rclpy.init(context=context)
-    node = rclpy.create_node('ros2_command_test_talker', context=context)
-    publisher = node.create_publisher(BallState, '/test/ball', 10)
+    node = rclpy.create_node(name, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield node
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+        thread.join(5)
+
+
+@pytest.fixture
+def talker():
+    """A BallState publisher at 50 Hz."""
+    from stylepong_msgs.msg import BallState
 
     def publish():
         msg = BallState()
@@ -115,16 +131,10 @@ def talker():
         msg.velocity.z = 1.25
         publisher.publish(msg)
 
-    node.create_timer(0.02, publish)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
-    yield
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
-    thread.join(5)
+    with spinning_node('ros2_command_test_talker') as node:
+        publisher = node.create_publisher(BallState, '/test/ball', 10)
+        node.create_timer(0.02, publish)
+        yield
 
 
 def test_topic_list_echo_hz(talker):
@@ -150,13 +160,8 @@ def test_topic_list_echo_hz(talker):
 
 @pytest.fixture
 def trigger_server():
-    """A std_srvs/Trigger service in this process that counts its calls."""
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
+    """A std_srvs/Trigger service that counts its calls."""
     from std_srvs.srv import Trigger
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node('ros2_command_test_server', context=context)
     calls = []
 
     def handle(request, response):
@@ -165,16 +170,9 @@ def trigger_server():
         response.message = f'call {len(calls)}'
         return response
 
-    node.create_service(Trigger, '/test/trigger', handle)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
-    yield calls
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
-    thread.join(5)
+    with spinning_node('ros2_command_test_server') as node:
+        node.create_service(Trigger, '/test/trigger', handle)
+        yield calls
 
 
 def test_service_list_and_call(trigger_server):
