@@ -189,6 +189,17 @@ def feed(controller, t, q=HOME, hand=np.zeros(3), wrench=None):
     controller.on_wrench(weight_reading(q, hand) if wrench is None else wrench, t)
 
 
+def tared_controller() -> tuple[DragTeachController, float]:
+    """A controller after 0.4 s of fresh inputs at home (tared, running), and the time reached."""
+    controller = DragTeachController(FdccConfig())
+    t = 0.0
+    for _ in range(200):
+        feed(controller, t)
+        controller.tick(t)
+        t += 0.002
+    return controller, t
+
+
 def test_no_command_before_joint_states_wrenches_and_a_tare():
     controller = DragTeachController(FdccConfig())
     assert controller.tick(0.0).command is None
@@ -243,12 +254,7 @@ def test_stale_wrench_decelerates_and_holds_then_resumes():
 
 
 def test_garbage_wrenches_are_counted_and_do_not_count_as_fresh():
-    controller = DragTeachController(FdccConfig())
-    t = 0.0
-    for _ in range(200):
-        feed(controller, t)
-        controller.tick(t)
-        t += 0.002
+    controller, t = tared_controller()
     for k in range(100):
         controller.on_joint_positions(HOME, t)
         controller.on_wrench(np.array([math.nan, 1e6, -1e6, math.inf, 0, 0])[np.roll(np.arange(6), k)], t)
@@ -260,12 +266,7 @@ def test_garbage_wrenches_are_counted_and_do_not_count_as_fresh():
 
 
 def test_disabled_publishes_nothing_and_enabling_resyncs_to_the_measured_arm():
-    controller = DragTeachController(FdccConfig())
-    t = 0.0
-    for _ in range(200):
-        feed(controller, t)
-        controller.tick(t)
-        t += 0.002
+    controller, t = tared_controller()
     controller.set_enabled(False)
     feed(controller, t)
     assert controller.tick(t).command is None

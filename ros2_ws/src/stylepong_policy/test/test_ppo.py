@@ -1,5 +1,4 @@
 """PPO parts on their own (normaliser, GAE, KL, losses, config) and PPO learning a small toy task."""
-import importlib.util
 import math
 import pathlib
 
@@ -15,14 +14,9 @@ from stylepong_policy.rl.ppo import PPO, gaussian_kl
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 from stylepong_policy.rl.storage import RolloutStorage
 
+import ppo_toy_task  # beside this file: conftest.py
+
 HERE = pathlib.Path(__file__).resolve().parent
-
-
-def load_toy_task():
-    spec = importlib.util.spec_from_file_location('ppo_toy_task', HERE / 'ppo_toy_task.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def toy_config(**ppo) -> TrainConfig:
@@ -191,7 +185,7 @@ def toy_success_rate(actor_critic: ActorCritic, toy, episodes_steps: int = 30) -
 
 
 def test_ppo_learns_the_toy_task(tmp_path):
-    toy = load_toy_task()
+    toy = ppo_toy_task
     seed_everything(0)
     env = toy.ReachTask(num_envs=256, seed=0)
     runner = OnPolicyRunner(env, toy_config(), tmp_path, failure_reasons=toy.FAILURE_REASONS, tensorboard=False)

@@ -1,7 +1,5 @@
 """The runner's checkpoints, resume, logs and interruption handling, on the toy task."""
 import csv
-import importlib.util
-import pathlib
 
 import pytest
 import torch
@@ -10,17 +8,7 @@ from stylepong_policy.rl.config import config_from_dict
 from stylepong_policy.rl.logger import plot_learning_curve, read_progress
 from stylepong_policy.rl.runner import OnPolicyRunner, read_checkpoint, seed_everything
 
-HERE = pathlib.Path(__file__).resolve().parent
-
-
-def load_toy_task():
-    spec = importlib.util.spec_from_file_location('ppo_toy_task', HERE / 'ppo_toy_task.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-TOY = load_toy_task()
+import ppo_toy_task as TOY  # noqa: N812  (beside this file: conftest.py)
 
 
 def small_config(**runner):
