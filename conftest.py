@@ -2,7 +2,8 @@
 
 Every pytest process gets its own ROS_DOMAIN_ID and keeps DDS traffic on the loopback interface, so
 suites running side by side (or a developer's live node graph) never see each other's topics.
-System tests that start nodes ask for `ros_env`, which gives each test a fresh domain of its own.
+System tests that start nodes ask for `ros_env`, which gives each test a fresh domain of its own, or
+`module_ros_domain` for nodes a whole module shares.
 """
 import os
 import random
@@ -32,3 +33,11 @@ def ros_env(monkeypatch):
     domain = str(fresh_domain_id())
     monkeypatch.setenv('ROS_DOMAIN_ID', domain)
     return dict(os.environ)
+
+
+@pytest.fixture(scope='module')
+def module_ros_domain():
+    """A fresh ROS domain shared by one test module (for module-scoped node fixtures)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv('ROS_DOMAIN_ID', str(fresh_domain_id()))
+        yield os.environ['ROS_DOMAIN_ID']

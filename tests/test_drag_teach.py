@@ -105,23 +105,20 @@ def tool_position(q: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope='module')
-def cell():
+def cell(module_ros_domain):
     """ur5_sim and drag_teach (defaults) in a ROS domain of their own, and a probe; shared by the tests below."""
-    from conftest import fresh_domain_id
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv('ROS_DOMAIN_ID', str(fresh_domain_id()))
-        sim = NodeProcess('stylepong_sim', 'ur5_sim').start()
-        drag = NodeProcess('stylepong_fdcc', 'drag_teach').start()
-        probe = CellProbe()
-        try:
-            if not wait_until(probe.commanding, 60.0):
-                pytest.fail('drag_teach never commanded the arm:\n' + sim.output()[-2000:] + drag.output()[-2000:])
-            time.sleep(1.0)
-            yield probe, sim, drag
-        finally:
-            probe.close()
-            drag.stop()
-            sim.stop()
+    sim = NodeProcess('stylepong_sim', 'ur5_sim').start()
+    drag = NodeProcess('stylepong_fdcc', 'drag_teach').start()
+    probe = CellProbe()
+    try:
+        if not wait_until(probe.commanding, 60.0):
+            pytest.fail('drag_teach never commanded the arm:\n' + sim.output()[-2000:] + drag.output()[-2000:])
+        time.sleep(1.0)
+        yield probe, sim, drag
+    finally:
+        probe.close()
+        drag.stop()
+        sim.stop()
 
 
 def test_without_a_push_no_joint_moves_for_10_s(cell):

@@ -21,18 +21,15 @@ PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])   # turned away fro
 
 
 @pytest.fixture(scope='module')
-def sim():
-    from conftest import fresh_domain_id
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv('ROS_DOMAIN_ID', str(fresh_domain_id()))
-        node = NodeProcess('stylepong_sim', 'ur5_sim').start()
-        probe = Ur5SimProbe()
-        try:
-            assert probe.wait_for_sim(60.0), f'ur5_sim did not come up:\n{node.output()}'
-            yield node, probe
-        finally:
-            probe.close()
-            node.stop()
+def sim(module_ros_domain):
+    node = NodeProcess('stylepong_sim', 'ur5_sim').start()
+    probe = Ur5SimProbe()
+    try:
+        assert probe.wait_for_sim(60.0), f'ur5_sim did not come up:\n{node.output()}'
+        yield node, probe
+    finally:
+        probe.close()
+        node.stop()
 
 
 def _move_and_settle(probe: Ur5SimProbe, target, timeout_s: float = 10.0) -> None:
