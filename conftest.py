@@ -7,6 +7,7 @@ System tests that start nodes ask for `ros_env`, which gives each test a fresh d
 """
 import os
 import random
+import signal
 
 import pytest
 
@@ -25,6 +26,10 @@ os.environ.setdefault('MUJOCO_GL', 'egl')
 # Before torch loads: OpenMP threads that spin while waiting starve every other process on a 2-core
 # machine (a 5 s PPO test took 80 s next to a training run).
 os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
+# A suite started in the background by a non-interactive shell (`make test &`, some CI runners)
+# inherits SIGINT ignored, and so would every node it starts: the Ctrl-C tests would then test nothing.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture
