@@ -31,24 +31,30 @@ class TrainingLog:
     def _truncate_csv(self, start_iteration: int) -> None:
         if not self.csv_path.exists():
             return
-        with open(self.csv_path, newline='') as f:
-            reader = csv.DictReader(f)
-            self.fieldnames = list(reader.fieldnames or []) or None
-            rows = [row for row in reader if int(float(row['iteration'])) <= start_iteration]
-        if self.fieldnames is None:
+        fieldnames, rows = _read_rows(self.csv_path)
+        if not fieldnames:
             return
+        self.fieldnames = fieldnames
+        self._rewrite([row for row in rows if int(float(row['iteration'])) <= start_iteration])
+
+    def _rewrite(self, rows: list[dict[str, str]]) -> None:
         with open(self.csv_path, 'w', newline='') as f:
-            writer = csv.DictWriter(f, fieldnames=self.fieldnames)
+            writer = csv.DictWriter(f, fieldnames=self.fieldnames, restval='')
             writer.writeheader()
             writer.writerows(rows)
 
     def write(self, row: dict[str, Any]) -> None:
-        """Append one iteration. Columns are fixed by the first row ever written to the file."""
+        """Append one iteration. A column first seen now (episode statistics appear only once episodes
+        have ended) widens the file, earlier rows left empty there."""
         new_file = self.fieldnames is None
         if new_file:
             self.fieldnames = list(row)
+        new_columns = [key for key in row if key not in self.fieldnames]
+        if new_columns:
+            self.fieldnames += new_columns
+            self._rewrite(_read_rows(self.csv_path)[1])
         with open(self.csv_path, 'a', newline='') as f:
-            writer = csv.DictWriter(f, fieldnames=self.fieldnames, extrasaction='ignore')
+            writer = csv.DictWriter(f, fieldnames=self.fieldnames)
             if new_file:
                 writer.writeheader()
             writer.writerow({k: _csv_value(row.get(k)) for k in self.fieldnames})
@@ -82,6 +88,13 @@ def _tensorboard_tag(key: str) -> str:
                                     'learning_rate', 'action_std')
              else 'train')
     return f'{group}/{key}'
+
+
+def _read_rows(csv_path: pathlib.Path) -> tuple[list[str], list[dict[str, str]]]:
+    with open(csv_path, newline='') as f:
+        reader = csv.DictReader(f)
+        rows = list(reader)
+        return list(reader.fieldnames or []), rows
 
 
 def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
