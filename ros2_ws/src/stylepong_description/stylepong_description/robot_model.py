@@ -13,12 +13,9 @@ All lengths are metres, masses kilograms, angles radians.
 from __future__ import annotations
 
 import functools
-import hashlib
-import os
 import pathlib
 import sys
 import sysconfig
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -152,24 +149,6 @@ def urdf_xml(paddle: PaddleSpec = PADDLE) -> str:
                   discardvisual='true', fusestatic='false', balanceinertia='false', strippath='true')
     ET.indent(tree)
     return ET.tostring(robot, encoding='unicode')
-
-
-def urdf_path(paddle: PaddleSpec = PADDLE) -> str:
-    """The URDF written to a file (for tools that want a path); the file name carries a content hash."""
-    xml = urdf_xml(paddle)
-    digest = hashlib.sha256(xml.encode()).hexdigest()[:16]
-    cache = pathlib.Path(os.environ.get('XDG_CACHE_HOME', pathlib.Path.home() / '.cache')) / 'stylepong'
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        cache = pathlib.Path(tempfile.gettempdir()) / 'stylepong'
-        cache.mkdir(parents=True, exist_ok=True)
-    path = cache / f'ur5_paddle_{digest}.urdf'
-    if not path.is_file():
-        tmp = path.with_suffix(f'.tmp{os.getpid()}')
-        tmp.write_text(xml)
-        os.replace(tmp, path)  # atomic: parallel processes never see a half-written file
-    return str(path)
 
 
 def pinocchio_model():
