@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore
+from stylepong_description.robot_model import JOINT_NAMES
+
+from tests import joint_state_bags
 
 JOINT_STATES = '/joint_states'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
-JOINT_NAMES = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint',
-               'wrist_3_joint']
-STORE = get_typestore(Stores.ROS2_JAZZY)
+STORE = joint_state_bags.jazzy_typestore()
 
 
 def stamp_ns(header) -> int:
@@ -27,13 +27,8 @@ def stamp_ns(header) -> int:
 
 def joint_state_cdr(stamp: int) -> bytes:
     """A serialized JointState whose header stamp (ns) identifies it and whose positions derive from it."""
-    types = STORE.types
-    msg = types[JOINT_STATE_TYPE](
-        header=types['std_msgs/msg/Header'](
-            stamp=types['builtin_interfaces/msg/Time'](sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
-            frame_id=''),
-        name=list(JOINT_NAMES), position=np.full(6, stamp * 1e-9), velocity=np.zeros(6), effort=np.zeros(6))
-    return bytes(STORE.serialize_cdr(msg, JOINT_STATE_TYPE))
+    return joint_state_bags.joint_state_cdr(STORE, stamp, JOINT_NAMES, np.full(6, stamp * 1e-9), np.zeros(6),
+                                            np.zeros(6))
 
 
 @dataclasses.dataclass

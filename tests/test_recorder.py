@@ -92,6 +92,14 @@ class Harness:
     def stop(self):
         return self.call(self.stop_client, Trigger.Request())
 
+    def begin_clip(self, recorder: NodeProcess, label: str):
+        """Joint states flowing for 0.5 s, then /recorder/start: (publisher, response, monotonic start)."""
+        self.wait_for_subscriber(recorder)
+        publisher = self.publish_joint_states()
+        time.sleep(0.5)
+        response = self.start(label)
+        return publisher, response, time.monotonic()
+
     def wait_for_subscriber(self, recorder: NodeProcess, timeout_s=30.0):
         assert wait_until(lambda: self.node.count_subscribers(JOINT_STATES) > 0 or not recorder.running(),
                           timeout_s), 'the recorder never subscribed to /joint_states'
@@ -117,11 +125,7 @@ def start_recorder(output_dir: Path, **params) -> NodeProcess:
 def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path, storage):
     recorder = start_recorder(tmp_path / 'bags', storage=storage)
     try:
-        harness.wait_for_subscriber(recorder)
-        publisher = harness.publish_joint_states()
-        time.sleep(0.5)
-        response = harness.start('forward')
-        started_s = time.monotonic()
+        publisher, response, started_s = harness.begin_clip(recorder, 'forward')
         assert response.success, response.message
         bag_dir = Path(response.bag_path)
         assert bag_dir.parent == tmp_path / 'bags' and bag_dir.name.startswith('forward_')
@@ -155,11 +159,7 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_2_s_before_th
                                                                                         storage):
     recorder = start_recorder(tmp_path / 'bags', storage=storage)
     try:
-        harness.wait_for_subscriber(recorder)
-        publisher = harness.publish_joint_states()
-        time.sleep(0.5)
-        response = harness.start('leftward')
-        started_s = time.monotonic()
+        publisher, response, started_s = harness.begin_clip(recorder, 'leftward')
         assert response.success, response.message
         time.sleep(3.0)
         killed_s = time.monotonic()
