@@ -243,7 +243,6 @@ class WrenchConditioner:
         self.load = load
         self.gravity_base = np.asarray(gravity_base_m_s2, dtype=float)
         self.bias_tool = np.zeros(6)
-        self.tared = False
         self._recent = collections.deque()    # (time s, gravity-compensated tool wrench)
         self._filtered_base: np.ndarray | None = None
         self._last_sample_time_s: float | None = None
@@ -278,7 +277,6 @@ class WrenchConditioner:
         if not self._recent:
             raise RuntimeError('no wrench samples to tare with')
         self.bias_tool = np.mean([w for _, w in self._recent], axis=0)
-        self.tared = True
         self._filtered_base = None  # the filter held the old bias: restart it at the next sample
         return self.bias_tool.copy()
 
@@ -359,6 +357,10 @@ class FdccSolver:
         self.limits = JointMotionLimits.from_config(config)
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)
+        # Fixed by the configuration, so computed here rather than in every control cycle.
+        self._joint_damping_matrix = config.joint_damping_nms_per_rad * np.eye(self.model.nv)
+        self._max_dt_s = config.max_late_periods * config.nominal_period_s
+        self._command_step_rad = self.limits.velocity_rad_s * config.nominal_period_s
         self.q = np.zeros(self.model.nq)
         self.command = np.zeros(self.model.nq)
         self.qdot = np.zeros(self.model.nv)
@@ -400,7 +402,7 @@ class FdccSolver:
 
         Returns the new joint positions (the command).
         """
-        dt = min(float(dt_s), self.config.max_late_periods * self.config.nominal_period_s)
+        dt = min(float(dt_s), self._max_dt_s)
         if not dt > 0:
             return self.q.copy()
         model, data = self.model, self.data
@@ -416,8 +418,7 @@ class FdccSolver:
         force = np.asarray(external_wrench_base, dtype=float) + self.stiffness * error
         damping_joint = jacobian.T @ (self.damping[:, None] * jacobian)
         stiffness_joint = jacobian.T @ (self.stiffness[:, None] * jacobian)
-        lhs = (mass_matrix + dt * damping_joint + dt * self.config.joint_damping_nms_per_rad * np.eye(model.nv)
-               + dt * dt * stiffness_joint)
+        lhs = mass_matrix + dt * damping_joint + dt * self._joint_damping_matrix + dt * dt * stiffness_joint
         rhs = mass_matrix @ qdot + dt * (jacobian.T @ force - bias_torque)
         qdot_wanted = np.linalg.solve(lhs, rhs)
         if not np.all(np.isfinite(qdot_wanted)):
@@ -427,7 +428,7 @@ class FdccSolver:
 
     def brake(self, dt_s: float) -> np.ndarray:
         """Decelerate along the current path at the acceleration limits (watchdog); returns the command."""
-        dt = min(float(dt_s), self.config.max_late_periods * self.config.nominal_period_s)
+        dt = min(float(dt_s), self._max_dt_s)
         if dt > 0:
             qdot = decelerate(self.qdot, dt, self.limits)
             self.q, self.qdot = limit_motion(self.q, self.qdot, qdot, dt, self.limits)
@@ -440,7 +441,7 @@ class FdccSolver:
         one nominal period at full speed allows; the command then catches up over the next cycles, and
         consecutive commands never imply more than the velocity limit at the nominal rate.
         """
-        step = self.limits.velocity_rad_s * self.config.nominal_period_s
+        step = self._command_step_rad
         self.command = self.command + np.clip(self.q - self.command, -step, step)
         return self.command.copy()
 
