@@ -184,7 +184,7 @@ class _FlushingWriter(Writer):
     STORAGE_PLUGINS = {StoragePlugin.MCAP: _FlushingMcapWriter, StoragePlugin.SQLITE3: _FlushingSqlite3Writer}
 
 
-def _storage_plugin(storage: str) -> StoragePlugin:
+def storage_plugin(storage: str) -> StoragePlugin:
     if storage not in STORAGES:
         raise ClipError(f'unknown storage {storage!r}: use one of {", ".join(STORAGES)}')
     return StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
@@ -207,7 +207,7 @@ class ClipWriter:
         self.custom_data = dict(custom_data or {})
         self.flush_period_s = flush_period_s
         self._monotonic_s = monotonic_s
-        self._plugin = _storage_plugin(storage)
+        self._plugin = storage_plugin(storage)
         self._writer: _FlushingWriter | None = None
         self._connections: dict[str, Connection] = {}
         self._counts: dict[str, int] = {}
@@ -357,7 +357,7 @@ def open_clip(output_dir: Path, label: str, storage: str, topics: Sequence[Topic
     with the reason (bad label, unusable output_dir, too little free space, storage failure)."""
     if (problem := label_problem(label)) is not None:
         raise ClipError(problem)
-    _storage_plugin(storage)
+    storage_plugin(storage)
     output_dir = Path(output_dir)
     if output_dir.exists() and not output_dir.is_dir():
         raise ClipError(f'output_dir {output_dir} is not a directory')

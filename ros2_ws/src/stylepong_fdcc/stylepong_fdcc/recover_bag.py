@@ -30,13 +30,13 @@ from mcap.records import Channel as McapChannel
 from mcap.records import Chunk, Footer, Header, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from rosbags.interfaces import Qos
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore, get_types_from_idl, get_types_from_msg
 
 from stylepong_fdcc.clip_writer import (IN_PROGRESS_NAME, LABEL_KEY, ROSBAG2_VERSION, STORAGE_SUFFIX,
-                                        label_from_bag_dir_name, recording_process_alive)
+                                        label_from_bag_dir_name, recording_process_alive, storage_plugin)
 
 METADATA_NAME = 'metadata.yaml'
 _WORK_DIR_NAME = '.recover_bag_work'
@@ -258,8 +258,9 @@ def _find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
     return by_suffix[files[0].suffix], files[0]
 
 
-def _custom_data(bag_dir: Path, metadata: dict | None, problems: list[str]) -> dict[str, str]:
-    for source in (metadata, _load_yaml(bag_dir / IN_PROGRESS_NAME)):
+def _custom_data(bag_dir: Path, metadata: dict | None, note: dict | None, problems: list[str]) -> dict[str, str]:
+    """The clip's custom data from metadata.yaml, else the recording note, else the directory name."""
+    for source in (metadata, note):
         custom = source.get('custom_data') if source else None
         if isinstance(custom, dict) and custom:
             return {str(k): str(v) for k, v in custom.items()}
@@ -324,8 +325,7 @@ def _complete_definitions(scan: StorageScan) -> None:
 
 def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
     """Everything scanned, written as a fresh bag by rosbags (which also writes its metadata.yaml)."""
-    plugin = StoragePlugin.MCAP if scan.storage == 'mcap' else StoragePlugin.SQLITE3
-    writer = Writer(new_bag, version=ROSBAG2_VERSION, storage_plugin=plugin)
+    writer = Writer(new_bag, version=ROSBAG2_VERSION, storage_plugin=storage_plugin(scan.storage))
     for key, value in custom_data.items():
         writer.set_custom_data(key, value)
     messages = _mcap_messages(scan) if scan.storage == 'mcap' else _sqlite3_messages(scan)
@@ -390,7 +390,7 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
         problems.insert(0, 'no readable metadata.yaml')
     elif scan.intact:
         problems.append('metadata.yaml disagrees with the storage file')
-    custom_data = _custom_data(bag_dir, metadata, problems)
+    custom_data = _custom_data(bag_dir, metadata, note, problems)
     if not check_only:
         _complete_definitions(scan)
         try:
