@@ -403,7 +403,6 @@ class GenericJointStateDecoder:
         if types:
             self.store = get_typestore(Stores.EMPTY)
             self.store.register(types)
-            self.error = None
         else:
             self.store = jazzy_store
 
@@ -435,7 +434,6 @@ class JointStateRecording:
     storage: str = ''
     problems: list[str] = field(default_factory=list)   # data was lost or may be wrong
     notes: list[str] = field(default_factory=list)      # handled quirks worth knowing
-    messages_decoded: int = 0
 
     @property
     def message_count(self) -> int:
@@ -537,7 +535,6 @@ class _Collector:
         self.jazzy_store = jazzy_store
         self.blocks: list[_Block] = []
         self.yielded = 0
-        self.decoded = 0
         self.failed = 0
         self.first_failure: str | None = None
 
@@ -589,7 +586,6 @@ class _Collector:
             pending[rows] = False
             self.blocks.append(_Block(name_id=layout.name_id, stamp_ns=stamps[fresh], receive_ns=receive[rows],
                                       position=pos[fresh], velocity=vel[fresh]))
-            self.decoded += len(rows)
         for i in np.flatnonzero(pending):
             decode_slowly(int(i))
         for (name_id, n_pos, n_vel), items in slow.items():
@@ -598,7 +594,6 @@ class _Collector:
                 receive_ns=np.array([x[1] for x in items], dtype=np.int64),
                 position=np.array([x[2] for x in items], dtype=float).reshape(len(items), n_pos),
                 velocity=np.array([x[3] for x in items], dtype=float).reshape(len(items), n_vel)))
-            self.decoded += len(items)
 
     def _decode_one(self, raw: bytes) -> tuple[int, int, tuple, tuple] | None:
         fast_error = None
@@ -722,8 +717,7 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
     return JointStateRecording(
         bag=bag, topic=chosen_topic, joint_names=tuple(joints), header_stamp_ns=stamps[order],
         receive_time_ns=receive[order], position_rad=position[order], velocity_rad_s=velocity[order],
-        label=metadata_label(info), storage='+'.join(sorted(storage_ids)), problems=problems, notes=notes,
-        messages_decoded=sum(c.decoded for c in collectors))
+        label=metadata_label(info), storage='+'.join(sorted(storage_ids)), problems=problems, notes=notes)
 
 
 def _read_connection(source: _Source, conn, topic: str, jazzy, problems: list[str], notes: list[str]) -> _Collector:

@@ -28,7 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-DEFAULT_RATE_HZ = 60.0
+from stylepong_sim.world_spec import POLICY_RATE_HZ
+
+DEFAULT_RATE_HZ = POLICY_RATE_HZ   # clips are played at the rate the policy acts
 DEFAULT_SPEEDUPS = (2, 3, 5)
 NS_PER_S = 1_000_000_000
 
@@ -76,7 +78,6 @@ class Clip:
 class ClipResult:
     clips: list[Clip] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    velocity_mismatch_rad_s: float = math.nan   # worst per-joint rms(bag - derivative), where compared
 
 
 # ---------------------------------------------------------------------------------------------
@@ -188,7 +189,6 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
     segments = split_at_gaps(times_ns, options.max_gap_s)
     if len(segments) > 1:
         result.notes.append(f'split at {len(segments) - 1} gap(s) in the recording into {len(segments)} parts')
-    mismatches = []
     for number, segment in enumerate(segments, start=1):
         where = f'part {number}: ' if len(segments) > 1 else ''
         seg_times = times_ns[segment]
@@ -204,7 +204,6 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
         if np.isfinite(seg_velocity).all():
             qd_bag = interpolate_columns(grid_s, t_rel_s, seg_velocity)
             consistent, mismatch = bag_velocity_is_consistent(qd_bag, qd_positions, options)
-            mismatches.append(mismatch)
             if consistent:
                 qd, velocity_source = qd_bag, 'bag'
             else:
@@ -231,8 +230,6 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
             continue
         t_s = seg_times[0] / NS_PER_S + grid_s
         result.clips.append(Clip(t=t_s, q=q, qd=qd, time_source=time_source, velocity_source=velocity_source))
-    if mismatches:
-        result.velocity_mismatch_rad_s = max(mismatches)
     return result
 
 
@@ -409,10 +406,6 @@ def assemble_dataset(originals: Sequence[SourceClip], speedups: Sequence[int], j
         time_source=np.asarray([c.time_source for c in clips], dtype=str),
         velocity_source=np.asarray([c.velocity_source for c in clips], dtype=str),
         rate_hz=float(rate_hz), joint_names=tuple(joint_names))
-
-
-def load_reference_dataset(path: str | os.PathLike) -> ReferenceDataset:
-    return ReferenceDataset.load(path)
 
 
 def discriminator_windows(dataset: ReferenceDataset | str | os.PathLike, length: int, *,
