@@ -31,11 +31,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
+from stylepong_policy.spec import ACTION_RATE_HZ
 
 SUCCESS_REASON = 'returned'
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
-VIDEO_FPS = 60                       # one frame per policy step: real time at the 60 Hz action rate
+VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
 
 
 @dataclass
@@ -45,7 +47,6 @@ class SeedResult:
     successes: int
     hits: int
     reasons: dict[str, int]
-    steps: int
     wall_time_s: float
 
     @property
@@ -65,7 +66,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='evaluate', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', required=True, type=pathlib.Path, help='exported actor (.pt with its .json)')
     parser.add_argument('--seeds', type=int, default=10, help='number of seeds')
-    parser.add_argument('--first-seed', type=int, default=1000, help='first seed (evaluation seeds are >= 1000)')
+    parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
+                        help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')
     parser.add_argument('--balls', type=int, default=200, help='balls per seed')
     parser.add_argument('--speed', choices=('all', 'low', 'high'), default='all', help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the results here')
@@ -100,7 +102,8 @@ def evaluate_seed(actor: LoadedActor, task, task_overrides: dict, seed: int, bal
     hit_so_far = torch.zeros_like(decided)
     recording = Recording() if record > 0 else None
     tracks: list[tuple[list, list]] = [([], []) for _ in range(min(record, balls))]
-    max_steps = _max_episode_steps(task, cfg)
+    # A generous bound on steps until every first ball is decided: three episodes' time plus a second.
+    max_steps = int(3 * float(cfg.episode_length_s) * ACTION_RATE_HZ) + int(ACTION_RATE_HZ)
     steps = 0
     with torch.inference_mode():
         obs, _ = env.reset()
@@ -112,7 +115,7 @@ def evaluate_seed(actor: LoadedActor, task, task_overrides: dict, seed: int, bal
             obs, _, _, dones, info = env.step(actions)
             steps += 1
             if recording is not None:
-                _record_step(tracks, env, obs, info, decided)
+                _record_step(tracks, env, info, decided)
             open_ = ~decided
             hit_so_far |= info['ball_hit'] & open_
             ball_done = info['ball_done'] & open_
@@ -127,7 +130,7 @@ def evaluate_seed(actor: LoadedActor, task, task_overrides: dict, seed: int, bal
     counts = torch.bincount(reason.cpu(), minlength=len(names)).tolist()
     result = SeedResult(seed=seed, balls=balls, successes=int(success.sum()), hits=int(hit.sum()),
                         reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
-                        steps=steps, wall_time_s=time.perf_counter() - started)
+                        wall_time_s=time.perf_counter() - started)
     if recording is not None:
         for i, (q, ball) in enumerate(tracks):
             recording.joint_positions_rad.append(np.array(q))
@@ -136,23 +139,10 @@ def evaluate_seed(actor: LoadedActor, task, task_overrides: dict, seed: int, bal
     return result, recording
 
 
-def _max_episode_steps(task, cfg) -> int:
-    """A generous bound on steps until every first ball is decided, from the task's own time limit."""
-    for name in ('episode_length_s', 'max_episode_length_s', 'episode_time_s'):
-        if hasattr(cfg, name):
-            return int(3 * float(getattr(cfg, name)) * 60) + 60
-    return 60 * 60   # a minute of simulated time
-
-
-def _ball_positions(env, obs: torch.Tensor) -> torch.Tensor:
-    """True ball positions [N, 3] from the env (for rendering only)."""
-    return env.ball_position_m
-
-
-def _record_step(tracks, env, obs, info, decided) -> None:
+def _record_step(tracks, env, info, decided) -> None:
     n = len(tracks)
     q = info['arm_state'][:n, :6].cpu().numpy()
-    ball = _ball_positions(env, obs)[:n].cpu().numpy()
+    ball = env.ball_position_m[:n].cpu().numpy()   # the true position, for rendering only
     for i in range(n):
         if not bool(decided[i]):
             tracks[i][0].append(q[i])
@@ -220,9 +210,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.camera not in CAMERAS:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
-    if args.first_seed < 1000:
-        print('evaluate: warning: seeds below 1000 are training seeds (DESIGN.md); reported figures use 1000 and up',
-              file=sys.stderr)
+    if args.first_seed < FIRST_EVALUATION_SEED:
+        print(f'evaluate: warning: seeds below {FIRST_EVALUATION_SEED} are training seeds (DESIGN.md); '
+              f'reported figures use {FIRST_EVALUATION_SEED} and up', file=sys.stderr)
     from stylepong_policy import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S
     overrides = {'speed_range_m_s': tuple(SPEED_RANGES_M_S[args.speed]), 'randomize': bool(args.randomize)}

@@ -28,17 +28,17 @@ import time
 
 import torch
 
-from stylepong_policy.rl.config import TrainConfig, load_config, save_config, config_from_dict
+from stylepong_policy.rl.config import FIRST_EVALUATION_SEED, TrainConfig, load_config, save_config, config_from_dict
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.logger import CSV_NAME, plot_learning_curve
-from stylepong_policy.rl.runner import OnPolicyRunner, find_checkpoint, read_checkpoint, seed_everything
+from stylepong_policy.rl.runner import (CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint,
+                                        seed_everything)
 
 PACKAGE = 'stylepong_policy'
 ACTOR_NAME = 'ppo_actor.pt'
 SUMMARY_NAME = 'summary.json'
 CURVE_NAME = 'learning_curve.png'
 CONFIG_NAME = 'config.yaml'
-FIRST_EVALUATION_SEED = 1000   # training seeds stay below it (DESIGN.md, evaluation protocol)
 
 
 def default_config_path() -> pathlib.Path:
@@ -138,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'train: {err}', file=sys.stderr)
         return 2
     run_dir = args.out
-    if args.resume is None and (run_dir / 'checkpoints').is_dir() and any((run_dir / 'checkpoints').iterdir()):
+    checkpoint_dir = run_dir / CHECKPOINT_DIR
+    if args.resume is None and checkpoint_dir.is_dir() and any(checkpoint_dir.iterdir()):
         print(f'train: {run_dir} already holds a run; pass --resume to continue it or choose another --out',
               file=sys.stderr)
         return 2

@@ -16,6 +16,9 @@ from typing import Any
 import yaml
 
 SCHEDULES = ('adaptive', 'fixed', 'linear')
+# Training seeds stay below it, evaluation seeds start at it (DESIGN.md, evaluation protocol), so no
+# reported figure comes from a world the policy was trained in.
+FIRST_EVALUATION_SEED = 1000
 
 
 @dataclass
@@ -51,7 +54,7 @@ class PPOConfig:
 @dataclass
 class RunnerConfig:
     iterations: int = 1500               # total iterations of the run (a resumed run continues to this)
-    seed: int = 1                        # training seeds stay below 1000; evaluation uses 1000 and up
+    seed: int = 1                        # below FIRST_EVALUATION_SEED
     device: str = 'cpu'                  # 'cpu' or 'cuda' (or 'cuda:N')
     num_threads: int = 2                 # torch intra-op threads on CPU
     save_interval: int = 50              # iterations between numbered checkpoints (last.pt is every iteration)
