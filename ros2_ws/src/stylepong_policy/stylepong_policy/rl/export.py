@@ -92,12 +92,10 @@ def current_spec_contract() -> dict[str, Any]:
     """The running code's observation/action contract, read from `stylepong_policy.spec`."""
     from stylepong_policy import spec
     layout = [[str(name), int(size)] for name, size in spec.OBS_LAYOUT]
-    decoding = spec.action_decoding() if callable(getattr(spec, 'action_decoding', None)) else \
-        getattr(spec, 'ACTION_DECODING', {})
     return _jsonable({'spec_version': spec.SPEC_VERSION, 'action_rate_hz': float(spec.ACTION_RATE_HZ),
                       'joint_names': list(spec.JOINT_NAMES), 'obs_layout': layout,
-                      'num_obs': sum(size for _, size in layout), 'num_actions': len(spec.JOINT_NAMES),
-                      'action_decoding': decoding})
+                      'num_obs': spec.NUM_OBS, 'num_actions': spec.NUM_ACTIONS,
+                      'action_decoding': spec.action_decoding()})
 
 
 def file_sha256(path: str | pathlib.Path) -> str:
