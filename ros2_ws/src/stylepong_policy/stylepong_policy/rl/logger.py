@@ -99,11 +99,10 @@ def _read_rows(csv_path: pathlib.Path) -> tuple[list[str], list[dict[str, str]]]
 
 def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
     """Columns of a progress CSV as float lists (empty cells become NaN)."""
-    with open(csv_path, newline='') as f:
-        rows = list(csv.DictReader(f))
+    fieldnames, rows = _read_rows(pathlib.Path(csv_path))
     if not rows:
         return {}
-    return {key: [float(r[key]) if r[key] not in ('', None) else math.nan for r in rows] for key in rows[0]}
+    return {key: [float(r[key]) if r[key] not in ('', None) else math.nan for r in rows] for key in fieldnames}
 
 
 def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Path, title: str = '') -> None:

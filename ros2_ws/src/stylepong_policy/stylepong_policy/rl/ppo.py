@@ -50,10 +50,11 @@ class PPO:
         self.learning_rate = float(cfg.learning_rate)
         self.optimizer = make_adam(actor_critic.parameters(), self.learning_rate)
 
-    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor, update_normalizers: bool = True) -> PolicyStep:
-        """Sample actions for a rollout step. Call under torch.inference_mode()."""
+    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor) -> PolicyStep:
+        """Sample actions for a rollout step, folding its observations into the normalisers first.
+        Call under torch.inference_mode()."""
         ac = self.actor_critic
-        norm_obs, norm_critic_obs = ac.normalize(obs, critic_obs, update=update_normalizers)
+        norm_obs, norm_critic_obs = ac.normalize(obs, critic_obs, update=True)
         dist = ac.distribution(norm_obs)
         actions = dist.sample()
         return PolicyStep(actions=actions, log_probs=dist.log_prob(actions).sum(-1), values=ac.value(norm_critic_obs),
