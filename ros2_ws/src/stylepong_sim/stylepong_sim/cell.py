@@ -72,6 +72,9 @@ FRAME_TOOL = rm.TOOL_FRAME
 _GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
+# Ball-centre planes of the table top and the net's faces: fixed by the world spec, so not redone every step.
+_TABLE_CONTACT_Z_M = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+_NET_FACE_X_M = ws.NET_THICKNESS_M / 2.0 + ws.BALL_RADIUS_M
 
 
 class InputError(ValueError):
@@ -128,21 +131,21 @@ class Cell:
         self._kd_over_kp_s = np.array(ws.ARM_KD_NMS_PER_RAD) / np.array(ws.ARM_KP_NM_PER_RAD)
         self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
 
-        self._qadr = np.array([m.jnt_qposadr[m.joint(n).id] for n in rm.JOINT_NAMES])
-        self._dofadr = np.array([m.jnt_dofadr[m.joint(n).id] for n in rm.JOINT_NAMES])
-        if not (np.array_equal(self._qadr, np.arange(6)) and np.array_equal(self._dofadr, np.arange(6))):
+        qadr = np.array([m.jnt_qposadr[m.joint(n).id] for n in rm.JOINT_NAMES])
+        dofadr = np.array([m.jnt_dofadr[m.joint(n).id] for n in rm.JOINT_NAMES])
+        if not (np.array_equal(qadr, np.arange(6)) and np.array_equal(dofadr, np.arange(6))):
             raise RuntimeError('the cell expects the arm joints first in qpos/qvel')
         self._tool_body = m.body(rm.TOOL_FRAME).id
         self._paddle_centre_body = m.body(rm.PADDLE_CENTRE_FRAME).id
         self._ball_mocap = m.body_mocapid[m.body(scene.BALL_BODY).id]
         self._ball_geom = m.geom('ball').id
-        self._blade_geom = m.geom('paddle_blade').id
         self._table_geom = m.geom('table_top').id
         self._net_geom = m.geom('net').id
         robot_bodies = {b for b in range(m.nbody) if self._is_robot_body(b)}
         self._robot_geom_mask = np.array([m.geom_bodyid[g] in robot_bodies for g in range(m.ngeom)])
         # Links the ball may touch besides the blade (handle, wrist, arm); ee_link's tiny marker box excluded.
-        self._link_geoms = np.array([g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != self._blade_geom
+        blade_geom = m.geom('paddle_blade').id
+        self._link_geoms = np.array([g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != blade_geom
                                      and m.geom_size[g].max() > 0.006])
         # A link's geom can touch the ball only if the ball centre is within its bounding sphere + radius.
         self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + ws.BALL_RADIUS_M) ** 2
@@ -449,19 +452,17 @@ class Cell:
         return self._robot_link_contact(p1, v1)
 
     def _table_contact(self, p0, p1) -> _Contact | None:
-        contact_z = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
-        if not (p0[2] >= contact_z > p1[2]):
+        if not (p0[2] >= _TABLE_CONTACT_Z_M > p1[2]):
             return None
-        fraction = (p0[2] - contact_z) / (p0[2] - p1[2])
+        fraction = (p0[2] - _TABLE_CONTACT_Z_M) / (p0[2] - p1[2])
         centre = p0 + fraction * (p1 - p0)
         if not ws.on_table(centre[0], centre[1]):
             return None
-        centre[2] = contact_z
+        centre[2] = _TABLE_CONTACT_Z_M
         return _Contact('table', fraction, centre, _UP, _ZERO3)
 
     def _net_contact(self, p0, p1, v1) -> _Contact | None:
-        r = ws.BALL_RADIUS_M
-        face_x = ws.NET_THICKNESS_M / 2.0 + r
+        r, face_x = ws.BALL_RADIUS_M, _NET_FACE_X_M
         if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
             return None   # on one side of the net, not touching it
         for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x

@@ -186,11 +186,10 @@ class Referee:
         """Called with the ball's state after every physics step: timeout, dead and out balls."""
         if not self._open:
             return []
-        if ball_is_dead(position_m):
-            if self._hit:
-                return [self._event(OUT, time_s, position_m), self._end(time_s, position_m, False, REASON_OUT)]
+        dead = ball_is_dead(position_m)
+        if dead and not self._hit:
             return [self._end(time_s, position_m, False, REASON_NO_HIT)]
-        if self._hit and ball_cannot_reach_table(position_m, float(velocity_m_s[2])):
+        if self._hit and (dead or ball_cannot_reach_table(position_m, float(velocity_m_s[2]))):
             return [self._event(OUT, time_s, position_m), self._end(time_s, position_m, False, REASON_OUT)]
         if time_s - self._launch_time_s >= self.timeout_s:
             return [self._event(TIMEOUT, time_s, position_m), self._end(time_s, position_m, False, REASON_TIMEOUT)]

@@ -119,8 +119,8 @@ class IncomingBallDistribution:
     max_draws: int = 200
 
 
-SPEED_RANGES_M_S = {'all': (4.0, 6.6), 'low': (4.0, 4.8), 'high': (5.8, 6.6)}
 INCOMING = IncomingBallDistribution()
+SPEED_RANGES_M_S = {'all': INCOMING.speed_m_s, 'low': (4.0, 4.8), 'high': (5.8, 6.6)}
 
 
 @dataclass
