@@ -116,7 +116,7 @@ class TeacherConfig:
 # Kinematics of the cell
 # ---------------------------------------------------------------------------------------------------
 def robot_base_in_world() -> pin.SE3:
-    return pin.SE3(pin.utils.rpyToMatrix(0.0, 0.0, ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
+    return pin.SE3(yaw_rotation(ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
 
 
 class CellKinematics:
@@ -172,10 +172,12 @@ class StrokePath:
         shape = STROKES[swing]
         self.config = config
         self.ready = np.asarray(home_position_m, dtype=float)
-        self.back = self.ready + shape.back_offset_m
-        self.hit = self.ready + shape.hit_offset_m
-        self.follow = self.ready + shape.follow_offset_m
+        # The forward swing's control points as one array, built once (`at` runs several times per 500 Hz
+        # tick); back, hit and follow are views of its rows.
+        self._swing_points_m = self.ready + np.array([shape.back_offset_m, shape.hit_offset_m, shape.follow_offset_m])
+        self.back, self.hit, self.follow = self._swing_points_m
         self.yaws = (0.0, shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad)
+        self._swing_yaws_rad = np.array(self.yaws[1:])
 
     @property
     def duration_s(self) -> float:
@@ -201,8 +203,7 @@ class StrokePath:
         ds /= c.forward_swing_s
         weights = np.array([(1 - s) * (1 - 2 * s), 4 * s * (1 - s), s * (2 * s - 1)])
         dweights = np.array([4 * s - 3, 4 - 8 * s, 4 * s - 1])
-        points = np.stack([self.back, self.hit, self.follow])
-        yaws = np.array(self.yaws[1:])
+        points, yaws = self._swing_points_m, self._swing_yaws_rad
         return ViaPoint(weights @ points, ds * (dweights @ points), float(weights @ yaws), float(ds * (dweights @ yaws)))
 
 

@@ -81,6 +81,9 @@ class VirtualTeacherNode(Node):
         self._announced = ''
 
         self.wrench_pub = self.create_publisher(WrenchStamped, '/sim/hand_wrench', 10)
+        # Reused at every tick (publishing copies it): filling fields is cheaper than a new message.
+        self._wrench_msg = WrenchStamped()
+        self._wrench_msg.header.frame_id = p['wrench_frame_id']
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data)
         self._command_sub = None if self._commanded else self.create_subscription(
             Float64MultiArray, '/forward_position_controller/commands', self._on_command, 10)
@@ -100,8 +103,9 @@ class VirtualTeacherNode(Node):
 
     # --- inputs ---
     def _on_joint_state(self, msg: JointState) -> None:
+        names = list(msg.name)   # once per message, not once per joint (500 messages a second)
         try:
-            index = [list(msg.name).index(n) for n in rm.JOINT_NAMES]
+            index = [names.index(n) for n in rm.JOINT_NAMES]
             q = np.array([msg.position[i] for i in index], dtype=float)
             qdot = np.array([msg.velocity[i] for i in index], dtype=float) if len(msg.velocity) == len(msg.name) \
                 else np.zeros(rm.NUM_JOINTS)
@@ -121,9 +125,8 @@ class VirtualTeacherNode(Node):
 
     # --- output ---
     def _publish(self, wrench: np.ndarray) -> None:
-        msg = WrenchStamped()
+        msg = self._wrench_msg
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = self.p['wrench_frame_id']
         f, t = msg.wrench.force, msg.wrench.torque
         f.x, f.y, f.z, t.x, t.y, t.z = (float(v) for v in wrench)
         self.wrench_pub.publish(msg)
