@@ -34,8 +34,9 @@ import torch
 from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_policy.spec import ACTION_RATE_HZ
+from stylepong_sim.referee import REASON_RETURNED
 
-SUCCESS_REASON = 'returned'
+SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
 VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
 
