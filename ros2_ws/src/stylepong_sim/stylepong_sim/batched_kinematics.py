@@ -98,7 +98,6 @@ class ArmModel:
     capsule_a_m: torch.Tensor        # [3, L, 1]
     capsule_b_m: torch.Tensor        # [3, L, 1]
     capsule_radius_m: torch.Tensor   # [L, 1]
-    capsule_names: tuple[str, ...]
     capsule_joints: tuple[int, ...]  # capsule_joint as Python ints (no device round trip per step)
     lower_rad: torch.Tensor          # [6, 1]
     upper_rad: torch.Tensor          # [6, 1]
@@ -227,7 +226,7 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
         capsule_a_m=t(np.stack([c.a_m for c in capsules], axis=-1))[..., None],
         capsule_b_m=t(np.stack([c.b_m for c in capsules], axis=-1))[..., None],
         capsule_radius_m=t([c.radius_m for c in capsules])[:, None],
-        capsule_names=tuple(c.name for c in capsules), capsule_joints=tuple(c.joint for c in capsules),
+        capsule_joints=tuple(c.joint for c in capsules),
         lower_rad=t(limits.lower_rad)[:, None], upper_rad=t(limits.upper_rad)[:, None],
         velocity_limit_rad_s=t(limits.velocity_rad_s)[:, None], effort_limit_nm=t(limits.effort_nm)[:, None],
     )

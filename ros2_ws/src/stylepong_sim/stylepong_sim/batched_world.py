@@ -46,6 +46,8 @@ NO_VERDICT = -1
 
 # Contact kinds of one physics step.
 _NONE, _TABLE, _NET, _PADDLE = 0, 1, 2, 3
+# Contact fraction of a surface not touched in a step: past the step's end (1), so any real contact is earlier.
+_NO_CONTACT = 2.0
 
 
 @contextlib.contextmanager
@@ -188,7 +190,10 @@ class BatchedWorld:
         self._net_lo = torch.tensor([-ws.NET_THICKNESS_M / 2, -ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M], **kw)[:, None]
         self._net_hi = torch.tensor([ws.NET_THICKNESS_M / 2, ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M],
                                     **kw)[:, None]
-        self._link_reach_m = self.model.capsule_radius_m + r       # [L, 1]
+        self._link_reach_sq_m2 = (self.model.capsule_radius_m + r) ** 2       # [L, 1]
+        # Both end spheres of every capsule, in the order capsule_segments' a, b are concatenated.
+        radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))   # [2L, 1]
+        self._capsule_end_radius_sq_m2 = radius * radius
         self._blade_radius_m = rm.PADDLE.blade_radius_m
         self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
 
@@ -243,11 +248,8 @@ class BatchedWorld:
     def _step(self, q_cmd_rad: torch.Tensor, delay_steps: torch.Tensor | None) -> StepEvents:
         previous = self.q_cmd_rad
         command = torch.maximum(torch.minimum(q_cmd_rad, self.model.upper_rad), self.model.lower_rad)
-        n = self.num_envs
-        zeros = torch.zeros(n, dtype=torch.bool, device=self.device)
-        events = StepEvents(paddle_hit=zeros, own_bounce=zeros.clone(), decided=zeros.clone(),
-                            success=zeros.clone(), reason=torch.full((n,), NO_VERDICT, dtype=torch.long,
-                                                                     device=self.device))
+        paddle_hit = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        own_bounce = torch.zeros_like(paddle_hit)
         was_open = self.open.clone()
         for k in range(self.physics_steps):
             self.q_cmd_rad = command if delay_steps is None else torch.where(delay_steps > k, previous, command)
@@ -257,12 +259,11 @@ class BatchedWorld:
             self._arm_step(inverse, bias)
             self._kin = self._forward_kinematics(self.model, self.q_rad)
             hit, bounce = self._ball_step(kin_before, self._kin)
-            events.paddle_hit = events.paddle_hit | hit
-            events.own_bounce = events.own_bounce | bounce
-        events.decided = was_open & ~self.open
-        events.success = self.success & events.decided
-        events.reason = torch.where(events.decided, self.reason, events.reason)
-        return events
+            paddle_hit = paddle_hit | hit
+            own_bounce = own_bounce | bounce
+        decided = was_open & ~self.open
+        return StepEvents(paddle_hit=paddle_hit, own_bounce=own_bounce, decided=decided,
+                          success=self.success & decided, reason=torch.where(decided, self.reason, NO_VERDICT))
 
     # --- the arm -------------------------------------------------------------------------------------
     def _arm_dynamics(self, kin: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
@@ -321,8 +322,6 @@ class BatchedWorld:
         p0, v0 = self.ball_pos_m, self.ball_vel_m_s
         displacement, v1 = self._free_flight(v0, dt)
         p1 = p0 + displacement
-        n = self.num_envs
-        inf = torch.full((n,), 2.0, device=self.device, dtype=self.dtype)   # "no contact" fraction
 
         # Table top: the ball's bottom crosses the plane on the table.
         contact_z = ws.TABLE_HEIGHT_M + r
@@ -330,7 +329,7 @@ class BatchedWorld:
         at = p0 + f_table * (p1 - p0)
         table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & (at[0].abs() <= ws.HALF_LENGTH_M) \
             & (at[1].abs() <= ws.HALF_WIDTH_M)
-        f_table = torch.where(table_ok, f_table, inf)
+        f_table = torch.where(table_ok, f_table, _NO_CONTACT)
 
         # Net: its two faces swept exactly; its top and ends by the end position against its box.
         face_x = ws.NET_THICKNESS_M / 2.0 + r
@@ -345,7 +344,7 @@ class BatchedWorld:
         dist_net = torch.sqrt(bk.dot(offset_net, offset_net))
         normal_net_box = offset_net / dist_net.clamp_min(1e-9)
         net_box = ~net_face & (dist_net < r) & (dist_net > 0.0) & (bk.dot(v1, normal_net_box) < 0.0)
-        f_net = torch.where(net_face, f_net, torch.where(net_box, torch.ones_like(f_net), inf))
+        f_net = torch.where(net_face, f_net, torch.where(net_box, torch.ones_like(f_net), _NO_CONTACT))
         normal_net = torch.where(net_face, torch.stack((side_net, 0.0 * side_net, 0.0 * side_net)), normal_net_box)
         centre_net = torch.where(net_face, p0 + f_net.clamp(max=1.0) * (p1 - p0), closest_net + normal_net_box * r)
         centre_net[0] = torch.where(net_face, side_net * face_x, centre_net[0])
@@ -369,15 +368,14 @@ class BatchedWorld:
         closest_rim = torch.stack((local1[0] * scale, local1[1] * scale, local1[2].clamp(-h, h)))
         offset_rim = local1 - closest_rim
         dist_rim = torch.sqrt(bk.dot(offset_rim, offset_rim))
-        rim_normal_local = torch.where(dist_rim > 0.0, offset_rim / dist_rim.clamp_min(1e-9),
-                                       torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad)))
-        normal_pad = bk.mat_vec(rot1, torch.where(face_hit, torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad)),
-                                                  rim_normal_local))
+        face_normal_local = torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad))
+        rim_normal_local = torch.where(dist_rim > 0.0, offset_rim / dist_rim.clamp_min(1e-9), face_normal_local)
+        normal_pad = bk.mat_vec(rot1, torch.where(face_hit, face_normal_local, rim_normal_local))
         surface_local = torch.where(face_hit, local_face - torch.stack((0.0 * s0, 0.0 * s0, side_pad * r)), closest_rim)
         surface_pad = c1 + bk.mat_vec(rot1, surface_local)
         u_pad = self._point_velocity(kin1, surface_pad)
         rim_hit = ~face_hit & (dist_rim < r) & (bk.dot(v1 - u_pad, normal_pad) < 0.0)
-        f_pad = torch.where(face_hit, f_face, torch.where(rim_hit, torch.ones_like(f_face), inf))
+        f_pad = torch.where(face_hit, f_face, torch.where(rim_hit, torch.ones_like(f_face), _NO_CONTACT))
         centre_pad = surface_pad + normal_pad * r
 
         # The earliest contact wins; robot links only when nothing else was touched.
@@ -408,7 +406,7 @@ class BatchedWorld:
 
         # --- referee (stylepong_sim.referee, in the same order) ---
         open_ = self.open
-        verdict = torch.full((n,), NO_VERDICT, dtype=torch.long, device=self.device)
+        verdict = torch.full((self.num_envs,), NO_VERDICT, dtype=torch.long, device=self.device)
 
         def decide(mask: torch.Tensor, reason: str) -> None:
             nonlocal verdict
@@ -463,18 +461,17 @@ class BatchedWorld:
         ap = p[:, None] - a
         t = (bk.dot(ap, ab) / bk.dot(ab, ab).clamp_min(1e-12)).clamp(0.0, 1.0)
         d = ap - t * ab
-        return (bk.dot(d, d) < self._link_reach_m ** 2).any(0)
+        return (bk.dot(d, d) < self._link_reach_sq_m2).any(0)
 
     def _robot_touches_table(self, kin: bk.Kinematics, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         """Any robot geometry inside the table top: the capsules' end spheres (a segment's lowest point
         is one of its ends) and the blade's lowest point."""
         points = torch.cat((a, b), dim=1)                                     # [3, 2L, N]
-        radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))   # [2L, 1]
         gap_x = (points[0].abs() - ws.HALF_LENGTH_M).clamp_min(0.0)
         gap_y = (points[1].abs() - ws.HALF_WIDTH_M).clamp_min(0.0)
         gap_z = (points[2] - ws.TABLE_HEIGHT_M).clamp_min(0.0) \
             + (ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M - points[2]).clamp_min(0.0)
-        touching = (gap_x * gap_x + gap_y * gap_y + gap_z * gap_z < radius * radius).any(0)
+        touching = (gap_x * gap_x + gap_y * gap_y + gap_z * gap_z < self._capsule_end_radius_sq_m2).any(0)
         # The blade: a disc of radius R and half thickness h; its lowest point.
         normal = kin.paddle_rot[:, 2]
         nz = normal[2].clamp(-1.0, 1.0)
