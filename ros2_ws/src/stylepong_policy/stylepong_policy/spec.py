@@ -17,7 +17,7 @@ world_spec, SI units):
   last_action                the previous action as applied (clipped to [-1, 1])
 What the robot can sense only: the critic's privileged inputs are the task's business.
 Sensing noise and latency are not part of the contract (the real sensors bring their own); the
-training env simulates them with `SensingNoise` and delays before calling `build_observation`.
+training env (stylepong_policy.task) simulates them before calling `build_observation`.
 
 Action (one row per environment, NUM_ACTIONS = 6, at ACTION_RATE_HZ): joint position targets
   q_cmd = clip(HOME + ACTION_SCALE_RAD * clip(a, -1, 1), URDF lower limit, URDF upper limit)
@@ -27,7 +27,7 @@ Why absolute targets around home (the paper's choice) and this scale: a stroke's
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
 from typing import Sequence
 
 import torch
@@ -63,9 +63,13 @@ def action_decoding() -> dict:
             'upper_limit_rad': [float(x) for x in limits.upper_rad]}
 
 
-def _row_tensor(values, like: torch.Tensor | None = None) -> torch.Tensor:
-    device = like.device if like is not None else None
-    return torch.as_tensor(values, dtype=torch.float32, device=device)
+@functools.lru_cache(maxsize=None)
+def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(home, scale, lower limit, upper limit) as float32 rows on `device`, made once per device: made
+    per call they were a host-to-device copy, a wait on a GPU, at every training step."""
+    limits = rm.joint_limits()
+    return tuple(torch.as_tensor(values, dtype=torch.float32, device=device)
+                 for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
 
 
 def clip_action(action: torch.Tensor) -> torch.Tensor:
@@ -75,12 +79,9 @@ def clip_action(action: torch.Tensor) -> torch.Tensor:
 
 def decode_action(action: torch.Tensor) -> torch.Tensor:
     """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6]."""
-    home = _row_tensor(HOME_JOINT_POSITIONS_RAD, action)
-    scale = _row_tensor(ACTION_SCALE_RAD, action)
-    limits = rm.joint_limits()
+    home, scale, lower, upper = _rows_on(action.device)
     target = home + scale * clip_action(action.to(torch.float32))
-    return torch.maximum(torch.minimum(target, _row_tensor(limits.upper_rad, action)),
-                         _row_tensor(limits.lower_rad, action))
+    return torch.maximum(torch.minimum(target, upper), lower)
 
 
 def build_observation(joint_positions_rad: torch.Tensor, joint_velocities_rad_s: torch.Tensor,
@@ -90,7 +91,7 @@ def build_observation(joint_positions_rad: torch.Tensor, joint_velocities_rad_s:
 
     joint_* [N, 6] in URDF order, ball_* [N, 3], goal_xy_m [N, 2], last_action [N, 6] (clipped).
     """
-    home = _row_tensor(HOME_JOINT_POSITIONS_RAD, joint_positions_rad)
+    home = _rows_on(joint_positions_rad.device)[0]
     parts = (joint_positions_rad.to(torch.float32) - home, joint_velocities_rad_s, ball_position_m,
              ball_velocity_m_s, goal_xy_m, last_action)
     for (name, size), part in zip(OBS_LAYOUT, parts):
@@ -134,15 +135,3 @@ def player_observation(joint_names: Sequence[str], joint_positions_rad: Sequence
     return build_observation(row(q, NUM_ACTIONS, 'joint positions'), row(qd, NUM_ACTIONS, 'joint velocities'),
                              row(ball_position_m, 3, 'ball position'), row(ball_velocity_m_s, 3, 'ball velocity'),
                              row(goal_xy_m, 2, 'goal'), row(last_action, NUM_ACTIONS, 'last action'))
-
-
-@dataclass(frozen=True)
-class SensingNoise:
-    """Standard deviations of the simulated sensing noise (Gaussian, independent per value and step)."""
-    joint_position_rad: float = 0.0
-    joint_velocity_rad_s: float = 0.0
-    ball_position_m: float = 0.0
-    ball_velocity_m_s: float = 0.0
-
-    def as_list(self) -> list[float]:
-        return [self.joint_position_rad, self.joint_velocity_rad_s, self.ball_position_m, self.ball_velocity_m_s]

@@ -188,6 +188,11 @@ class TableTennisEnv:
         self.generator.manual_seed(int(seed) * 7919 + 104729)
         n, kw = self.num_envs, dict(device=self.device, dtype=torch.float32)
         self._home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, **kw)
+        # Constants of the resets and the privileged observation, made once rather than every step.
+        self._max_noise_std = torch.tensor([cfg.noise_joint_position_rad, cfg.noise_joint_velocity_rad_s,
+                                            cfg.noise_ball_position_m, cfg.noise_ball_velocity_m_s], **kw)
+        self._kp_nominal = torch.tensor(ws.ARM_KP_NM_PER_RAD, **kw)[:, None]
+        self._kd_nominal = torch.tensor(ws.ARM_KD_NMS_PER_RAD, **kw)[:, None]
         self._goal_z_m = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
         self._bat_axes = torch.tensor(['xyz'.index(a) for a in cfg.bat_axes], device=self.device)
         self.last_action = torch.zeros(n, spec.NUM_ACTIONS, **kw)
@@ -242,9 +247,7 @@ class TableTennisEnv:
                             self._uniform(k, (-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r))), dim=1)
         self.episode.goal_xy_m[env_ids] = goal
         if cfg.randomize:
-            self.episode.noise_std[env_ids] = self._uniform((k, 1), (0.0, 1.0)) * torch.tensor(
-                [cfg.noise_joint_position_rad, cfg.noise_joint_velocity_rad_s, cfg.noise_ball_position_m,
-                 cfg.noise_ball_velocity_m_s], device=self.device)
+            self.episode.noise_std[env_ids] = self._uniform((k, 1), (0.0, 1.0)) * self._max_noise_std
             self.episode.ball_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_ball_delay_s)) / self.policy_dt_s
             self.episode.joint_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_joint_delay_s)) / self.policy_dt_s
             physics_steps = int(math.floor(cfg.max_action_delay_s / self.world.physics_dt_s + 1e-9))
@@ -320,14 +323,6 @@ class TableTennisEnv:
                                 w.own_bounces[:, None].float(), w.time_s[:, None], physics, ep.noise_std, delays),
                                dim=1)
         return obs, torch.cat((obs, privileged), dim=1)
-
-    @property
-    def _kp_nominal(self) -> torch.Tensor:
-        return torch.tensor(ws.ARM_KP_NM_PER_RAD, device=self.device)[:, None]
-
-    @property
-    def _kd_nominal(self) -> torch.Tensor:
-        return torch.tensor(ws.ARM_KD_NMS_PER_RAD, device=self.device)[:, None]
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(self, actions: torch.Tensor):
