@@ -36,7 +36,7 @@ def measure(hidden_dims: list[int]) -> dict[str, float]:
     seed_everything(1)
     env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
     with tempfile.TemporaryDirectory() as run_dir:
-        runner = OnPolicyRunner(env, cfg, run_dir, task.FAILURE_REASONS, tensorboard=False)
+        runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False)
         runner.learn(WARMUP_ITERATIONS, progress_bar=False)
         totals = {'world_s': 0.0, 'policy_s': 0.0, 'learn_s': 0.0, 'iteration_time_s': 0.0}
         for it in range(MEASURED_ITERATIONS):

@@ -1,4 +1,5 @@
-"""`ros2 run stylepong_policy build_dataset ...` end to end, as a user runs it (issue 5's "Done when").
+"""`ros2 run stylepong_policy build_dataset ...` end to end, as a user runs it (the build_dataset checks
+of docs/DESIGN.md, "Acceptance checks").
 
 Expected values come from the motions the test wrote or from rosbags' own reader, never from the tool.
 """
@@ -19,7 +20,7 @@ from tests.joint_state_bags import (
 )
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-INTEROP_ARG = '../shared/interop-bags'   # the issue's spelling, relative to the repository
+INTEROP_ARG = '../shared/interop-bags'   # as the README spells it, relative to the repository
 INTEROP = (ROOT / INTEROP_ARG).resolve()
 TOOLPATH = 'ur3e-hw-sqlite3-v5-toolpath'
 needs_interop = pytest.mark.skipif(not INTEROP.is_dir(), reason=f'{INTEROP} is absent')

@@ -1,6 +1,7 @@
 """drag_teach against the MuJoCo cell: `ros2 run stylepong_sim ur5_sim` + `ros2 run stylepong_fdcc drag_teach`,
-both with their defaults, driven and watched through their topics (issue 4, Done when 1-3), then its
-services (enable, tare) and, with stiffness, a target pose on ~/target_pose."""
+both with their defaults, driven and watched through their topics (the first three drag_teach checks of
+docs/DESIGN.md, "Acceptance checks"), then its services (enable, tare) and, with stiffness, a target pose
+on ~/target_pose."""
 import subprocess
 import sys
 import threading

@@ -1,7 +1,8 @@
 """System tests of `ros2 run stylepong_sim ur5_sim` with its defaults, through its topics and services only.
 
 One node serves the whole module (it starts in a few seconds; each test resets what it needs). These are
-the "Done when" checks of issue 3, except the real_time_factor 0 one (test_ur5_sim_fast.py).
+the ur5_sim checks of docs/DESIGN.md, "Acceptance checks", except the real_time_factor 0 one
+(test_ur5_sim_fast.py).
 """
 import math
 import signal

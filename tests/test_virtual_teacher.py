@@ -1,6 +1,7 @@
 """virtual_teacher drags the simulated arm through each stroke while the recorder records it:
 ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/record_demos.sh runs them
-(the cell at a quarter of real time, drag_teach and the teacher on its clock: loaded machines stay in step)."""
+(the cell at a quarter of real time, drag_teach and the teacher on its clock: loaded machines stay in step).
+The recorded clip is checked against the take the teacher's seed gives (teacher.sample_variation)."""
 import pathlib
 
 import numpy as np
@@ -8,13 +9,14 @@ from rosbags.highlevel import AnyReader
 
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
-from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig
+from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig, sample_variation
 from tests.node_process import NodeProcess, wait_until
 
 KIN = CellKinematics()
 CENTRE = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
 TOOL = KIN.frame_id(rm.TOOL_FRAME)
 HOME_CENTRE = KIN.pose(np.array(ws.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
+SEED = 0   # the node's default take
 
 
 def read_clip(bag: pathlib.Path):
@@ -47,7 +49,7 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
     hits = {}
     try:
         for swing in SWINGS:
-            teacher = NodeProcess('stylepong_sim', 'virtual_teacher', params={'swing': swing, 'use_sim_time': True}).start()
+            teacher = NodeProcess('stylepong_sim', 'virtual_teacher', params={'swing': swing, 'seed': SEED, 'use_sim_time': True}).start()
             try:
                 assert wait_until(lambda: not teacher.running(), 90.0), f'{swing}: the teacher never finished'
             finally:
@@ -58,14 +60,13 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
             assert f'label: {swing}' in (bags[0] / 'metadata.yaml').read_text()
             times, q, _ = read_clip(bags[0])
             duration_s = times[-1] - times[0]
-            config = TeacherConfig()
-            assert config.stroke_s <= duration_s <= config.clip_s + 0.5, f'{swing}: a {duration_s:.2f} s clip'
+            path = StrokePath(swing, TeacherConfig(), HOME_CENTRE, sample_variation(swing, SEED))
+            assert path.stroke_s <= duration_s <= path.duration_s + 0.5, f'{swing}: a {duration_s:.2f} s clip'
             assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
             speeds = tool_speeds(times, q)
             assert 0.3 < speeds.max() < 1.0, f'{swing}: peak tool speed {speeds.max():.2f} m/s'
             assert speeds[0] < 0.05 and speeds[-1] < 0.05, f'{swing}: the clip does not start and end at rest'
-            # The paddle went back, then forwards through the stroke's hitting point.
-            path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
+            # The paddle went back, then forwards through the take's hitting point.
             centres = np.array([KIN.pose(a, CENTRE).translation for a in q])
             miss = np.min(np.linalg.norm(centres - path.hit, axis=1))
             assert miss < 0.04, f'{swing}: the paddle passed {miss * 100:.1f} cm from the hitting point'

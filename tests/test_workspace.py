@@ -1,4 +1,4 @@
-"""Issue 2: the workspace after `source ros2_ws/install/setup.bash`: interfaces, index, `ros2` command."""
+"""The workspace after `source ros2_ws/install/setup.bash`: interfaces, index, `ros2` command."""
 import contextlib
 import os
 import pathlib

@@ -6,6 +6,10 @@
 #                                              (forward x3, leftward x2, rightward x2, interleaved)
 #   tools/record_demos.sh --out DIR SWING...   the given swings (forward|leftward|rightward) into DIR
 #
+# Each clip is another take: clip N (1-based, in the order recorded) gets the virtual teacher's seed
+# N + SEED_OFFSET (default 0), so the shipped set is seeds 1-7 (forward 1, 4, 7; leftward 2, 5;
+# rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
+#
 # The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
 # clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
 # and nothing gets out of step with the arm. Needs the workspace built (make setup). Uses ROS_DOMAIN_ID
@@ -30,6 +34,7 @@ source "$ROOT/ros2_ws/install/setup.bash"
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
+SEED_OFFSET=${SEED_OFFSET:-0}
 mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
 say() { printf '[record] %s\n' "$*"; }
@@ -57,16 +62,20 @@ PIDS+=($!)
 say "started ur5_sim (real_time_factor $REAL_TIME_FACTOR), drag_teach and the recorder (clips into $OUT)"
 
 recorded=()
+clip=0
 for swing in "${SWINGS[@]}"; do
-  say "teaching a $swing stroke"
-  if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p use_sim_time:=true \
-      >"$LOGS/virtual_teacher_$swing.log" 2>&1; then
+  clip=$((clip + 1))
+  seed=$((clip + SEED_OFFSET))
+  log=$LOGS/virtual_teacher_${clip}_$swing.log
+  say "teaching a $swing stroke (clip $clip, seed $seed)"
+  if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p seed:="$seed" -p use_sim_time:=true \
+      >"$log" 2>&1; then
     say "the $swing stroke failed; its log:"
-    tail -n 20 "$LOGS/virtual_teacher_$swing.log" >&2
+    tail -n 20 "$log" >&2
     exit 1
   fi
-  bag=$(sed -n "s/.*recording '$swing' into \(.*\)$/\1/p" "$LOGS/virtual_teacher_$swing.log" | tail -n 1)
-  say "recorded $bag"
+  bag=$(sed -n "s/.*recording '$swing' into \(.*\)$/\1/p" "$log" | tail -n 1)
+  say "recorded $bag (seed $seed)"
   recorded+=("$bag")
 done
 stop_all

@@ -25,6 +25,8 @@ setup(
             'build_dataset = stylepong_policy.build_dataset:main',
             'train = stylepong_policy.train:main',
             'evaluate = stylepong_policy.evaluate:main',
+            'paper_tables = stylepong_policy.paper_tables:main',
+            'player = stylepong_policy.player_node:main',
         ],
     },
 )

@@ -23,6 +23,7 @@ setup(
         'console_scripts': [
             'ur5_sim = stylepong_sim.ur5_sim_node:main',
             'virtual_teacher = stylepong_sim.virtual_teacher_node:main',
+            'rally_eval = stylepong_sim.rally_eval:main',
         ],
     },
 )

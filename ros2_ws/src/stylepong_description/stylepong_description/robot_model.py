@@ -1,4 +1,4 @@
-"""The one UR5 + table-tennis paddle model (DESIGN.md, "One source of truth").
+"""The one UR5 + table-tennis paddle model (docs/DESIGN.md, "One source of truth").
 
 The robot is the example-robot-data UR5 URDF, unchanged, plus a paddle fixed on `tool0`. The URDF is
 generated here at run time (the mesh directory depends on where example-robot-data is installed) and

@@ -49,8 +49,12 @@ virtual model), so the arm lags the hand for half a second, and after the hand l
 for another 10 cm and a second. The virtual model follows the hand within a tenth of a second and
 stops where the hand stops, which is what a person dragging it expects, so it is the default.
 
-Safety layer (what FZI cartesian_controllers' users ask for, notes/anchors.md)
-------------------------------------------------------------------------------
+Safety layer (docs/DESIGN.md, "FDCC safety layer")
+--------------------------------------------------
+What users of FZI cartesian_controllers have asked for in its issue tracker: no drift from the tool's
+weight after the tool is reoriented, a sensor bias taken at start-up, a filtered wrench against
+oscillation at high rates and in stiff contact, joint velocity and acceleration limits (not only
+position clamping), and one clear sign and frame for the sensor wrench.
 - NaN/inf rejection: a wrench or joint state with a non-finite entry is rejected; implausible wrenches
   (beyond `reject_force_n` / `reject_torque_nm`, well beyond any sensor's range) are rejected too.
 - Tool gravity compensation: the sensor reading includes the paddle's weight; the paddle's mass and

@@ -8,7 +8,8 @@ boundary (`ReferenceDataset.windows`, `discriminator_windows`).
 
 The .npz layout (C clips, N frames in all; clip c is frames clip_start[c] .. clip_start[c]+clip_length[c]-1):
   t            (N,)   float64  seconds on the recording's clock (header stamp time since the epoch);
-                               a sped-up clip keeps the recording times of the frames it kept
+                               a sped-up clip starts at its original's first time and runs k times
+                               faster, so every clip's frames are 1/rate_hz apart
   q, qd        (N, J) float64  rad, rad/s, columns in joint_names order
   clip_start, clip_length, speed_factor (C,) int64; speed_factor 1 for an original
   label, source (C,) str       source = "<bag directory>:<topic>", shared by an original and its sped-up clips
@@ -238,10 +239,16 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
 
 
 def speed_up(clip: Clip, k: int) -> Clip:
-    """The paper's augmentation: every k-th frame, velocities times k (ceil(n/k) frames)."""
+    """The paper's augmentation: every k-th frame, velocities times k (ceil(n/k) frames).
+
+    The sped-up clip is the motion played k times faster at the same frame rate, so its frames keep the
+    original's spacing (1/rate_hz): its time runs k times faster from the clip's first frame, and the
+    finite differences of its positions match its (scaled) velocities.
+    """
     if k < 1:
         raise ValueError(f'speed-up factor must be >= 1, got {k}')
-    return Clip(t=clip.t[::k].copy(), q=clip.q[::k].copy(), qd=k * clip.qd[::k], time_source=clip.time_source,
+    t = clip.t[0] + (clip.t[::k] - clip.t[0]) / k
+    return Clip(t=t, q=clip.q[::k].copy(), qd=k * clip.qd[::k], time_source=clip.time_source,
                 velocity_source=clip.velocity_source, speed_factor=clip.speed_factor * k)
 
 

@@ -1,15 +1,28 @@
-"""`ros2 run stylepong_policy evaluate`: success rate of an exported actor in the batched world.
+"""`ros2 run stylepong_policy evaluate`: success, stroke directions, style and smoothness of an exported actor.
 
     evaluate --actor ppo_actor.pt [--seeds 10] [--first-seed 1000] [--balls 200] [--speed all|low|high]
-             [--json out.json] [--video strokes.mp4] [--device cpu] [--randomize]
+             [--json out.json] [--save-strokes strokes.npz] [--dtw dataset.npz]
+             [--video strokes.mp4] [--device cpu] [--randomize]
 
-The evaluation protocol of DESIGN.md: for each seed S, S+1, ..., a world seeded with it serves
-`--balls` balls (one per environment, each environment's first ball counts) from the speed band
-(all 4.0-6.6, low 4.0-4.8, high 5.8-6.6 m/s); a ball is a success when, after the paddle hit it, its
-first table contact is on the opponent's half. The actor acts deterministically (its mean action).
-Printed and written as JSON: success_rate (mean over seeds), success_rate_std, per_seed, hit_rate,
-failures (reason -> count), balls (total), seeds. `--video` replays a few of the first seed's
-strokes in the MuJoCo model of the cell.
+The evaluation protocol: for each seed S, S+1, ..., a batched world seeded with it serves `--balls`
+balls (one per environment; each environment's first ball counts) from the speed band (all 4.0-6.6,
+low 4.0-4.8, high 5.8-6.6 m/s); a ball is a success when, after the paddle hit it, its first table
+contact is on the opponent's half (the referee's 'returned'). The actor acts deterministically (its
+mean action) in the nominal world (no domain randomisation, no sensing noise) unless --randomize.
+The balls a seed serves do not depend on the actor, so two actors meet the same balls.
+
+Every ball is labelled forward, leftward or rightward by where it reaches the robot, and its stroke
+(joint positions at 60 Hz from the launch to 0.3 s after the paddle's first contact) is kept:
+stylepong_policy.strokes says how, and what --save-strokes writes. With --dtw DATASET.npz (from
+build_dataset) each direction's strokes are compared with the reference clips of that label by DTW;
+stylepong_policy.style_metrics gives the convention and the smoothness measures reported beside it.
+
+Printed and written as JSON: success_rate (mean over seeds), success_rate_std, per_seed,
+mean_successes_per_seed, hit_rate, failures (verdict -> count), balls, seeds, per-direction balls and
+success (`directions`), smoothness and, with --dtw, DTW per direction. Paths in it are as given on the
+command line (an absolute one under the working directory is made relative to it).
+In Python: `run_evaluation(actor, seeds=..., first_seed=..., balls=..., speed=..., randomize=...,
+device=...)` returns the same dict.
 """
 from __future__ import annotations
 
@@ -26,11 +39,14 @@ import json
 import pathlib
 import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 
+from stylepong_policy import strokes as st
+from stylepong_policy import style_metrics as sm
 from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_policy.spec import ACTION_RATE_HZ
@@ -39,6 +55,8 @@ from stylepong_sim.referee import REASON_RETURNED
 SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
 VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
+SPEEDS = ('all', 'low', 'high')
+DTW_CALL = "dtaidistance.dtw_ndim.distance_fast(stroke, clip, inner_dist='euclidean')"
 
 
 @dataclass
@@ -49,6 +67,7 @@ class SeedResult:
     hits: int
     reasons: dict[str, int]
     wall_time_s: float
+    strokes: list[st.Stroke] = field(default_factory=list)
 
     @property
     def success_rate(self) -> float:
@@ -56,11 +75,265 @@ class SeedResult:
 
 
 @dataclass
-class Recording:
-    """Joint positions [T, 6] and ball positions [T, 3] of a few environments, one row per policy step."""
-    joint_positions_rad: list[np.ndarray] = field(default_factory=list)
-    ball_positions_m: list[np.ndarray] = field(default_factory=list)
-    outcomes: list[str] = field(default_factory=list)
+class Evaluation:
+    """An actor's results over the seeds, with every ball's stroke."""
+    actor: str                 # the actor's path as given (see portable_path)
+    actor_spec_version: int | None
+    speed: str
+    randomize: bool
+    balls_per_seed: int
+    results: list[SeedResult]
+
+    @property
+    def strokes(self) -> list[st.Stroke]:
+        return [s for r in self.results for s in r.strokes]
+
+
+def portable_path(path: str | os.PathLike) -> str:
+    """A path fit for a result file: as given when relative; an absolute path under the working
+    directory relative to it, any other absolute path reduced to its file name. A result read on
+    another machine must not carry this machine's folders."""
+    p = pathlib.Path(path)
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.relative_to(pathlib.Path.cwd()).as_posix()
+    except ValueError:
+        return p.name
+
+
+# ---------------------------------------------------------------------------------------------------
+# Running the balls
+
+
+def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.device | str, *, speed: str = 'all',
+                  randomize: bool = False) -> SeedResult:
+    """Play each of `balls` environments' first ball to its verdict and keep its stroke."""
+    from stylepong_policy import task
+    from stylepong_sim.world_spec import SPEED_RANGES_M_S
+
+    started = time.perf_counter()
+    cfg = task.TaskConfig(num_envs=balls, speed_range_m_s=tuple(SPEED_RANGES_M_S[speed]), randomize=bool(randomize))
+    env = task.make_env(cfg, device, seed)
+    names = list(task.FAILURE_REASONS) + [NO_DECISION]
+    decided = torch.zeros(balls, dtype=torch.bool, device=env.device)
+    success = torch.zeros_like(decided)
+    hit = torch.zeros_like(decided)
+    reason = torch.full((balls,), -1, dtype=torch.int64, device=env.device)
+    verdict_frame = torch.full((balls,), st.NO_FRAME, dtype=torch.int64, device=env.device)
+    hit_frame = torch.full_like(verdict_frame, st.NO_FRAME)
+    # A generous bound on steps until every first ball is decided: three episodes' time plus a second.
+    max_steps = int(3 * float(cfg.episode_length_s) * ACTION_RATE_HZ) + int(ACTION_RATE_HZ)
+    with torch.inference_mode():
+        obs, _ = env.reset()
+        launch_velocity = env.launch_velocity_m_s.cpu().numpy().astype(np.float64)
+        # Frame 0 is the launch; frame k the state after step k, before any reset (the extras').
+        q_frames = [env.style_state()[:, :6].cpu()]
+        ball_frames = [torch.cat((env.ball_position_m, env.launch_velocity_m_s), dim=1).cpu()]
+        step = 0
+        while not bool(decided.all()):
+            if step >= max_steps:
+                raise RuntimeError(f'seed {seed}: {int((~decided).sum())} balls undecided after {step} steps; '
+                                   'the env never ended their episodes')
+            actions = actor(obs.to('cpu')).to(env.device)
+            obs, _, _, dones, extras = env.step(actions)
+            step += 1
+            q_frames.append(extras['arm_state'][:, :6].cpu())
+            ball_frames.append(extras['ball_state'].cpu())
+            open_ = ~decided
+            outcome = extras['outcome']
+            hit_frame = torch.where(extras['paddle_hit'] & open_ & (hit_frame == st.NO_FRAME),
+                                    torch.full_like(hit_frame, step), hit_frame)
+            ball_done = outcome['done'] & open_
+            success |= outcome['success'] & ball_done
+            hit |= outcome['hit'] & ball_done
+            reason = torch.where(ball_done, outcome['reason'], reason)
+            # An episode that ended without a referee decision (a pure time limit) is a failure too.
+            undecided_end = dones & open_ & ~ball_done
+            reason = torch.where(undecided_end, torch.full_like(reason, len(names) - 1), reason)
+            ended = ball_done | undecided_end
+            verdict_frame = torch.where(ended, torch.full_like(verdict_frame, step), verdict_frame)
+            decided |= ended
+    counts = torch.bincount(reason.cpu(), minlength=len(names)).tolist()
+    strokes = _strokes(seed, torch.stack(q_frames).numpy(), torch.stack(ball_frames).numpy(), launch_velocity,
+                       [names[i] for i in reason.tolist()], success.tolist(), hit.tolist(), hit_frame.tolist(),
+                       verdict_frame.tolist())
+    return SeedResult(seed=seed, balls=balls, successes=int(success.sum()), hits=int(hit.sum()),
+                      reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
+                      wall_time_s=time.perf_counter() - started, strokes=strokes)
+
+
+def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.ndarray, outcomes: list[str],
+             success: list[bool], hit: list[bool], hit_frame: list[int], verdict_frame: list[int]) -> list[st.Stroke]:
+    """Cut each environment's stroke from the frames [F, N, ...] of its world."""
+    plane_x, home_y, _ = st.paddle_home_position_m()
+    result = []
+    for i in range(q.shape[1]):
+        end = st.stroke_end_frame(verdict_frame[i], hit_frame[i], ACTION_RATE_HZ)
+        # Frames before the first paddle contact and before the verdict (which may be a robot contact).
+        free = verdict_frame[i] if hit_frame[i] == st.NO_FRAME else min(hit_frame[i], verdict_frame[i])
+        y = st.arrival_y_m(ball[:free, i, :3], ball[:free, i, 3:], free, plane_x)
+        result.append(st.Stroke(
+            seed=seed, ball=i, joint_positions_rad=q[:end + 1, i].copy(), ball_position_m=ball[:end + 1, i, :3].copy(),
+            direction=st.direction_of(y, home_y), arrival_y_m=y,
+            launch_velocity_m_s=launch_velocity[i].copy(), outcome=outcomes[i], success=bool(success[i]),
+            hit=bool(hit[i]), hit_frame=int(hit_frame[i]), verdict_frame=int(verdict_frame[i])))
+    return result
+
+
+def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
+                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = 200, speed: str = 'all',
+                   randomize: bool = False, device: str | torch.device = 'cpu',
+                   progress: Callable[[SeedResult], None] | None = None) -> Evaluation:
+    """Run the protocol (module docstring) and keep every stroke; `progress` is called after each seed."""
+    if speed not in SPEEDS:
+        raise ValueError(f'speed must be one of {SPEEDS}, got {speed!r}')
+    if seeds < 1 or balls < 1:
+        raise ValueError('seeds and balls must be at least 1')
+    loaded = actor if isinstance(actor, LoadedActor) else load_actor(actor)
+    given = loaded.path if isinstance(actor, LoadedActor) else actor
+    results = []
+    for seed in range(first_seed, first_seed + seeds):
+        result = evaluate_seed(loaded, seed, balls, device, speed=speed, randomize=randomize)
+        results.append(result)
+        if progress is not None:
+            progress(result)
+    return Evaluation(actor=portable_path(given), actor_spec_version=loaded.metadata.get('spec_version'), speed=speed,
+                      randomize=bool(randomize), balls_per_seed=balls, results=results)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Summaries
+
+
+def direction_table(strokes: Sequence[st.Stroke]) -> dict[str, dict]:
+    """Balls, success and hit rate of each direction."""
+    table = {}
+    for direction in st.DIRECTIONS:
+        chosen = [s for s in strokes if s.direction == direction]
+        n = len(chosen)
+        table[direction] = {'balls': n,
+                            'success_rate': sum(s.success for s in chosen) / n if n else None,
+                            'hit_rate': sum(s.hit for s in chosen) / n if n else None}
+    return table
+
+
+def smoothness_table(strokes: Sequence[st.Stroke], rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict | None]:
+    """Mean smoothness measures of each direction's strokes and of all of them."""
+    measured = [(s.direction, sm.smoothness(s.joint_positions_rad, rate_hz)) for s in strokes
+                if len(s.joint_positions_rad) >= 4]
+    table = {d: sm.mean_smoothness(m for direction, m in measured if direction == d) for d in st.DIRECTIONS}
+    table['all'] = sm.mean_smoothness(m for _, m in measured)
+    return table
+
+
+def dtw_table(strokes: Sequence[st.Stroke], dataset) -> dict[str, dict]:
+    """Per direction: every stroke against every reference clip of that label, the mean of the smallest."""
+    table = {}
+    for direction in st.DIRECTIONS:
+        references = sm.reference_clips(dataset, direction)
+        chosen = [s for s in strokes if s.direction == direction]
+        entry = {'strokes': len(chosen), 'reference_clips': len(references), 'mean_rad': None, 'std_rad': None,
+                 'mean_per_path_step_rad': None}
+        if chosen and references:
+            matches = [sm.nearest_reference(s.joint_positions_rad, references) for s in chosen]
+            distances = np.array([m.distance for m in matches])
+            entry.update(mean_rad=float(distances.mean()), std_rad=float(distances.std()),
+                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for m in matches])))
+        table[direction] = entry
+    return table
+
+
+def load_reference(path: str | os.PathLike):
+    """A reference dataset for DTW, checked to hold joint positions in the URDF order the strokes use."""
+    from stylepong_description.robot_model import JOINT_NAMES
+    from stylepong_policy.dataset import ReferenceDataset
+
+    dataset = ReferenceDataset.load(path)
+    if tuple(dataset.joint_names) != tuple(JOINT_NAMES):
+        raise ValueError(f'{path}: joints {list(dataset.joint_names)} are not the robot\'s {list(JOINT_NAMES)}')
+    return dataset
+
+
+def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.PathLike | None = None) -> dict:
+    """The JSON-ready results of an evaluation (DTW only when a reference dataset is given)."""
+    results = evaluation.results
+    rates = [r.success_rate for r in results]
+    failures: dict[str, int] = {}
+    for r in results:
+        for name, count in r.reasons.items():
+            failures[name] = failures.get(name, 0) + count
+    balls = sum(r.balls for r in results)
+    strokes = evaluation.strokes
+    plane_x, home_y, _ = st.paddle_home_position_m()
+    summary = {
+        'success_rate': float(np.mean(rates)), 'success_rate_std': float(np.std(rates)),
+        'per_seed': [round(x, 4) for x in rates],
+        'mean_successes_per_seed': float(np.mean([r.successes for r in results])),
+        'hit_rate': sum(r.hits for r in results) / balls,
+        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
+        'seeds': [r.seed for r in results], 'balls_per_seed': evaluation.balls_per_seed, 'speed': evaluation.speed,
+        'randomize': evaluation.randomize, 'actor': evaluation.actor,
+        'actor_spec_version': evaluation.actor_spec_version,
+        'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
+        'direction_rule': {'plane_x_m': round(plane_x, 4), 'paddle_home_y_m': round(home_y, 4),
+                           'leftward_above_m': st.LEFTWARD_ABOVE_M, 'rightward_below_m': st.RIGHTWARD_BELOW_M},
+        'directions': direction_table(strokes),
+        'smoothness': smoothness_table(strokes),
+    }
+    if dataset is not None:
+        summary['dtw'] = dtw_table(strokes, dataset)
+        summary['dtw_dataset'] = portable_path(dataset_path) if dataset_path is not None else None
+        summary['dtw_call'] = DTW_CALL
+    return summary
+
+
+def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
+                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = 200, speed: str = 'all',
+                   randomize: bool = False, device: str | torch.device = 'cpu',
+                   dtw_dataset: str | os.PathLike | None = None) -> dict:
+    """Evaluate an actor (a path to an exported actor, or one loaded with rl.export.load_actor) and return
+    the dict `evaluate` prints. Raises rl.export.ActorMismatchError for an actor that does not fit."""
+    evaluation = evaluate_actor(actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed,
+                                randomize=randomize, device=device)
+    dataset = load_reference(dtw_dataset) if dtw_dataset is not None else None
+    return summarise(evaluation, dataset=dataset, dataset_path=dtw_dataset)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Video
+
+
+def render_video(strokes: Sequence[st.Stroke], path: pathlib.Path, camera: str = 'overview', hold_s: float = 0.5) -> int:
+    """Replay strokes in the cell's MuJoCo model (kinematics only: joint positions and the ball marker
+    set each frame) and encode them with the cell's video recorder. Returns frames written."""
+    import mujoco
+
+    from stylepong_description.robot_model import JOINT_NAMES
+    from stylepong_sim import scene
+    from stylepong_sim.video import VideoRecorder
+
+    model = scene.build_model()
+    data = mujoco.MjData(model)
+    qpos_index = [model.jnt_qposadr[model.joint(name).id] for name in JOINT_NAMES]
+    ball_mocap = model.body_mocapid[model.body(scene.BALL_BODY).id]
+    recorder = VideoRecorder(model, str(path), fps=VIDEO_FPS, camera=camera)
+    try:
+        for stroke in strokes:
+            q_track, ball_track = stroke.joint_positions_rad, stroke.ball_position_m
+            for t in range(len(q_track) + int(hold_s * VIDEO_FPS)):
+                k = min(t, len(q_track) - 1)
+                data.qpos[qpos_index] = q_track[k]
+                data.mocap_pos[ball_mocap] = ball_track[k]
+                mujoco.mj_forward(model, data)
+                recorder.capture(data)
+    finally:
+        recorder.close()
+    return recorder.frames
+
+
+# ---------------------------------------------------------------------------------------------------
+# Command line
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -70,8 +343,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
                         help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')
     parser.add_argument('--balls', type=int, default=200, help='balls per seed')
-    parser.add_argument('--speed', choices=('all', 'low', 'high'), default='all', help='incoming speed band')
+    parser.add_argument('--speed', choices=SPEEDS, default='all', help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the results here')
+    parser.add_argument('--save-strokes', type=pathlib.Path, help='write every stroke to this .npz')
+    parser.add_argument('--dtw', type=pathlib.Path, metavar='DATASET', help='reference dataset (.npz) for DTW')
     parser.add_argument('--video', type=pathlib.Path, help='render a few strokes of the first seed to this MP4')
     parser.add_argument('--video-strokes', type=int, default=4, help='strokes in the video')
     parser.add_argument('--camera', default='overview', help="camera of the cell's scene for the video (overview, robot_view)")
@@ -87,111 +362,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if args.video_strokes < 1:
         parser.error('--video-strokes must be at least 1')
     return args
-
-
-def evaluate_seed(actor: LoadedActor, task, task_overrides: dict, seed: int, balls: int, device: torch.device,
-                  record: int = 0) -> tuple[SeedResult, Recording | None]:
-    """Play each of `balls` environments' first ball to its decision; optionally record `record` of them."""
-    started = time.perf_counter()
-    cfg = task.TaskConfig(**{**task_overrides, 'num_envs': balls})
-    env = task.make_env(cfg, device, seed)
-    reasons = list(task.FAILURE_REASONS)
-    decided = torch.zeros(balls, dtype=torch.bool, device=env.device)
-    success = torch.zeros_like(decided)
-    hit = torch.zeros_like(decided)
-    reason = torch.full((balls,), -1, dtype=torch.int64, device=env.device)
-    hit_so_far = torch.zeros_like(decided)
-    recording = Recording() if record > 0 else None
-    tracks: list[tuple[list, list]] = [([], []) for _ in range(min(record, balls))]
-    # A generous bound on steps until every first ball is decided: three episodes' time plus a second.
-    max_steps = int(3 * float(cfg.episode_length_s) * ACTION_RATE_HZ) + int(ACTION_RATE_HZ)
-    steps = 0
-    with torch.inference_mode():
-        obs, _ = env.reset()
-        while not bool(decided.all()):
-            if steps >= max_steps:
-                raise RuntimeError(f'seed {seed}: {int((~decided).sum())} balls undecided after {steps} steps; '
-                                   'the env never ended their episodes')
-            actions = actor(obs.to('cpu')).to(env.device)
-            obs, _, _, dones, info = env.step(actions)
-            steps += 1
-            if recording is not None:
-                _record_step(tracks, env, info, decided)
-            open_ = ~decided
-            hit_so_far |= info['ball_hit'] & open_
-            ball_done = info['ball_done'] & open_
-            success |= info['ball_success'] & ball_done
-            reason = torch.where(ball_done, info['ball_reason'], reason)
-            hit |= hit_so_far & ball_done
-            # An episode that ended without a referee decision (a pure time limit) is a failure too.
-            undecided_end = dones & open_ & ~ball_done
-            reason = torch.where(undecided_end, torch.full_like(reason, len(reasons)), reason)
-            decided |= ball_done | undecided_end
-    names = reasons + [NO_DECISION]
-    counts = torch.bincount(reason.cpu(), minlength=len(names)).tolist()
-    result = SeedResult(seed=seed, balls=balls, successes=int(success.sum()), hits=int(hit.sum()),
-                        reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
-                        wall_time_s=time.perf_counter() - started)
-    if recording is not None:
-        for i, (q, ball) in enumerate(tracks):
-            recording.joint_positions_rad.append(np.array(q))
-            recording.ball_positions_m.append(np.array(ball))
-            recording.outcomes.append(SUCCESS_REASON if bool(success[i]) else names[int(reason[i])])
-    return result, recording
-
-
-def _record_step(tracks, env, info, decided) -> None:
-    n = len(tracks)
-    q = info['arm_state'][:n, :6].cpu().numpy()
-    ball = env.ball_position_m[:n].cpu().numpy()   # the true position, for rendering only
-    for i in range(n):
-        if not bool(decided[i]):
-            tracks[i][0].append(q[i])
-            tracks[i][1].append(ball[i])
-
-
-def render_video(recording: Recording, path: pathlib.Path, camera: str = 'overview', hold_s: float = 0.5) -> int:
-    """Replay the recorded strokes in the cell's MuJoCo model (kinematics only: joint positions and the
-    ball marker set each frame) and encode them with the cell's video recorder. Returns frames written."""
-    import mujoco
-    from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_sim import scene
-    from stylepong_sim.video import VideoRecorder
-
-    model = scene.build_model()
-    data = mujoco.MjData(model)
-    qpos_index = [model.jnt_qposadr[model.joint(name).id] for name in JOINT_NAMES]
-    ball_mocap = model.body_mocapid[model.body(scene.BALL_BODY).id]
-    recorder = VideoRecorder(model, str(path), fps=VIDEO_FPS, camera=camera)
-    try:
-        for q_track, ball_track in zip(recording.joint_positions_rad, recording.ball_positions_m):
-            for t in range(len(q_track) + int(hold_s * VIDEO_FPS)):
-                k = min(t, len(q_track) - 1)
-                data.qpos[qpos_index] = q_track[k]
-                data.mocap_pos[ball_mocap] = ball_track[k]
-                mujoco.mj_forward(model, data)
-                recorder.capture(data)
-    finally:
-        recorder.close()
-    return recorder.frames
-
-
-def summarise(results: list[SeedResult], args: argparse.Namespace, actor: LoadedActor) -> dict:
-    rates = [r.success_rate for r in results]
-    failures: dict[str, int] = {}
-    for r in results:
-        for name, count in r.reasons.items():
-            failures[name] = failures.get(name, 0) + count
-    balls = sum(r.balls for r in results)
-    return {
-        'success_rate': float(np.mean(rates)), 'success_rate_std': float(np.std(rates)),
-        'per_seed': [round(x, 4) for x in rates], 'hit_rate': sum(r.hits for r in results) / balls,
-        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
-        'seeds': [r.seed for r in results], 'balls_per_seed': args.balls, 'speed': args.speed,
-        'randomize': bool(args.randomize), 'actor': str(args.actor),
-        'actor_spec_version': actor.metadata.get('spec_version'),
-        'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
-    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -211,26 +381,33 @@ def main(argv: list[str] | None = None) -> int:
         if args.camera not in CAMERAS:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
+    dataset = None
+    if args.dtw is not None:
+        try:
+            dataset = load_reference(args.dtw)
+        except (OSError, KeyError, ValueError) as err:
+            print(f'evaluate: cannot use {args.dtw} as a reference dataset: {err}', file=sys.stderr)
+            return 2
     if args.first_seed < FIRST_EVALUATION_SEED:
-        print(f'evaluate: warning: seeds below {FIRST_EVALUATION_SEED} are training seeds (DESIGN.md); '
+        print(f'evaluate: warning: seeds below {FIRST_EVALUATION_SEED} are training seeds; '
               f'reported figures use {FIRST_EVALUATION_SEED} and up', file=sys.stderr)
-    from stylepong_policy import task
-    from stylepong_sim.world_spec import SPEED_RANGES_M_S
-    overrides = {'speed_range_m_s': tuple(SPEED_RANGES_M_S[args.speed]), 'randomize': bool(args.randomize)}
-    results = []
-    recording = None
-    for i, seed in enumerate(range(args.first_seed, args.first_seed + args.seeds)):
-        record = args.video_strokes if (args.video is not None and i == 0) else 0
-        result, rec = evaluate_seed(actor, task, overrides, seed, args.balls, device, record=record)
-        recording = rec if rec is not None else recording
-        results.append(result)
-        print(f'seed {seed}: success {result.success_rate:.3f} ({result.successes}/{result.balls}), '
+
+    def report(result: SeedResult) -> None:
+        print(f'seed {result.seed}: success {result.success_rate:.3f} ({result.successes}/{result.balls}), '
               f'hits {result.hits}, failures {result.reasons}, {result.wall_time_s:.1f} s', flush=True)
-    summary = summarise(results, args, actor)
-    if args.video is not None and recording is not None:
-        frames = render_video(recording, args.video, camera=args.camera)
-        summary['video'] = {'path': str(args.video), 'frames': frames, 'fps': VIDEO_FPS,
-                            'strokes': recording.outcomes}
+
+    evaluation = evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
+                                speed=args.speed, randomize=args.randomize, device=device, progress=report)
+    summary = summarise(evaluation, dataset=dataset, dataset_path=args.dtw)
+    if args.save_strokes is not None:
+        st.save_strokes(args.save_strokes, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
+                        joint_names=actor.metadata['joint_names'], actor=evaluation.actor, speed=args.speed)
+        summary['strokes_file'] = portable_path(args.save_strokes)
+    if args.video is not None:
+        shown = evaluation.results[0].strokes[:args.video_strokes]
+        frames = render_video(shown, args.video, camera=args.camera)
+        summary['video'] = {'path': portable_path(args.video), 'frames': frames, 'fps': VIDEO_FPS,
+                            'strokes': [s.outcome for s in shown]}
     text = json.dumps(summary, indent=2)
     print(text)
     if args.json is not None:

@@ -1,4 +1,6 @@
-"""The observation/action contract between the trained actor and whatever runs it (DESIGN.md).
+"""The observation/action contract between the trained actor and whatever runs it.
+
+The contract in words: docs/DESIGN.md, "Observation and action contract".
 
 The batched training env (stylepong_policy.task) and the `player` node both build the actor's
 observation and decode its action here and nowhere else: a train/deploy mismatch fails silently on the
@@ -28,9 +30,7 @@ Why absolute targets around home (the paper's choice) and this scale: a stroke's
 from __future__ import annotations
 
 import functools
-from typing import Sequence
-
-import torch
+from typing import TYPE_CHECKING, Sequence
 
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
@@ -53,6 +53,12 @@ OBS_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 NUM_OBS = sum(size for _, size in OBS_LAYOUT)
 
+# torch is imported inside the functions that use it: the constants above are the whole contract, and the
+# player's ONNX path reads them on a robot computer that has no torch (player_core builds the same
+# observation with numpy).
+if TYPE_CHECKING:
+    import torch
+
 
 def action_decoding() -> dict:
     """The action's meaning, for the exported actor's sidecar JSON."""
@@ -67,6 +73,7 @@ def action_decoding() -> dict:
 def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """(home, scale, lower limit, upper limit) as float32 rows on `device`, made once per device: made
     per call they were a host-to-device copy, a wait on a GPU, at every training step."""
+    import torch
     limits = rm.joint_limits()
     return tuple(torch.as_tensor(values, dtype=torch.float32, device=device)
                  for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
@@ -79,6 +86,7 @@ def clip_action(action: torch.Tensor) -> torch.Tensor:
 
 def decode_action(action: torch.Tensor) -> torch.Tensor:
     """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6]."""
+    import torch
     home, scale, lower, upper = _rows_on(action.device)
     target = home + scale * clip_action(action.to(torch.float32))
     return torch.maximum(torch.minimum(target, upper), lower)
@@ -91,6 +99,7 @@ def build_observation(joint_positions_rad: torch.Tensor, joint_velocities_rad_s:
 
     joint_* [N, 6] in URDF order, ball_* [N, 3], goal_xy_m [N, 2], last_action [N, 6] (clipped).
     """
+    import torch
     home = _rows_on(joint_positions_rad.device)[0]
     parts = (joint_positions_rad.to(torch.float32) - home, joint_velocities_rad_s, ball_position_m,
              ball_velocity_m_s, goal_xy_m, last_action)
@@ -122,6 +131,7 @@ def player_observation(joint_names: Sequence[str], joint_positions_rad: Sequence
                        last_action: Sequence[float]) -> torch.Tensor:
     """The deployment path: one observation [1, NUM_OBS] from a JointState's fields (any joint order)
     and a BallState's position and velocity, the goal and the player's previous (clipped) action."""
+    import torch
     q, qd = joints_in_urdf_order(joint_names, joint_positions_rad, joint_velocities_rad_s)
 
     def row(values, size: int, what: str) -> torch.Tensor:

@@ -6,7 +6,9 @@ rewards, goals, domain randomisation, sensing noise and latency, resets) is here
 
 One episode = one incoming ball, from its launch (world_spec's distribution, vectorised) until the
 referee's verdict; the environment then resets itself (new ball, new goal, new randomisation, arm near
-home). `step` returns what PPO needs (see TableTennisEnv.step).
+home). It follows the batched-env contract of stylepong_policy.rl.env (see TableTennisEnv.step); the
+ball outcomes are counted here, once, and reach the runner through the contract's log and `evaluate`
+through the per-ball 'outcome' extras.
 
 Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus signs they lack):
   before the hit   bat    w_bat  exp(-d(paddle, ball) / sigma_bat)       (d over `bat_axes`: the paper
@@ -23,8 +25,8 @@ Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus sig
                    dof    w_dof (exp(-|q - home| / sigma_dof) - 1)        only ever lower the reward)
                    rate   w_rate (exp(-|a_t - a_t-1| / sigma_rate) - 1)
                    action -w_action max|a_t|
-  r = w_task * (sum of the above) + w_style * r_style, with r_style from `style_reward_fn` (AMP's
-  discriminator on sequences of arm states, a later issue; none by default).
+  r = the sum of the above: the task reward. The style reward of the motion prior is added by the
+  trainer (stylepong_policy.rl.amp), from the arm states this env reports as its style frames.
 Goal: the centre of a 0.25 m region drawn uniformly so that the region lies on the opponent's half,
 resampled at every reset. Success (the referee's 'returned') does not need the goal.
 
@@ -41,6 +43,7 @@ from dataclasses import asdict, dataclass, field, fields
 import torch
 
 from stylepong_policy import spec
+from stylepong_policy.rl import env as env_contract
 from stylepong_sim import batched_launcher as bl
 from stylepong_sim import batched_world as bw
 from stylepong_sim import referee as rf
@@ -50,7 +53,7 @@ FAILURE_REASONS: tuple[str, ...] = bw.REASONS
 SUCCESS_INDEX = bw.REASON_INDEX[rf.REASON_RETURNED]
 ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
-REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'style')
+REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action')
 
 
 @dataclass
@@ -86,8 +89,6 @@ class TaskConfig:
     kp_scale_range: tuple[float, float] = (0.8, 1.2)
     kd_scale_range: tuple[float, float] = (0.8, 1.2)
     # Reward weights and scales.
-    w_task: float = 1.0
-    w_style: float = 0.0
     w_bat: float = 0.1
     sigma_bat_m: float = 0.3
     bat_axes: str = 'yz'                            # which of x, y, z the paddle-ball distance uses
@@ -107,8 +108,6 @@ class TaskConfig:
     w_rate: float = 0.02
     sigma_rate: float = 0.5
     w_action: float = 0.01
-    # AMP later: arm-state sequences of this many policy steps are kept for the discriminator.
-    style_sequence_length: int = 2
 
     def __post_init__(self):
         for f in fields(self):
@@ -133,8 +132,6 @@ class TaskConfig:
         for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s'):
             if getattr(self, name) < 0.0:
                 raise ValueError(f'{name} must not be negative')
-        if self.style_sequence_length < 1:
-            raise ValueError('style_sequence_length must be at least 1')
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -199,13 +196,12 @@ class TableTennisEnv:
         self._qd_prev = torch.zeros(n, spec.NUM_ACTIONS, **kw)
         self._joint_history = torch.zeros(self.HISTORY, n, 2 * spec.NUM_ACTIONS, **kw)
         self._ball_history = torch.zeros(self.HISTORY, n, 6, **kw)
-        self.arm_history = torch.zeros(cfg.style_sequence_length, n, ARM_STATE_SIZE, **kw)
         self.episode = _Episode(goal_xy_m=torch.zeros(n, 2, **kw), noise_std=torch.zeros(n, 4, **kw),
                                 ball_delay_steps=torch.zeros(n, **kw), joint_delay_steps=torch.zeros(n, **kw),
                                 action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
                                 reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS})
-        self.style_reward_fn = None   # callable: arm-state sequences [N, L, 12] -> style reward [N]
-        self._obs = None
+        self.launch_velocity_m_s = torch.zeros(n, 3, **kw)   # this episode's ball at launch
+        self.num_style_features = ARM_STATE_SIZE
 
     # --- what the outside reads -------------------------------------------------------------------
     @property
@@ -217,13 +213,10 @@ class TableTennisEnv:
     def goal_xy_m(self) -> torch.Tensor:
         return self.episode.goal_xy_m
 
-    def arm_state(self) -> torch.Tensor:
-        """(q, qdot) [N, 12] in URDF order: one frame of the discriminator's input."""
+    def style_state(self) -> torch.Tensor:
+        """The arm state (q, qdot) [N, 12] in URDF order now: one frame of the discriminator's input,
+        the same quantities the demonstrations record (rl.env contract)."""
         return torch.cat((self.world.q_rad.T, self.world.qd_rad_s.T), dim=1)
-
-    def arm_state_sequences(self) -> torch.Tensor:
-        """The last style_sequence_length arm states [N, L, 12], oldest first."""
-        return self.arm_history.flip(0).transpose(0, 1)
 
     # --- episodes ---------------------------------------------------------------------------------
     def _uniform(self, shape, bounds) -> torch.Tensor:
@@ -246,6 +239,7 @@ class TableTennisEnv:
         goal = torch.stack((self._uniform(k, (r, ws.HALF_LENGTH_M - r)),
                             self._uniform(k, (-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r))), dim=1)
         self.episode.goal_xy_m[env_ids] = goal
+        self.launch_velocity_m_s[env_ids] = velocity.T.to(torch.float32)
         if cfg.randomize:
             self.episode.noise_std[env_ids] = self._uniform((k, 1), (0.0, 1.0)) * self._max_noise_std
             self.episode.ball_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_ball_delay_s)) / self.policy_dt_s
@@ -263,7 +257,6 @@ class TableTennisEnv:
         self._qd_prev[env_ids] = joints[:, spec.NUM_ACTIONS:]
         self._joint_history[:, env_ids] = joints
         self._ball_history[:, env_ids] = torch.cat((position.T, velocity.T), dim=1).to(torch.float32)
-        self.arm_history[:, env_ids] = joints
         for name in REWARD_TERMS:
             self.episode.reward_sums[name][env_ids] = 0.0
 
@@ -329,17 +322,22 @@ class TableTennisEnv:
         """Advance every environment by one policy period.
 
         actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_policy.spec).
-        Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, info) where
-        ended episodes are already reset (their obs are the new episode's) and info holds 'time_outs',
-        'ball_done', 'ball_success', 'ball_hit', 'ball_reason' (index into FAILURE_REASONS), 'arm_state'
-        [N, 12] (after the step, before any reset), 'reward_terms' (this step's terms) and 'episode'
-        (mean reward-term sums and rates of the episodes that ended in this step; empty if none).
+        Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, extras) as
+        the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
+        'style_state'). 'log' holds success_rate, hit_rate, goal_rate, episode_length_s, ball/<verdict>
+        (the share of each referee verdict) and reward/<term> (the episodes' sums of each reward term).
+        The task's own extras, after the step and before any reset:
+          'outcome'       per ball decided in this step: {'done', 'success', 'hit' (the paddle touched it
+                          before the verdict) [N] bool, 'reason' [N] int64 index into FAILURE_REASONS}
+          'paddle_hit'    [N] bool: the paddle touched the ball during this step
+          'arm_state'     [N, 12] (q, qdot), the same tensor as 'style_state'
+          'ball_state'    [N, 6] true ball position and velocity
+          'reward_terms'  {term: [N]} this step's reward terms
         """
         with bw.torch_threads(self.cpu_threads):
             return self._step(actions)
 
     def _step(self, actions: torch.Tensor):
-        cfg = self.cfg
         w = self.world
         if actions.shape != (self.num_envs, self.num_actions):
             raise ValueError(f'actions must have shape {(self.num_envs, self.num_actions)}, got {tuple(actions.shape)}')
@@ -351,14 +349,8 @@ class TableTennisEnv:
 
         q, qd = w.q_rad.T, w.qd_rad_s.T
         arm_state = torch.cat((q, qd), dim=1)
-        self.arm_history = torch.cat((arm_state[None], self.arm_history[:-1]), dim=0)
         terms = self._rewards(action, hit_before, events, q, qd)
-        task_reward = sum(terms[name] for name in REWARD_TERMS if name != 'style')
-        if self.style_reward_fn is not None and cfg.w_style != 0.0:
-            terms['style'] = self.style_reward_fn(self.arm_state_sequences())
-        else:
-            terms['style'] = torch.zeros_like(task_reward)
-        reward = cfg.w_task * task_reward + cfg.w_style * terms['style']
+        reward = sum(terms[name] for name in REWARD_TERMS)
         for name in REWARD_TERMS:
             self.episode.reward_sums[name] += terms[name]
 
@@ -369,16 +361,20 @@ class TableTennisEnv:
                                         self._ball_history[:-1]), dim=0)
 
         dones = events.decided
-        info = {'time_outs': dones & (events.reason == bw.REASON_INDEX[rf.REASON_TIMEOUT]),
-                'ball_done': dones, 'ball_success': events.success, 'ball_hit': events.paddle_hit,
-                'ball_reason': events.reason.clamp_min(0), 'arm_state': arm_state, 'reward_terms': terms,
-                'episode': {}}
+        outcome = {'done': dones, 'success': events.success & dones, 'hit': w.hit & dones,
+                   'reason': events.reason.clamp_min(0)}
+        extras = {env_contract.EXTRAS_TIME_OUTS: dones & (events.reason == bw.REASON_INDEX[rf.REASON_TIMEOUT]),
+                  env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
+                  env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
+                  'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
+                  'reward_terms': terms}
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
-            info['episode'] = self._episode_log(done_ids, events)
+            extras[env_contract.EXTRAS_LOG] = self._episode_log(done_ids, outcome)
+            extras[env_contract.EXTRAS_LOG_WEIGHT] = int(done_ids.numel())
             self._reset_envs(done_ids)
         obs, critic_obs = self._observations()
-        return obs, critic_obs, reward, dones, info
+        return obs, critic_obs, reward, dones, extras
 
     def _rewards(self, action, hit_before, events: bw.StepEvents, q, qd) -> dict[str, torch.Tensor]:
         cfg = self.cfg
@@ -430,15 +426,18 @@ class TableTennisEnv:
         distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2 + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)
         return torch.exp(-distance / self.cfg.sigma_aim_m) * over_net * just_hit
 
-    def _episode_log(self, done_ids: torch.Tensor, events: bw.StepEvents) -> dict[str, float]:
-        log = {f'rew_{name}': float(self.episode.reward_sums[name][done_ids].mean()) for name in REWARD_TERMS}
-        success = events.success[done_ids]
-        log['success_rate'] = float(success.float().mean())
-        log['hit_rate'] = float(self.world.hit[done_ids].float().mean())
+    def _episode_log(self, done_ids: torch.Tensor, outcome: dict[str, torch.Tensor]) -> dict[str, float]:
+        """Means over the episodes that ended now: ball outcomes, verdict shares and reward-term sums."""
+        success = outcome['success'][done_ids]
         in_goal = torch.linalg.vector_norm(self.world.landing_xy_m.T[done_ids] - self.episode.goal_xy_m[done_ids],
                                            dim=1) <= self.cfg.goal_radius_m
-        log['goal_rate'] = float((in_goal & success).float().mean())
-        log['episode_length_s'] = float(self.world.time_s[done_ids].mean())
+        log = {'success_rate': float(success.float().mean()),
+               'hit_rate': float(outcome['hit'][done_ids].float().mean()),
+               'goal_rate': float((in_goal & success).float().mean()),
+               'episode_length_s': float(self.world.time_s[done_ids].mean())}
+        shares = torch.bincount(outcome['reason'][done_ids], minlength=len(FAILURE_REASONS)).float() / len(done_ids)
+        log.update({f'ball/{name}': share for name, share in zip(FAILURE_REASONS, shares.tolist())})
+        log.update({f'reward/{name}': float(self.episode.reward_sums[name][done_ids].mean()) for name in REWARD_TERMS})
         return log
 
 

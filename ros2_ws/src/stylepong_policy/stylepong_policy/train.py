@@ -1,12 +1,17 @@
-"""`ros2 run stylepong_policy train`: PPO in the batched table-tennis world, then export the actor.
+"""`ros2 run stylepong_policy train`: PPO, or PPO + the adversarial motion prior, in the batched
+table-tennis world, then export the actor.
 
-    train --out RUN_DIR [--config YAML] [--iterations N] [--num-envs N] [--device cpu|cuda] [--seed S]
-          [--resume [CHECKPOINT_OR_RUN_DIR]]
+    train --out RUN_DIR [--method ppo|amp|amp-noaug] [--dataset NPZ] [--config YAML] [--iterations N]
+          [--num-envs N] [--device cpu|cuda] [--seed S] [--resume [CHECKPOINT_OR_RUN_DIR]]
 
-RUN_DIR receives config.yaml (the effective configuration), checkpoints/ (last.pt every iteration and
-numbered ones every save_interval), progress.csv, tensorboard/, and at the end ppo_actor.pt with its
-sidecar ppo_actor.json, summary.json and learning_curve.png. `--iterations` is the run's total: the
-same command with `--resume` continues an interrupted run up to it (Ctrl-C saves and exports).
+--method ppo (the default) trains on the task reward with config/ppo.yaml; amp adds the style reward of
+a discriminator trained on the reference motions of --dataset (default: a dataset built into the run
+directory from the shipped clips in ros2_ws/bags, originals and x2/x3/x5), with config/amp.yaml;
+amp-noaug is amp on the original clips only (the paper's "AMP" row). RUN_DIR receives config.yaml (the
+effective configuration), checkpoints/ (last.pt every iteration and numbered ones every save_interval),
+progress.csv, tensorboard/, and at the end <method>_actor.pt with its sidecar .json, summary.json and
+learning_curve.png. `--iterations` is the run's total: the same command with `--resume` continues an
+interrupted run up to it (Ctrl-C saves and exports).
 """
 from __future__ import annotations
 
@@ -28,37 +33,57 @@ import time
 
 import torch
 
-from stylepong_policy.rl.config import FIRST_EVALUATION_SEED, TrainConfig, load_config, save_config, config_from_dict
+from stylepong_policy.rl.config import (FIRST_EVALUATION_SEED, AMPConfig, TrainConfig, config_from_dict, load_config,
+                                        save_config)
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.logger import CSV_NAME, plot_learning_curve
 from stylepong_policy.rl.runner import (CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint,
                                         seed_everything)
 
 PACKAGE = 'stylepong_policy'
-ACTOR_NAME = 'ppo_actor.pt'
+METHODS = ('ppo', 'amp', 'amp-noaug')
 SUMMARY_NAME = 'summary.json'
 CURVE_NAME = 'learning_curve.png'
 CONFIG_NAME = 'config.yaml'
+DATASET_NAME = 'dataset.npz'
+ORIGINAL_CLIPS_ONLY = [1]     # amp-noaug's speed factors
 
 
-def default_config_path() -> pathlib.Path:
-    """The shipped config/ppo.yaml: from the installed share directory, else beside the sources."""
+def actor_name(method: str) -> str:
+    """ppo_actor.pt, amp_actor.pt, amp_noaug_actor.pt."""
+    return f'{method.replace("-", "_")}_actor.pt'
+
+
+def default_config_path(method: str = 'ppo') -> pathlib.Path:
+    """The shipped config/ppo.yaml (ppo) or config/amp.yaml (amp, amp-noaug): from the installed share
+    directory, else beside the sources."""
+    name = 'ppo.yaml' if method == 'ppo' else 'amp.yaml'
     try:
         from ament_index_python.packages import get_package_share_directory
-        path = pathlib.Path(get_package_share_directory(PACKAGE)) / 'config' / 'ppo.yaml'
+        path = pathlib.Path(get_package_share_directory(PACKAGE)) / 'config' / name
         if path.is_file():
             return path
     except (ImportError, LookupError, ValueError):
         pass
-    return pathlib.Path(__file__).resolve().parent.parent / 'config' / 'ppo.yaml'
+    return pathlib.Path(__file__).resolve().parent.parent / 'config' / name
+
+
+def shipped_bags_dir() -> pathlib.Path:
+    """ros2_ws/bags of the workspace these sources live in (the shipped teaching clips)."""
+    return pathlib.Path(__file__).resolve().parents[3] / 'bags'
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='train', description=__doc__.split('\n\n')[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--out', required=True, type=pathlib.Path, help='run directory')
+    parser.add_argument('--method', choices=METHODS, default=None,
+                        help='ppo (default), amp, or amp-noaug (amp on the original clips only)')
+    parser.add_argument('--dataset', type=pathlib.Path,
+                        help='reference motions for amp (build_dataset .npz; default: built from ros2_ws/bags)')
     parser.add_argument('--config', type=pathlib.Path,
-                        help='YAML config (default: the shipped config/ppo.yaml, or the run\'s own when resuming)')
+                        help='YAML config (default: the shipped config/ppo.yaml or config/amp.yaml for the method, '
+                             'or the run\'s own when resuming)')
     parser.add_argument('--iterations', type=int, help='total PPO iterations of the run')
     parser.add_argument('--num-envs', type=int, help='parallel environments')
     parser.add_argument('--device', help="torch device: 'cpu' or 'cuda' / 'cuda:N'")
@@ -70,16 +95,28 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def resolve_config(args: argparse.Namespace) -> tuple[TrainConfig, str]:
-    """Config file, else (when resuming) the run's own config, else the shipped default; then CLI overrides."""
+def resolve_config(args: argparse.Namespace) -> tuple[TrainConfig, str, str]:
+    """(config, where it came from, method): a config file, else (when resuming) the run's own config, else
+    the shipped default of the method; then the method and the CLI overrides."""
     if args.config is not None:
         cfg, source = load_config(args.config), str(args.config)
     elif args.resume is not None:
         checkpoint = find_checkpoint(args.resume or args.out)
         cfg, source = config_from_dict(read_checkpoint(checkpoint)['config']), f'{checkpoint} (resumed run)'
     else:
-        path = default_config_path()
+        path = default_config_path(args.method or 'ppo')
         cfg, source = load_config(path), str(path)
+    method = args.method or _method_of(cfg)
+    if method == 'ppo':
+        if args.dataset is not None:
+            raise ValueError('--dataset is for --method amp or amp-noaug')
+        cfg.amp = None
+    else:
+        cfg.amp = cfg.amp or AMPConfig()
+        if method == 'amp-noaug':
+            cfg.amp.speed_factors = list(ORIGINAL_CLIPS_ONLY)
+        if args.dataset is not None:
+            cfg.amp.dataset = str(args.dataset)
     if args.iterations is not None:
         cfg.runner.iterations = args.iterations
     if args.num_envs is not None:
@@ -96,7 +133,43 @@ def resolve_config(args: argparse.Namespace) -> tuple[TrainConfig, str]:
                          f'{FIRST_EVALUATION_SEED}')
     if 'num_envs' in cfg.task and int(cfg.task['num_envs']) < 1:
         raise ValueError(f'num_envs must be at least 1, got {cfg.task["num_envs"]}')
-    return cfg, source
+    return cfg, source, method
+
+
+def _method_of(cfg: TrainConfig) -> str:
+    if cfg.amp is None:
+        return 'ppo'
+    return 'amp-noaug' if cfg.amp.speed_factors == ORIGINAL_CLIPS_ONLY else 'amp'
+
+
+def reference_dataset_path(cfg: AMPConfig, run_dir: pathlib.Path) -> pathlib.Path:
+    """The amp config's dataset, or one built into the run directory from the shipped clips (once: a
+    resumed run keeps the dataset it started with)."""
+    if cfg.dataset:
+        path = pathlib.Path(cfg.dataset)
+        if not path.is_file():
+            raise FileNotFoundError(f'reference dataset {path} does not exist')
+        return path
+    path = run_dir / DATASET_NAME
+    if not path.is_file():
+        from stylepong_policy import build_dataset
+        bags = shipped_bags_dir()
+        print(f'train: building the reference motions from {bags} into {path}', flush=True)
+        if build_dataset.run([str(bags), '-o', str(path)]) != 0 or not path.is_file():
+            raise FileNotFoundError(f'could not build a reference dataset from {bags}; pass --dataset')
+    return path
+
+
+def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torch.device):
+    """The discriminator and its reference windows for an amp config."""
+    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
+    path = reference_dataset_path(cfg.amp, run_dir)
+    dataset = ReferenceDataset.load(path)
+    reference = ReferenceMotion.from_dataset(dataset, cfg.amp.sequence_length, cfg.amp.speed_factors, device)
+    print(f'train: reference motions {path}: {reference.num_windows} windows of {cfg.amp.sequence_length} frames '
+          f'from clips with speed factors {cfg.amp.speed_factors or "all"}', flush=True)
+    return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed), path
 
 
 def resolve_device(name: str) -> torch.device:
@@ -110,9 +183,11 @@ def resolve_device(name: str) -> torch.device:
     return device
 
 
-def write_summary(runner: OnPolicyRunner, run_dir: pathlib.Path, config_source: str, actor_path: pathlib.Path) -> dict:
+def write_summary(runner: OnPolicyRunner, run_dir: pathlib.Path, config_source: str, actor_path: pathlib.Path,
+                  method: str, dataset_path: pathlib.Path | None) -> dict:
     stats = runner.last_stats
     summary = {
+        'method': method, 'dataset': str(dataset_path) if dataset_path is not None else None,
         'iterations': runner.iteration, 'samples': runner.env_steps,
         'wall_time_s': round(runner.wall_time_s, 1), 'wall_time_h': round(runner.wall_time_s / 3600.0, 3),
         'devices': sorted({s['device'] for s in runner.sessions}), 'sessions': runner.sessions,
@@ -132,7 +207,7 @@ def _raise_keyboard_interrupt(signum, frame):
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
-        cfg, config_source = resolve_config(args)
+        cfg, config_source, method = resolve_config(args)
         device = resolve_device(cfg.runner.device)
     except (ValueError, FileNotFoundError) as err:
         print(f'train: {err}', file=sys.stderr)
@@ -154,8 +229,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f'train: bad task section in the config: {err}', file=sys.stderr)
         return 2
     env = task.make_env(task_cfg, device, cfg.runner.seed)
-    runner = OnPolicyRunner(env, cfg, run_dir, failure_reasons=task.FAILURE_REASONS,
-                            tensorboard=not args.no_tensorboard)
+    motion_prior = dataset_path = None
+    if cfg.amp is not None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            motion_prior, dataset_path = make_motion_prior(cfg, env, run_dir, device)
+        except (ValueError, FileNotFoundError, KeyError) as err:
+            print(f'train: {err}', file=sys.stderr)
+            return 2
+    runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=not args.no_tensorboard, motion_prior=motion_prior)
     if args.resume is not None:
         try:
             loaded = runner.load(args.resume or run_dir)
@@ -178,15 +260,15 @@ def main(argv: list[str] | None = None) -> int:
         return 130 if runner.interrupted else 1
 
     actor_path, sidecar = export_actor(
-        runner.actor_critic, run_dir / ACTOR_NAME, current_spec_contract(),
-        training={'iterations': runner.iteration, 'samples': runner.env_steps, 'seed': cfg.runner.seed,
+        runner.actor_critic, run_dir / actor_name(method), current_spec_contract(),
+        training={'method': method, 'iterations': runner.iteration, 'samples': runner.env_steps, 'seed': cfg.runner.seed,
                   'wall_time_s': round(runner.wall_time_s, 1), 'config': CONFIG_NAME,
                   'devices': sorted({s['device'] for s in runner.sessions}),
                   'task': dataclasses.asdict(task_cfg)})
-    write_summary(runner, run_dir, config_source, actor_path)
+    write_summary(runner, run_dir, config_source, actor_path, method, dataset_path)
     if (run_dir / CSV_NAME).is_file():
         plot_learning_curve(run_dir / CSV_NAME, run_dir / CURVE_NAME,
-                            title=f'PPO, seed {cfg.runner.seed}, {env.num_envs} envs')
+                            title=f'{method.upper()}, seed {cfg.runner.seed}, {env.num_envs} envs')
     stats = runner.last_stats
     success = stats.get('success_rate', math.nan)
     print(f'train: iteration {runner.iteration}, {runner.env_steps} samples, '

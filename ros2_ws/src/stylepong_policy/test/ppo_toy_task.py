@@ -1,21 +1,22 @@
-"""A small vectorised task with the TableTennisEnv interface, for testing PPO and the runner alone.
+"""A small vectorised task with the batched-env contract (stylepong_policy.rl.env), for testing PPO, the
+runner and the motion prior alone.
 
 Reach-the-target in the plane: the actor sees a noisy position and the target, the critic also sees
 the true position and the time left (an asymmetric actor-critic has something to gain). Reaching the
 target within 0.1 is a success that ends the episode; otherwise a time limit ends it as a failure.
 A random policy succeeds in well under half the episodes; a policy that learnt succeeds in nearly all.
+The style frame is the position and the velocity of the last step.
 """
 from __future__ import annotations
 
 import torch
 
-FAILURE_REASONS = ('returned', 'timeout')
-
-
 class ReachTask:
     num_obs = 4
     num_critic_obs = 7
     num_actions = 2
+    num_style_features = 4
+    step_size = 0.1        # position change per step at full action
 
     def __init__(self, num_envs: int = 128, device: str = 'cpu', seed: int = 0, episode_steps: int = 30,
                  obs_noise: float = 0.02):
@@ -28,6 +29,7 @@ class ReachTask:
         self.position = torch.zeros(num_envs, 2, device=self.device)
         self.target = torch.zeros(num_envs, 2, device=self.device)
         self.steps = torch.zeros(num_envs, device=self.device)
+        self.velocity = torch.zeros(num_envs, 2, device=self.device)
 
     def _uniform(self, n: int, low: float, high: float) -> torch.Tensor:
         return low + (high - low) * torch.rand(n, 2, generator=self.generator, device=self.device)
@@ -36,6 +38,7 @@ class ReachTask:
         self.position[idx] = self._uniform(len(idx), -1.0, 1.0)
         self.target[idx] = self._uniform(len(idx), -1.0, 1.0)
         self.steps[idx] = 0.0
+        self.velocity[idx] = 0.0
 
     def _observe(self) -> tuple[torch.Tensor, torch.Tensor]:
         noise = self.obs_noise * torch.randn(self.num_envs, 2, generator=self.generator, device=self.device)
@@ -48,19 +51,25 @@ class ReachTask:
         self._reset_envs(torch.arange(self.num_envs, device=self.device))
         return self._observe()
 
+    def style_state(self) -> torch.Tensor:
+        return torch.cat((self.position, self.velocity), dim=-1)
+
     def step(self, actions: torch.Tensor):
-        self.position += 0.1 * actions.clamp(-1.0, 1.0)
+        self.velocity = self.step_size * actions.clamp(-1.0, 1.0)
+        self.position += self.velocity
         self.steps += 1.0
         distance = (self.position - self.target).norm(dim=-1)
         success = distance < 0.1
         time_outs = (self.steps >= self.episode_steps) & ~success
         dones = success | time_outs
         rewards = -0.1 * distance + 2.0 * success.float()
-        info = {'time_outs': time_outs, 'ball_done': dones.clone(), 'ball_success': success.clone(),
-                'ball_hit': distance < 0.3, 'ball_reason': torch.where(success, 0, 1).to(torch.int64),
-                'episode': {'distance': float(distance.mean())}, 'arm_state': torch.zeros(self.num_envs, 12)}
         done_idx = dones.nonzero(as_tuple=False).squeeze(-1)
+        extras = {'time_outs': time_outs, 'style_state': self.style_state(), 'success': success.clone(),
+                  'log': {}, 'log_weight': int(done_idx.numel())}
         if done_idx.numel():
+            ended = success[done_idx].float().mean().item()
+            extras['log'] = {'success_rate': ended, 'timeout_rate': 1.0 - ended,
+                             'final_distance': float(distance[done_idx].mean())}
             self._reset_envs(done_idx)
         obs, critic_obs = self._observe()
-        return obs, critic_obs, rewards, dones, info
+        return obs, critic_obs, rewards, dones, extras

@@ -19,7 +19,7 @@ def small_config(**runner):
 
 def make_runner(run_dir, cfg=None, tensorboard=False, env=None):
     env = env or TOY.ReachTask(num_envs=64, seed=5)
-    return OnPolicyRunner(env, cfg or small_config(), run_dir, TOY.FAILURE_REASONS, tensorboard=tensorboard)
+    return OnPolicyRunner(env, cfg or small_config(), run_dir, tensorboard=tensorboard)
 
 
 def test_resume_continues_exactly_like_an_uninterrupted_run(tmp_path):
@@ -71,7 +71,7 @@ def test_checkpoint_files_csv_and_tensorboard(tmp_path):
         ['last.pt', 'model_000004.pt', 'model_000006.pt']   # keep_checkpoints=2
     progress = read_progress(tmp_path / 'progress.csv')
     assert progress['iteration'] == [1, 2, 3, 4, 5, 6, 7]
-    for column in ('samples_per_s', 'world_share', 'success_rate', 'hit_rate', 'ball/returned', 'kl', 'value_loss'):
+    for column in ('samples_per_s', 'world_share', 'success_rate', 'timeout_rate', 'kl', 'value_loss'):
         assert column in progress
     assert list((tmp_path / 'tensorboard').glob('events.out.tfevents.*'))
     plot_learning_curve(tmp_path / 'progress.csv', tmp_path / 'curve.png')
@@ -139,23 +139,22 @@ def test_non_finite_env_output_stops_training(tmp_path):
         runner.learn(1, progress_bar=False)
 
 
-def test_ball_statistics_count_a_hit_flagged_before_the_verdict():
-    """The env flags 'ball_hit' on the contact step; the ball is decided steps later."""
+def test_episode_statistics_weight_the_env_log_by_the_episodes_it_averages():
+    """The env's 'log' is a mean over the episodes that ended in a step; an iteration's figure is the mean
+    over all its episodes, so a step where three ended counts three times one where one ended."""
     from stylepong_policy.rl.runner import EpisodeStatistics
-    stats = EpisodeStatistics(3, torch.device('cpu'), ('returned', 'no_hit', 'net'))
-    false3 = torch.zeros(3, dtype=torch.bool)
+    stats = EpisodeStatistics(3, torch.device('cpu'))
 
-    def step(hit, done, success, reason):
-        info = {'ball_hit': torch.tensor(hit), 'ball_done': torch.tensor(done), 'ball_success': torch.tensor(success),
-                'ball_reason': torch.tensor(reason), 'time_outs': false3}
-        stats.record(torch.ones(3), torch.tensor(done), info)
+    def step(done, log=None):
+        done = torch.tensor(done)
+        extras = {'time_outs': torch.zeros(3, dtype=torch.bool), 'log': log or {}, 'log_weight': int(done.sum())}
+        stats.record(torch.ones(3), done, extras)
 
-    step([True, False, False], [False, False, False], [False, False, False], [0, 0, 0])
-    step([False, False, False], [True, True, False], [True, False, False], [0, 1, 0])
-    step([False, False, True], [False, False, True], [False, False, False], [0, 0, 2])
-    step([False, False, False], [True, False, False], [False, False, False], [1, 0, 0])   # env 0's next ball
+    step([False, False, False])
+    step([True, True, False], {'success_rate': 0.5})
+    step([False, False, True], {'success_rate': 0.0})
+    step([True, False, False], {'success_rate': 1.0})
     summary = stats.summary()
-    assert summary['balls'] == 4 and summary['success_rate'] == 0.25
-    assert summary['hit_rate'] == 0.5          # env 0's first ball and env 2's ball; not env 0's second
-    assert summary['ball/no_hit'] == 0.5 and summary['ball/net'] == 0.25
+    assert summary['episodes'] == 4
+    assert summary['success_rate'] == pytest.approx((2 * 0.5 + 0.0 + 1.0) / 4)
     assert summary['mean_return'] == pytest.approx((2 + 2 + 3 + 2) / 4)

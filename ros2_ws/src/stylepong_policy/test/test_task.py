@@ -18,12 +18,16 @@ def test_interface_shapes_and_types():
     obs, critic = env.reset()
     assert obs.shape == (8, env.num_obs) and critic.shape == (8, env.num_critic_obs)
     assert env.num_actions == 6 and env.device == torch.device('cpu')
-    obs, critic, reward, dones, info = env.step(torch.zeros(8, 6))
+    assert env.num_style_features == 12 and env.style_state().shape == (8, 12)
+    obs, critic, reward, dones, extras = env.step(torch.zeros(8, 6))
     assert obs.shape == (8, env.num_obs) and critic.shape == (8, env.num_critic_obs)
     assert reward.shape == (8,) and reward.dtype == torch.float32 and dones.dtype == torch.bool
-    for key in ('time_outs', 'ball_done', 'ball_success', 'ball_hit'):
-        assert info[key].shape == (8,) and info[key].dtype == torch.bool
-    assert info['ball_reason'].dtype == torch.int64 and info['arm_state'].shape == (8, 12)
+    outcome = extras['outcome']
+    for flags in (extras['time_outs'], extras['paddle_hit'], outcome['done'], outcome['success'], outcome['hit']):
+        assert flags.shape == (8,) and flags.dtype == torch.bool
+    assert outcome['reason'].dtype == torch.int64 and extras['arm_state'].shape == (8, 12)
+    assert extras['style_state'] is extras['arm_state'] and extras['ball_state'].shape == (8, 6)
+    assert isinstance(extras['log'], dict) and extras['log_weight'] == len(extras['log']) * 0
     assert task.FAILURE_REASONS[task.SUCCESS_INDEX] == rf.REASON_RETURNED
     assert torch.isfinite(obs).all() and torch.isfinite(critic).all()
 
@@ -118,7 +122,8 @@ def test_rewards_for_a_return_a_miss_and_illegal_contact():
             if outcome[i] is None:
                 totals[i] += reward[i]
                 if dones[i]:
-                    outcome[i] = (task.FAILURE_REASONS[int(info['ball_reason'][i])], bool(info['ball_success'][i]),
+                    outcome[i] = (task.FAILURE_REASONS[int(info['outcome']['reason'][i])],
+                                  bool(info['outcome']['success'][i]),
                                   float(info['reward_terms']['success'][i]), float(info['reward_terms']['illegal'][i]))
         if all(o is not None for o in outcome):
             break
@@ -177,21 +182,31 @@ def test_timeouts_are_reported_for_bootstrapping():
         if dones.any():
             break
     assert dones.all() and info['time_outs'].all()
-    assert task.FAILURE_REASONS[int(info['ball_reason'][0])] == rf.REASON_TIMEOUT
+    assert task.FAILURE_REASONS[int(info['outcome']['reason'][0])] == rf.REASON_TIMEOUT
+    assert info['log_weight'] == 2 and info['log']['ball/timeout'] == 1.0 and info['log']['success_rate'] == 0.0
 
 
-def test_style_reward_slot_and_arm_state_sequences():
-    env = _env(4, style_sequence_length=3, w_style=0.5)
+def test_style_frames_are_the_arm_state_before_a_reset_and_after_it():
+    """The contract's 'style_state' is the frame an ended episode reached; style_state() is the new
+    episode's first frame, so the motion prior never sees a window spanning two episodes."""
+    env = _env(2, randomize=False, episode_length_s=0.1)
     env.reset()
-    seen = []
-    env.style_reward_fn = lambda sequences: (seen.append(sequences.shape), torch.ones(4))[1]
-    _, _, reward, _, info = env.step(torch.zeros(4, 6))
-    assert seen == [(4, 3, 12)]
-    torch.testing.assert_close(info['reward_terms']['style'], torch.ones(4))
-    task_part = sum(info['reward_terms'][n] for n in task.REWARD_TERMS if n != 'style')
-    torch.testing.assert_close(reward, task_part + 0.5)
-    sequences = env.arm_state_sequences()
-    torch.testing.assert_close(sequences[:, -1], info['arm_state'])   # newest last
+    for _ in range(20):
+        _, _, _, dones, extras = env.step(torch.full((2, 6), 0.3))
+        if dones.any():
+            break
+    assert dones.all()
+    home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD)
+    assert (extras['style_state'][:, :6] - home).abs().max() > 0.05        # moved towards the target
+    torch.testing.assert_close(env.style_state()[:, :6], home.expand(2, -1))  # reset to home
+
+
+def test_launch_velocity_is_the_episodes_ball_at_launch():
+    env = _env(4, randomize=False)
+    env.reset()
+    torch.testing.assert_close(env.launch_velocity_m_s, env.world.ball_vel_m_s.T)
+    speed = torch.linalg.vector_norm(env.launch_velocity_m_s, dim=1)
+    assert ((speed >= env.cfg.speed_range_m_s[0] - 1e-4) & (speed <= env.cfg.speed_range_m_s[1] + 1e-4)).all()
 
 
 def test_config_validation():

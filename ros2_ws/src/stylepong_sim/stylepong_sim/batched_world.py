@@ -1,10 +1,11 @@
 """The batched table-tennis world: N copies of the cell stepped together in torch (cpu or cuda).
 
-Why it lives here: DESIGN.md gives stylepong_sim everything that simulates the cell (world spec, MuJoCo
-cell, referee) and stylepong_policy everything that learns (spec, task rewards, PPO). This module is a
-second simulator of the same cell, held to the MuJoCo cell by agreement tests, so it sits beside the
-cell and reads the same world spec, robot model and referee rules; the task (rewards, goals, domain
-randomisation, observations) that turns it into an RL environment is stylepong_policy.task.
+Why it lives here (docs/DESIGN.md, "A second simulator for training"): stylepong_sim holds everything
+that simulates the cell (world spec, MuJoCo cell, referee) and stylepong_policy everything that learns
+(spec, task rewards, PPO). This module is a second simulator of the same cell, held to the MuJoCo
+cell by agreement tests, so it sits beside the cell and reads the same world spec, robot model and
+referee rules; the task (rewards, goals, domain randomisation, observations) that turns it into an
+RL environment is stylepong_policy.task.
 
 What it simulates, for every environment at once (layout: the environment axis last, see
 batched_kinematics):

@@ -1,4 +1,5 @@
-"""The rally referee: DESIGN.md's evaluation protocol as a small state machine, free of ROS.
+"""The rally referee: the evaluation protocol (docs/DESIGN.md, "Evaluation protocol") as a small
+state machine, free of ROS.
 
 A simulator reports what happens to the ball it launched (contacts, its state every physics step);
 the referee turns that into the ball's RallyEvent sequence. The batched training world implements

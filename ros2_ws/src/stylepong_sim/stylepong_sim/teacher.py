@@ -12,9 +12,16 @@ vertical by a yaw:
 
 The back-swing is a minimum-jerk move from rest to rest. The forward swing runs from the back-swing
 through the hitting point to the follow-through along the quadratic through those three points, timed
-by a minimum-jerk profile whose middle falls on the hitting point (passed at 85-100 % of top speed). Forward, leftward and rightward
-strokes differ in where the ball is met (straight ahead, to the robot's left, to its right: world +y
-is the robot's left) and in where the blade sweeps and faces.
+by a minimum-jerk profile (top speed half-way through it) that passes the hitting point near its top
+speed (at 85-100 % of it for the nominal strokes, 75 % or more for any take). Forward, leftward and
+rightward strokes differ in where the ball is met (straight ahead, to the robot's left, to its right:
+world +y is the robot's left) and in where the blade sweeps and faces.
+
+A person never drags the same stroke twice, and a style is learned from a distribution of takes: a
+SwingVariation (drawn from a seed by `sample_variation`) moves the key poses by a few cm, turns the blade
+by a few degrees, scales the stroke's amplitude and durations and moves the hit before or after the top
+speed, all within the ranges below (VARIATION_RANGES), which keep every take clear of the shoulder
+singularity, inside the joint limits and unmistakably forward, leftward or rightward.
 
 World frame (world_spec): x from the robot's end towards the opponent, y to the robot's left, z up.
 """
@@ -59,6 +66,143 @@ STROKES = {
                              follow_offset_m=(0.12, -0.30, 0.12), back_yaw_rad=0.10, hit_yaw_rad=-0.30,
                              follow_yaw_rad=-0.45),
 }
+
+
+# ---------------------------------------------------------------------------------------------------
+# Take-to-take variation of a person's stroke
+# ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class VariationRanges:
+    """The most one take departs from the nominal stroke (STROKES, TeacherConfig's durations), and why.
+
+    test_teacher_variation.py checks the extremes of these ranges: joint limits, the shoulder's clearance,
+    the elbow's bend, the blade over the table and each label's direction.
+    """
+    # Reach of the forward swing (hit and follow-through offsets from home scaled together): a person's
+    # strokes differ by about a tenth in size. Only smaller than nominal: the nominal follow-throughs are
+    # already near the arm's reach (leftward's elbow is bent by only 1.14 rad there, and the key-pose
+    # jitter below brings it to 1.02 rad, just above the 1 rad the strokes keep). Down to 0.85 a
+    # leftward or rightward hit stays more than 0.09 m to its side of the forward one, with the jitter.
+    amplitude_scale: tuple[float, float] = (0.85, 1.0)
+    # Each key pose moved by up to this much per world axis (x, y, z), independently. x is kept small so
+    # that back < home < hit < follow-through along x holds for every take (leftward's hit and follow-
+    # through are only 0.03 m apart); z so that follow-through > hit > back-swing in height holds and the
+    # blade stays well above the table; y is the freest, a person's aim wanders most sideways.
+    key_pose_jitter_m: tuple[float, float, float] = (0.01, 0.02, 0.015)
+    # The back-swing's depth along x is only made shallower (0 to 3 cm), never deeper: it is already at
+    # the 0.10 m behind home beyond which the wrist passes over the base's axis (see STROKES).
+    back_shallower_m: tuple[float, float] = (0.0, 0.03)
+    # Blade yaw at each key pose, +-3 degrees: the leftward and rightward hits face 0.30 rad to their side,
+    # so their sign never changes.
+    yaw_jitter_rad: float = 0.05
+    # Durations of the back-swing and of the forward swing, +-20 % each (a slow drag varies in tempo).
+    # The nominal 2.4 s stroke stays within 1.92-2.88 s (TeacherConfig.validate's 1.5-3 s) and the
+    # fastest forward swing (rightward, x0.8) peaks at 0.8 m/s, under the 1 m/s of a slow drag.
+    duration_scale: tuple[float, float] = (0.8, 1.2)
+    # Where on the forward swing's path the hit falls (0.5: half-way in time, where the path parameter
+    # moves fastest): 0.45-0.55, the ball met slightly before or after that. The moved key poses change
+    # which half of the quadratic is longer (and swept faster), so a take meets the ball at 75 % of its
+    # top speed or more (85 % or more for the nominal strokes; 200 seeds per swing give 77 % at worst).
+    hit_fraction: tuple[float, float] = (0.45, 0.55)
+
+
+VARIATION_RANGES = VariationRanges()
+
+
+def _within(value: float, bounds: tuple[float, float], name: str) -> None:
+    low, high = bounds
+    if not low - 1e-12 <= value <= high + 1e-12:
+        raise ValueError(f'{name} must be within {low}-{high}, got {value!r}')
+
+
+@dataclass(frozen=True)
+class SwingVariation:
+    """How one take departs from the nominal stroke; the default is no departure (the nominal stroke)."""
+    amplitude_scale: float = 1.0                                  # hit and follow-through offsets scaled
+    back_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)    # added to the back-swing's offset
+    hit_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    follow_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw_delta_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)   # back-swing, hit, follow-through
+    backswing_scale: float = 1.0
+    forward_swing_scale: float = 1.0
+    hit_fraction: float = 0.5
+
+    def validate(self, ranges: VariationRanges = VARIATION_RANGES) -> None:
+        """Refuse a take outside the stated ranges (one built by hand as well as a drawn one)."""
+        _within(self.amplitude_scale, ranges.amplitude_scale, 'amplitude_scale')
+        _within(self.backswing_scale, ranges.duration_scale, 'backswing_scale')
+        _within(self.forward_swing_scale, ranges.duration_scale, 'forward_swing_scale')
+        _within(self.hit_fraction, ranges.hit_fraction, 'hit_fraction')
+        for name in ('back_delta_m', 'hit_delta_m', 'follow_delta_m'):
+            delta = getattr(self, name)
+            for axis, (value, jitter) in enumerate(zip(delta, ranges.key_pose_jitter_m)):
+                bounds = ranges.back_shallower_m if (name == 'back_delta_m' and axis == 0) else (-jitter, jitter)
+                _within(value, bounds, f'{name}[{axis}]')
+        for value in self.yaw_delta_rad:
+            _within(value, (-ranges.yaw_jitter_rad, ranges.yaw_jitter_rad), 'yaw_delta_rad')
+
+
+def sample_variation(swing: str, seed: int, strength: float = 1.0,
+                     ranges: VariationRanges = VARIATION_RANGES) -> SwingVariation:
+    """One take of `swing` drawn from `seed` (the same seed and swing: the same take).
+
+    `strength` in [0, 1] shrinks every departure from the nominal stroke towards it (0: the nominal
+    stroke), so that any strength stays within `ranges`.
+    """
+    if swing not in STROKES:
+        raise ValueError(f'swing must be one of {SWINGS}, got {swing!r}')
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ValueError(f'seed must be a non-negative integer, got {seed!r}')
+    if not 0.0 <= strength <= 1.0:
+        raise ValueError(f'strength must be within 0-1, got {strength!r}')
+    # One stream per (seed, swing), drawn in a fixed order: a take never depends on other takes.
+    rng = np.random.default_rng([seed, SWINGS.index(swing)])
+    unit = strength * rng.uniform(-1.0, 1.0, size=16)   # every departure as a fraction of its half-range
+
+    def scaled(u: float, bounds: tuple[float, float]) -> float:
+        """1.0 (no change) moved by u in [-1, 1] towards the low (u < 0) or high (u > 0) end of the range."""
+        low, high = bounds
+        return float(1.0 + u * (high - 1.0)) if u >= 0 else float(1.0 + u * (1.0 - low))
+
+    jitter = np.array(ranges.key_pose_jitter_m)
+    back_delta = unit[1:4] * jitter   # its x is mapped onto the shallower-only range below
+    shallow_low, shallow_high = ranges.back_shallower_m
+    back_delta[0] = shallow_low + 0.5 * (unit[1] + strength) * (shallow_high - shallow_low)
+    hit_low, hit_high = ranges.hit_fraction
+    return SwingVariation(
+        amplitude_scale=scaled(unit[0], ranges.amplitude_scale),
+        back_delta_m=tuple(float(v) for v in back_delta),
+        hit_delta_m=tuple(float(v) for v in unit[4:7] * jitter),
+        follow_delta_m=tuple(float(v) for v in unit[7:10] * jitter),
+        yaw_delta_rad=tuple(float(v) for v in unit[10:13] * ranges.yaw_jitter_rad),
+        backswing_scale=scaled(unit[13], ranges.duration_scale),
+        forward_swing_scale=scaled(unit[14], ranges.duration_scale),
+        hit_fraction=float(0.5 * (hit_low + hit_high) + unit[15] * 0.5 * (hit_high - hit_low)),
+    )
+
+
+def varied_shape(shape: StrokeShape, variation: SwingVariation) -> StrokeShape:
+    """The key poses of one take. The back-swing is not scaled with the amplitude: its depth is capped."""
+    def moved(offset, delta, scale=1.0):
+        return tuple(float(scale * o + d) for o, d in zip(offset, delta))
+    yaw_back, yaw_hit, yaw_follow = variation.yaw_delta_rad
+    return StrokeShape(back_offset_m=moved(shape.back_offset_m, variation.back_delta_m),
+                       hit_offset_m=moved(shape.hit_offset_m, variation.hit_delta_m, variation.amplitude_scale),
+                       follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m, variation.amplitude_scale),
+                       back_yaw_rad=shape.back_yaw_rad + yaw_back, hit_yaw_rad=shape.hit_yaw_rad + yaw_hit,
+                       follow_yaw_rad=shape.follow_yaw_rad + yaw_follow)
+
+
+def minimum_jerk_time(progress: float) -> float:
+    """The normalised time tau at which minimum-jerk progress reaches `progress` (bisection: s is monotonic)."""
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if minimum_jerk(middle)[0] < progress:
+            low = middle
+        else:
+            high = middle
+    return 0.5 * (low + high)
 
 
 @dataclass(frozen=True)
@@ -164,47 +308,63 @@ class ViaPoint:
 
 
 class StrokePath:
-    """Via-point of the paddle centre over time for one stroke, starting at the ready (home) pose."""
+    """Via-point of the paddle centre over time for one take of a stroke, starting at the ready (home) pose."""
 
-    def __init__(self, swing: str, config: TeacherConfig, home_position_m: np.ndarray):
+    def __init__(self, swing: str, config: TeacherConfig, home_position_m: np.ndarray,
+                 variation: SwingVariation = SwingVariation()):
         if swing not in STROKES:
             raise ValueError(f'swing must be one of {SWINGS}, got {swing!r}')
-        shape = STROKES[swing]
+        variation.validate()
+        shape = varied_shape(STROKES[swing], variation)
         self.config = config
+        self.variation = variation
+        self.backswing_s = config.backswing_s * variation.backswing_scale
+        self.forward_swing_s = config.forward_swing_s * variation.forward_swing_scale
         self.ready = np.asarray(home_position_m, dtype=float)
-        # The forward swing's control points as one array, built once (`at` runs several times per 500 Hz
-        # tick); back, hit and follow are views of its rows.
-        self._swing_points_m = self.ready + np.array([shape.back_offset_m, shape.hit_offset_m, shape.follow_offset_m])
-        self.back, self.hit, self.follow = self._swing_points_m
+        swing_points_m = self.ready + np.array([shape.back_offset_m, shape.hit_offset_m, shape.follow_offset_m])
+        self.back, self.hit, self.follow = swing_points_m
         self.yaws = (0.0, shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad)
-        self._swing_yaws_rad = np.array(self.yaws[1:])
+        # The forward swing is the quadratic through back (u=0), hit (u=h) and follow-through (u=1) in its
+        # path parameter u; its coefficients (rows: 1, u, u^2) are built once, since `at` runs several
+        # times per 500 Hz tick. Lagrange basis: (u-h)(u-1)/h, u(u-1)/(h(h-1)), u(u-h)/(1-h).
+        h = variation.hit_fraction
+        lagrange = np.array([[1.0, 0.0, 0.0],
+                             [-(1.0 + h) / h, -1.0 / (h * (h - 1.0)), -h / (1.0 - h)],
+                             [1.0 / h, 1.0 / (h * (h - 1.0)), 1.0 / (1.0 - h)]])
+        self._swing_coefficients_m = lagrange @ swing_points_m
+        self._swing_yaw_coefficients_rad = lagrange @ np.array(self.yaws[1:])
+        self._hit_tau = minimum_jerk_time(h)   # u = h is reached at this fraction of the forward swing
+
+    @property
+    def stroke_s(self) -> float:
+        """Back-swing, forward swing and follow-through of this take."""
+        return self.backswing_s + self.forward_swing_s
 
     @property
     def duration_s(self) -> float:
-        return self.config.clip_s
+        return self.config.lead_in_s + self.stroke_s + self.config.end_hold_s
 
     def hit_time_s(self) -> float:
-        return self.config.lead_in_s + self.config.backswing_s + 0.5 * self.config.forward_swing_s
+        return self.config.lead_in_s + self.backswing_s + self._hit_tau * self.forward_swing_s
 
     def at(self, t_s: float) -> ViaPoint:
         """The via-point t_s into the clip (lead-in, stroke, end hold)."""
-        c = self.config
-        t_s = t_s - c.lead_in_s
+        t_s = t_s - self.config.lead_in_s
         if t_s < 0.0:
             return ViaPoint(self.ready.copy(), np.zeros(3), 0.0, 0.0)
-        if t_s < c.backswing_s:
-            s, ds = minimum_jerk(t_s / c.backswing_s)
-            ds /= c.backswing_s
+        if t_s < self.backswing_s:
+            s, ds = minimum_jerk(t_s / self.backswing_s)
+            ds /= self.backswing_s
             _, yaw_back, _, _ = self.yaws
             return ViaPoint(self.ready + s * (self.back - self.ready), ds * (self.back - self.ready),
                             s * yaw_back, ds * yaw_back)
-        # Forward swing: the quadratic through back (s=0), hit (s=1/2), follow-through (s=1).
-        s, ds = minimum_jerk((t_s - c.backswing_s) / c.forward_swing_s)
-        ds /= c.forward_swing_s
-        weights = np.array([(1 - s) * (1 - 2 * s), 4 * s * (1 - s), s * (2 * s - 1)])
-        dweights = np.array([4 * s - 3, 4 - 8 * s, 4 * s - 1])
-        points, yaws = self._swing_points_m, self._swing_yaws_rad
-        return ViaPoint(weights @ points, ds * (dweights @ points), float(weights @ yaws), float(ds * (dweights @ yaws)))
+        # Forward swing: u(t) minimum-jerk from 0 to 1 along the quadratic.
+        u, du = minimum_jerk((t_s - self.backswing_s) / self.forward_swing_s)
+        du /= self.forward_swing_s
+        powers = np.array([1.0, u, u * u])
+        dpowers = np.array([0.0, 1.0, 2.0 * u])
+        points, yaws = self._swing_coefficients_m, self._swing_yaw_coefficients_rad
+        return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws), float(du * (dpowers @ yaws)))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -245,7 +405,8 @@ class VirtualTeacher:
     with /sim/hand_wrench) while the stroke is defined for the paddle centre.
     """
 
-    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = rm.TOOL_FRAME):
+    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = rm.TOOL_FRAME,
+                 variation: SwingVariation = SwingVariation()):
         config.validate()
         self.config = config
         self.swing = swing
@@ -257,7 +418,7 @@ class VirtualTeacher:
         self.home_rotation = home_centre.rotation.copy()
         # Both frames are fixed to the last link: the grip's pose relative to the paddle centre is constant.
         self.centre_to_grip = home_centre.actInv(self.kinematics.pose(home, self.grip_id))
-        self.path = StrokePath(swing, config, home_centre.translation)
+        self.path = StrokePath(swing, config, home_centre.translation, variation)
         self.phase = 'approach'
         self._phase_start_s: float | None = None
         self._approach_from: ViaPoint | None = None

@@ -5,7 +5,10 @@ torque about the gripped point `grip_frame`) so that drag_teach moves the arm al
 stroke (teacher.py), and brackets the stroke with /recorder/start (stylepong_msgs/StartClip, label =
 the swing) and /recorder/stop (std_srvs/Trigger). Steps: wait for joint states (and for someone
 commanding the arm, i.e. drag_teach), bring the paddle to the ready pose, start the recorder, play the
-stroke, stop the recorder, let go, exit (exit code 0 when a clip was recorded).
+stroke, stop the recorder, let go, exit (exit code 0 when a clip was recorded). Each take varies like a
+person's (teacher.sample_variation): `seed` picks the take (the same seed, the same stroke), `variation`
+scales how far it departs from the nominal stroke (0: the nominal stroke). Defaults:
+config/virtual_teacher.yaml.
 Subscribes /joint_states, /forward_position_controller/commands (only to see that the arm is driven).
 """
 from __future__ import annotations
@@ -27,12 +30,14 @@ from std_srvs.srv import Trigger
 
 from stylepong_description import robot_model as rm
 from stylepong_msgs.srv import StartClip
-from stylepong_sim.teacher import SWINGS, TeacherConfig, VirtualTeacher
+from stylepong_sim.teacher import SWINGS, TeacherConfig, VirtualTeacher, sample_variation
 
 _DEFAULTS = TeacherConfig()
 PARAMETERS = {
     'swing': ('forward', f'the stroke to teach: {", ".join(SWINGS)}'),
     'label': ('', 'clip label sent to /recorder/start (empty: the swing)'),
+    'seed': (0, 'which take of the stroke (non-negative; the same seed gives the same take)'),
+    'variation': (1.0, "how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES (0: nominal)"),
     'rate_hz': (500.0, 'rate of the hand wrench'),
     'use_recorder': (True, 'bracket the stroke with /recorder/start and /recorder/stop'),
     'wait_timeout_s': (30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
@@ -67,8 +72,13 @@ class VirtualTeacherNode(Node):
             raise ValueError(f'swing must be one of {SWINGS}, got {p["swing"]!r}')
         if not 10.0 <= p['rate_hz'] <= 2000.0:
             raise ValueError(f'rate_hz must be within 10-2000, got {p["rate_hz"]}')
+        if p['seed'] < 0:
+            raise ValueError(f'seed must be non-negative, got {p["seed"]}')
+        if not 0.0 <= p['variation'] <= 1.0:
+            raise ValueError(f'variation must be within 0-1, got {p["variation"]}')
         config = TeacherConfig(**{k: p[k] for k in TeacherConfig.__dataclass_fields__ if k in p})
-        self.teacher = VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'])
+        variation = sample_variation(p['swing'], p['seed'], p['variation'])
+        self.teacher = VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation)
         self.p = p
         self.label = p['label'] or p['swing']
         self.exit_code: int | None = None   # set when the node is done
@@ -90,8 +100,11 @@ class VirtualTeacherNode(Node):
         self.start_client = self.create_client(StartClip, '/recorder/start')
         self.stop_client = self.create_client(Trigger, '/recorder/stop')
         self.create_timer(1.0 / p['rate_hz'], self._on_tick)
-        self.get_logger().info(f'teaching a {p["swing"]} stroke ({config.stroke_s:.1f} s, a {config.clip_s:.1f} s clip), '
-                               f'label {self.label!r}')
+        path = self.teacher.path
+        self.get_logger().info(f'teaching a {p["swing"]} stroke ({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
+                               f'label {self.label!r}, seed {p["seed"]}, variation {p["variation"]}: '
+                               f'amplitude x{variation.amplitude_scale:.3f}, hit at {variation.hit_fraction:.3f} '
+                               f'of the forward swing')
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9

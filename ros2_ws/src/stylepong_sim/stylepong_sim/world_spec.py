@@ -78,7 +78,11 @@ ARM_KP_NM_PER_RAD = (4000.0, 4000.0, 4000.0, 1000.0, 1000.0, 1000.0)
 ARM_KD_NMS_PER_RAD = (200.0, 200.0, 200.0, 40.0, 40.0, 40.0)
 
 # --- Time -----------------------------------------------------------------------------------------
-PHYSICS_DT_S = 0.001           # ball contacts need <= 1 ms (see notes/libraries.md)
+# The cell's physics step. At 1 ms a ball at up to 15 m/s moves at most 15 mm per step, less than its
+# radius, so the contacts checked at a step's end position (net top, blade rim, robot links) are never
+# missed; MuJoCo's own soft ball contacts would need this step too, and at 1/120 s they gave rebounds
+# from nearly none to many times too strong (docs/DESIGN.md, "Analytic ball contacts").
+PHYSICS_DT_S = 0.001
 POLICY_RATE_HZ = 60.0
 BALL_TIMEOUT_S = 3.0           # a rally not decided by then is a TIMEOUT
 BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its launch is removed

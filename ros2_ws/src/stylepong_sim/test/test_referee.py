@@ -1,4 +1,4 @@
-"""The referee's rules (DESIGN.md evaluation protocol), one rally at a time."""
+"""The referee's rules (docs/DESIGN.md, "Evaluation protocol"), one rally at a time."""
 import pytest
 from stylepong_msgs.msg import RallyEvent as RallyEventMsg
 

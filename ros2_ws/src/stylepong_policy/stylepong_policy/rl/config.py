@@ -1,9 +1,9 @@
 """The one training configuration: explicit hyper-parameters in dataclasses, loaded from and saved to YAML.
 
-A YAML file has the sections `policy`, `ppo`, `runner` and `task`. The first three map onto the
-dataclasses below; unknown keys are errors (a typo must not silently fall back to a default). `task`
-is kept as a plain dict and handed to the task module's own `TaskConfig(**task)`, which owns and
-validates those fields.
+A YAML file has the sections `policy`, `ppo`, `runner`, `task` and, for the motion prior, `amp`.
+All but `task` map onto the dataclasses below; unknown keys are errors (a typo must not silently fall
+back to a default). `task` is kept as a plain dict and handed to the task module's own
+`TaskConfig(**task)`, which owns and validates those fields. No `amp` section: PPO alone.
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from typing import Any
 import yaml
 
 SCHEDULES = ('adaptive', 'fixed', 'linear')
-# Training seeds stay below it, evaluation seeds start at it (DESIGN.md, evaluation protocol), so no
-# reported figure comes from a world the policy was trained in.
+# Training and validation seeds stay below it, evaluation seeds start at it, so no reported figure comes
+# from a world the policy was trained or selected in (docs/DESIGN.md, "Evaluation protocol").
 FIRST_EVALUATION_SEED = 1000
 
 
@@ -63,11 +63,49 @@ class RunnerConfig:
 
 
 @dataclass
+class AMPConfig:
+    """The adversarial motion prior (stylepong_policy.rl.amp); config/amp.yaml says why each value."""
+    dataset: str = ''                    # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
+    speed_factors: list[int] | None = None   # clips used (None: all; [1]: the originals only, "amp-noaug")
+    sequence_length: int = 4             # L arm states per discriminator window, at the policy rate
+    hidden_dims: list[int] = field(default_factory=lambda: [512, 256])
+    activation: str = 'elu'
+    normalizer_clip: float = 5.0
+    learning_rate: float = 1e-4
+    weight_decay_trunk: float = 1e-4
+    weight_decay_head: float = 1e-2
+    grad_penalty: float = 5.0            # weight of E_ref |grad D|^2
+    updates_per_iteration: int = 8       # discriminator minibatch steps per PPO update
+    batch_size: int = 4096               # reference and policy windows per discriminator step (each)
+    replay_size: int = 200000            # policy windows kept for the discriminator's negatives
+    style_reward: str = 'lsgan'          # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
+    w_task: float = 1.0
+    w_style: float = 0.05
+
+    def validate(self) -> None:
+        positive = {'sequence_length': self.sequence_length, 'learning_rate': self.learning_rate,
+                    'batch_size': self.batch_size, 'replay_size': self.replay_size,
+                    'normalizer_clip': self.normalizer_clip}
+        for name, value in positive.items():
+            if not value > 0:
+                raise ValueError(f'amp.{name} must be positive, got {value}')
+        for name in ('weight_decay_trunk', 'weight_decay_head', 'grad_penalty', 'updates_per_iteration', 'w_task',
+                     'w_style'):
+            if getattr(self, name) < 0:
+                raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
+        if self.style_reward not in ('lsgan', 'log'):
+            raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
+        if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):
+            raise ValueError(f'amp.speed_factors must be null or a list of factors >= 1, got {self.speed_factors}')
+
+
+@dataclass
 class TrainConfig:
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
     runner: RunnerConfig = field(default_factory=RunnerConfig)
     task: dict[str, Any] = field(default_factory=dict)
+    amp: AMPConfig | None = None         # None: PPO on the task reward alone
 
     def validate(self) -> 'TrainConfig':
         p, r = self.ppo, self.runner
@@ -90,19 +128,25 @@ class TrainConfig:
             raise ValueError(f'runner.seed must not be negative, got {r.seed}')
         if not isinstance(self.task, dict):
             raise ValueError(f'task must be a mapping of TaskConfig fields, got {type(self.task).__name__}')
+        if self.amp is not None:
+            self.amp.validate()
         return self
 
 
 _SECTIONS = {'policy': PolicyConfig, 'ppo': PPOConfig, 'runner': RunnerConfig}
+_OPTIONAL_SECTIONS = {'amp': AMPConfig}
 
 
 def config_from_dict(data: dict[str, Any] | None) -> TrainConfig:
     data = dict(data or {})
-    unknown = set(data) - set(_SECTIONS) - {'task'}
+    known = set(_SECTIONS) | set(_OPTIONAL_SECTIONS) | {'task'}
+    unknown = set(data) - known
     if unknown:
-        raise ValueError(f'unknown config sections {sorted(unknown)}; expected {sorted(_SECTIONS) + ["task"]}')
+        raise ValueError(f'unknown config sections {sorted(unknown)}; expected {sorted(known)}')
     sections = {}
-    for name, cls in _SECTIONS.items():
+    for name, cls in {**_SECTIONS, **_OPTIONAL_SECTIONS}.items():
+        if name in _OPTIONAL_SECTIONS and data.get(name) is None:
+            continue
         values = data.get(name) or {}
         if not isinstance(values, dict):
             raise ValueError(f'config section {name!r} must be a mapping')

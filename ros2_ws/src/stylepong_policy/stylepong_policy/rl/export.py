@@ -1,19 +1,27 @@
-"""Export the actor for deployment: TorchScript with the observation normaliser inside, plus a sidecar JSON.
+"""Export the actor for deployment: TorchScript and ONNX with the observation normaliser inside, plus a sidecar.
 
-The TorchScript file maps the raw observation vector of the spec module to the mean action (the raw
-policy output the spec module decodes into joint position targets). The sidecar `<name>.json` says
-which spec it was trained against (spec version, rates, joint names, observation layout, action
-decoding parameters) and carries the file's SHA-256, so a player refuses an actor built for a
-different observation/action contract instead of silently feeding it the wrong numbers.
+Both files map the raw observation vector of the spec module to the mean action (the raw policy output
+the spec module decodes into joint position targets):
+  <name>.pt    TorchScript (torch or libtorch players, `evaluate`), checked against
+  <name>.json  its sidecar: the contract (spec version, rates, joint names, observation layout, action
+               decoding), the file's SHA-256, the network and training facts;
+  <name>.onnx  the same function for onnxruntime (the `player` default: no torch on the robot computer),
+               the sidecar's contract in its metadata_props (stylepong_policy.actor_contract).
+A player refuses an actor built for a different observation/action contract instead of silently feeding
+it the wrong numbers.
+
+The ONNX file of an already exported actor (e.g. the shipped one) is written with
+    python3 -m stylepong_policy.rl.export --onnx ros2_ws/src/stylepong_policy/models/ppo_actor.pt
 """
 from __future__ import annotations
 
+import argparse
 import contextlib
 import copy
-import hashlib
 import json
 import os
 import pathlib
+import sys
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -21,17 +29,16 @@ from typing import Any
 import torch
 from torch import nn
 
+from stylepong_policy.actor_contract import (  # noqa: F401  (re-exported: the names callers import from here)
+    CONTRACT_KEYS, ONNX_INPUT, ONNX_OUTPUT, SIDECAR_FORMAT, SIDECAR_VERSION, ActorMismatchError,
+    current_spec_contract, file_sha256, jsonable, onnx_metadata_props, onnx_path, read_sidecar, sidecar_path)
+
 from .networks import ActorCritic
 
-SIDECAR_FORMAT = 'stylepong-actor'
-SIDECAR_VERSION = 1
-# The contract between an actor and whoever runs it: all must match exactly for an actor to load.
-CONTRACT_KEYS = ('spec_version', 'action_rate_hz', 'joint_names', 'obs_layout', 'num_obs', 'num_actions',
-                 'action_decoding')
-
-
-class ActorMismatchError(ValueError):
-    """The actor file does not fit the running code's observation/action spec (or is damaged)."""
+# The ONNX opset: what onnxruntime 1.32 runs natively, and Gemm/Elu/Clip as the MLP needs them.
+ONNX_OPSET = 17
+# ONNX and TorchScript must agree this closely on the export's probe (float32 rounding of one MLP).
+ONNX_TOLERANCE = 1e-5
 
 
 class DeployedActor(nn.Module):
@@ -48,10 +55,15 @@ class DeployedActor(nn.Module):
 
 @contextlib.contextmanager
 def _quiet_torchscript():
-    """torch 2.13 flags torch.jit as deprecated in favour of torch.export; TorchScript is still what a
-    Python or libtorch player loads in one call, so only that warning is silenced, only here."""
+    """torch 2.13 flags torch.jit (and the TorchScript-based ONNX exporter) as deprecated in favour of
+    torch.export; TorchScript is still what a Python or libtorch player loads in one call, and the
+    TorchScript exporter is the one that takes a frozen ScriptModule without onnxscript, so only those
+    warnings are silenced, only here."""
     with warnings.catch_warnings():
         warnings.filterwarnings('ignore', message=r'`torch\.jit\.', category=DeprecationWarning)
+        warnings.filterwarnings('ignore', message=r'.*legacy TorchScript-based ONNX export', category=DeprecationWarning)
+        warnings.filterwarnings('ignore', message=r'The feature will be removed', category=DeprecationWarning)
+        warnings.filterwarnings('ignore', message=r'no signature found for', category=UserWarning)
         yield
 
 
@@ -73,39 +85,6 @@ class LoadedActor:
         return self.module(obs)
 
 
-def sidecar_path(actor_path: str | pathlib.Path) -> pathlib.Path:
-    return pathlib.Path(actor_path).with_suffix('.json')
-
-
-def _jsonable(value: Any) -> Any:
-    """Tuples to lists and numpy/torch scalars to numbers, so a round trip through JSON compares equal."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if hasattr(value, 'tolist'):
-        return _jsonable(value.tolist())
-    return value
-
-
-def current_spec_contract() -> dict[str, Any]:
-    """The running code's observation/action contract, read from `stylepong_policy.spec`."""
-    from stylepong_policy import spec
-    layout = [[str(name), int(size)] for name, size in spec.OBS_LAYOUT]
-    return _jsonable({'spec_version': spec.SPEC_VERSION, 'action_rate_hz': float(spec.ACTION_RATE_HZ),
-                      'joint_names': list(spec.JOINT_NAMES), 'obs_layout': layout,
-                      'num_obs': spec.NUM_OBS, 'num_actions': spec.NUM_ACTIONS,
-                      'action_decoding': spec.action_decoding()})
-
-
-def file_sha256(path: str | pathlib.Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, 'rb') as f:
-        for chunk in iter(lambda: f.read(1 << 20), b''):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
 def build_deployed_actor(actor_critic: ActorCritic) -> torch.jit.ScriptModule:
     """Script + freeze a CPU copy of the actor and its normaliser (the training model is left untouched)."""
     normalizer = (copy.deepcopy(actor_critic.obs_normalizer) if actor_critic.normalize_observations
@@ -116,11 +95,51 @@ def build_deployed_actor(actor_critic: ActorCritic) -> torch.jit.ScriptModule:
         return torch.jit.freeze(torch.jit.script(module))
 
 
-def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: dict[str, Any],
-                 training: dict[str, Any] | None = None) -> tuple[pathlib.Path, pathlib.Path]:
-    """Write the TorchScript actor at `path` and its sidecar JSON beside it; returns both paths."""
+def _onnx_metadata(sidecar: dict[str, Any]) -> dict[str, Any]:
+    """What the ONNX file carries: the sidecar less what describes the .pt file itself."""
+    metadata = {k: v for k, v in sidecar.items() if k not in ('actor_file', 'actor_sha256')}
+    metadata['exported_from'] = {'file': sidecar.get('actor_file'), 'sha256': sidecar.get('actor_sha256')}
+    return metadata
+
+
+def export_onnx(module: torch.jit.ScriptModule, path: str | pathlib.Path, metadata: dict[str, Any]) -> pathlib.Path:
+    """Write `module` as ONNX at `path` (batch dimension dynamic) with `metadata` in its metadata_props,
+    after checking that onnxruntime computes what the module computes. Returns the path."""
+    import onnx
+    import onnxruntime
+
     path = pathlib.Path(path)
-    contract = _jsonable(contract)
+    num_obs = int(metadata['num_obs'])
+    tmp = path.with_name(path.name + '.tmp')
+    probe = torch.randn(16, num_obs) * 3.0
+    with _quiet_torchscript(), torch.no_grad():
+        expected = module(probe).numpy()
+        torch.onnx.export(module, (probe[:1],), str(tmp), dynamo=False, opset_version=ONNX_OPSET,
+                          input_names=[ONNX_INPUT], output_names=[ONNX_OUTPUT],
+                          dynamic_axes={ONNX_INPUT: {0: 'batch'}, ONNX_OUTPUT: {0: 'batch'}})
+    model = onnx.load(str(tmp))
+    del model.metadata_props[:]
+    for key, value in onnx_metadata_props(metadata).items():
+        model.metadata_props.add(key=key, value=value)
+    model.doc_string = 'StylePong actor: raw observation [batch, num_obs] -> mean action [batch, num_actions]'
+    onnx.checker.check_model(model)
+    onnx.save(model, str(tmp))
+    session = onnxruntime.InferenceSession(str(tmp), providers=['CPUExecutionProvider'])
+    got = session.run([ONNX_OUTPUT], {ONNX_INPUT: probe.numpy()})[0]
+    error = float(abs(got - expected).max())
+    if error > ONNX_TOLERANCE:
+        tmp.unlink()
+        raise RuntimeError(f'the ONNX actor differs from TorchScript by {error:.2e}; export aborted')
+    os.replace(tmp, path)
+    return path
+
+
+def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: dict[str, Any],
+                 training: dict[str, Any] | None = None, onnx: bool = True) -> tuple[pathlib.Path, pathlib.Path]:
+    """Write the TorchScript actor at `path`, its sidecar JSON beside it and (onnx) `<name>.onnx`;
+    returns (actor path, sidecar path)."""
+    path = pathlib.Path(path)
+    contract = jsonable(contract)
     missing = [k for k in CONTRACT_KEYS if k not in contract]
     if missing:
         raise ValueError(f'contract lacks {missing}')
@@ -147,41 +166,19 @@ def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: 
                            'normalizer_inside': actor_critic.normalize_observations,
                            'input': 'raw observation vector in obs_layout order',
                            'output': 'mean action (raw policy output, decoded by the spec module)'},
-               'training': _jsonable(training or {})}
+               'training': jsonable(training or {})}
     json_path = sidecar_path(path)
     json_path.write_text(json.dumps(sidecar, indent=2) + '\n')
+    if onnx:
+        export_onnx(deployed, onnx_path(path), _onnx_metadata(sidecar))
     return path, json_path
 
 
 def load_actor(path: str | pathlib.Path, expected: dict[str, Any] | None = None) -> LoadedActor:
-    """Load an exported actor, refusing it (ActorMismatchError) unless its sidecar matches `expected`.
-
-    `expected` defaults to the running code's spec contract (`current_spec_contract()`).
-    """
+    """Load an exported TorchScript actor, refusing it (ActorMismatchError) unless its sidecar matches
+    `expected` (default: the running code's spec contract, `current_spec_contract()`)."""
     path = pathlib.Path(path)
-    json_path = sidecar_path(path)
-    if not path.is_file():
-        raise ActorMismatchError(f'actor file {path} does not exist')
-    if not json_path.is_file():
-        raise ActorMismatchError(f'actor {path} has no sidecar {json_path.name}: cannot check it fits this spec')
-    try:
-        metadata = json.loads(json_path.read_text())
-    except json.JSONDecodeError as err:
-        raise ActorMismatchError(f'sidecar {json_path} is not valid JSON: {err}') from err
-    if metadata.get('format') != SIDECAR_FORMAT:
-        raise ActorMismatchError(f'{json_path} is not a StylePong actor sidecar')
-    if metadata.get('format_version') != SIDECAR_VERSION:
-        raise ActorMismatchError(f'{json_path} has sidecar version {metadata.get("format_version")}, '
-                                 f'this code reads {SIDECAR_VERSION}')
-    if metadata.get('actor_sha256') != file_sha256(path):
-        raise ActorMismatchError(f'{path.name} does not match the SHA-256 in {json_path.name}: '
-                                 f'the actor file was replaced or damaged')
-    expected = _jsonable(current_spec_contract() if expected is None else expected)
-    differences = [f'{key}: actor has {metadata.get(key)!r}, this code has {expected[key]!r}'
-                   for key in CONTRACT_KEYS if key in expected and metadata.get(key) != expected[key]]
-    if differences:
-        raise ActorMismatchError(f'actor {path} was trained for a different observation/action spec:\n  '
-                                 + '\n  '.join(differences))
+    metadata = read_sidecar(path, expected)
     with _quiet_torchscript():
         module = torch.jit.load(str(path), map_location='cpu')
     module.eval()
@@ -191,3 +188,29 @@ def load_actor(path: str | pathlib.Path, expected: dict[str, Any] | None = None)
         raise ActorMismatchError(f'actor {path} outputs shape {tuple(out.shape)}, '
                                  f'its sidecar promises (1, {metadata["num_actions"]})')
     return LoadedActor(module=module, metadata=metadata, path=path)
+
+
+def write_onnx_for(actor_path: str | pathlib.Path) -> pathlib.Path:
+    """`<name>.onnx` for an exported `<name>.pt` (checked against its sidecar and this code's spec)."""
+    actor = load_actor(actor_path)
+    return export_onnx(actor.module, onnx_path(actor.path), _onnx_metadata(actor.metadata))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog='python3 -m stylepong_policy.rl.export',
+                                     description='Write the ONNX file of exported TorchScript actors.')
+    parser.add_argument('--onnx', nargs='+', type=pathlib.Path, required=True, metavar='ACTOR.pt',
+                        help='exported actors (with their sidecar .json); writes <name>.onnx beside each')
+    args = parser.parse_args(argv)
+    for actor_path in args.onnx:
+        try:
+            written = write_onnx_for(actor_path)
+        except ActorMismatchError as err:
+            print(f'export: {err}', file=sys.stderr)
+            return 2
+        print(f'wrote {written} ({written.stat().st_size} bytes), contract in its metadata_props')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -105,8 +105,14 @@ def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
     return {key: [float(r[key]) if r[key] not in ('', None) else math.nan for r in rows] for key in fieldnames}
 
 
+RATE_COLUMNS = (('success_rate', 'success rate'), ('hit_rate', 'hit rate'))
+STYLE_COLUMNS = (('step_reward/style', 'style reward per step'), ('disc/d_reference', 'D on reference'),
+                 ('disc/d_policy', 'D on policy'))
+
+
 def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Path, title: str = '') -> None:
-    """Success rate, hit rate and mean episode return against samples, with wall time on a twin axis."""
+    """Success and hit rates (where the env logs them), mean episode return and, for a run with a motion
+    prior, the style reward and the discriminator's outputs, against samples, with wall time on top."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -115,17 +121,27 @@ def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Pa
     if not data:
         raise ValueError(f'{csv_path} holds no iterations to plot')
     samples_m = [s / 1e6 for s in data['env_steps']]
-    fig, (ax_rate, ax_ret) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-    ax_rate.plot(samples_m, data['success_rate'], label='success rate')
-    ax_rate.plot(samples_m, data['hit_rate'], label='hit rate', alpha=0.7)
+    style = [(key, label) for key, label in STYLE_COLUMNS if key in data]
+    panels = 3 if style else 2
+    fig, axes = plt.subplots(panels, 1, figsize=(8, 3.5 * panels), sharex=True)
+    ax_rate, ax_ret = axes[0], axes[1]
+    for key, label in RATE_COLUMNS:
+        if key in data:
+            ax_rate.plot(samples_m, data[key], label=label)
     ax_rate.set_ylim(-0.02, 1.02)
-    ax_rate.set_ylabel('rate over balls decided per iteration')
+    ax_rate.set_ylabel('rate over episodes per iteration')
     ax_rate.grid(True, alpha=0.3)
     ax_rate.legend(loc='lower right')
     ax_ret.plot(samples_m, data['mean_return'], color='tab:green')
     ax_ret.set_ylabel('mean episode return')
-    ax_ret.set_xlabel('samples (millions)')
     ax_ret.grid(True, alpha=0.3)
+    if style:
+        for key, label in style:
+            axes[2].plot(samples_m, data[key], label=label)
+        axes[2].set_ylabel('motion prior')
+        axes[2].grid(True, alpha=0.3)
+        axes[2].legend(loc='lower right')
+    axes[-1].set_xlabel('samples (millions)')
     hours = [t / 3600.0 for t in data['wall_time_s']]
     top = ax_rate.secondary_xaxis(
         'top', functions=(lambda x: _interp(x, samples_m, hours), lambda h: _interp(h, hours, samples_m)))

@@ -1,8 +1,9 @@
-"""The on-policy runner: rollouts in a batched env, PPO updates, checkpoints with resume, logs.
+"""The on-policy runner: rollouts in a batched env, PPO updates (with a motion prior's style reward when
+one is given), checkpoints with resume, logs.
 
-The env follows the interface of `stylepong_policy.task.TableTennisEnv` (reset/step on batched
-tensors, auto-reset, an info dict with time-outs and ball outcomes); nothing else about it is assumed,
-so any env with that interface trains here (the tests use a small toy task).
+The env follows the batched-env contract of stylepong_policy.rl.env; nothing else about it is assumed,
+so any env with that interface trains here (the tests use a small toy task). What the env counts about
+its episodes reaches the logs through the contract's 'log'.
 """
 from __future__ import annotations
 
@@ -13,11 +14,13 @@ import random
 import sys
 import time
 from collections import deque
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import torch
 
+from . import env as env_contract
+from .amp import MotionPrior
 from .config import TrainConfig, config_to_dict
 from .logger import TrainingLog
 from .networks import ActorCritic
@@ -105,30 +108,28 @@ def read_checkpoint(path: str | pathlib.Path) -> dict[str, Any]:
 
 
 class EpisodeStatistics:
-    """Per-iteration tallies of episodes and balls from the env's step outputs."""
+    """Per-iteration tallies: returns and lengths of ended episodes, the env's episode log averaged with
+    its weights, and the means of the reward's parts."""
 
-    def __init__(self, num_envs: int, device: torch.device, failure_reasons: Sequence[str], history: int = 200):
-        self.failure_reasons = list(failure_reasons)
+    def __init__(self, num_envs: int, device: torch.device, history: int = 200):
         self.current_return = torch.zeros(num_envs, device=device)
         self.current_length = torch.zeros(num_envs, device=device)
-        # 'ball_hit' may flag only the step of the paddle contact: remember it until the ball is decided.
-        self.hit_this_ball = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.returns: deque[float] = deque(maxlen=history)
         self.lengths: deque[float] = deque(maxlen=history)
         self.reset_iteration()
 
     def reset_iteration(self) -> None:
         self.episodes = 0
-        self.balls = 0
-        self.successes = 0
-        self.hits = 0
-        self.reason_counts = torch.zeros(max(len(self.failure_reasons), 1), dtype=torch.int64)
-        self.term_sums: dict[str, float] = {}
-        self.term_counts: dict[str, int] = {}
+        self.log_sums: dict[str, float] = {}
+        self.log_weights: dict[str, int] = {}
+        self.reward_sums: dict[str, float] = {}
+        self.steps = 0
 
-    def record(self, rewards: torch.Tensor, dones: torch.Tensor, info: dict[str, Any]) -> None:
+    def record(self, rewards: torch.Tensor, dones: torch.Tensor, extras: dict[str, Any],
+               reward_parts: dict[str, torch.Tensor] | None = None) -> None:
         self.current_return += rewards
         self.current_length += 1
+        self.steps += 1
         if bool(dones.any()):
             done_idx = dones.nonzero(as_tuple=False).squeeze(-1)
             self.returns.extend(self.current_return[done_idx].tolist())
@@ -136,43 +137,34 @@ class EpisodeStatistics:
             self.current_return[done_idx] = 0.0
             self.current_length[done_idx] = 0.0
             self.episodes += int(done_idx.numel())
-        ball_done = info.get('ball_done')
-        if 'ball_hit' in info:
-            self.hit_this_ball |= info['ball_hit']
-        if ball_done is not None and bool(ball_done.any()):
-            self.balls += int(ball_done.sum())
-            self.successes += int((info['ball_success'] & ball_done).sum())
-            self.hits += int((self.hit_this_ball & ball_done).sum())
-            self.hit_this_ball &= ~ball_done
-            if 'ball_reason' in info and self.failure_reasons:
-                reasons = info['ball_reason'][ball_done].clamp(0, len(self.failure_reasons) - 1)
-                self.reason_counts += torch.bincount(reasons.cpu(), minlength=len(self.failure_reasons))
-        for key, value in (info.get('episode') or {}).items():
-            self.term_sums[key] = self.term_sums.get(key, 0.0) + float(value)
-            self.term_counts[key] = self.term_counts.get(key, 0) + 1
+        weight = int(extras.get(env_contract.EXTRAS_LOG_WEIGHT, 0))
+        if weight > 0:
+            for key, value in extras[env_contract.EXTRAS_LOG].items():
+                self.log_sums[key] = self.log_sums.get(key, 0.0) + float(value) * weight
+                self.log_weights[key] = self.log_weights.get(key, 0) + weight
+        for key, value in (reward_parts or {}).items():
+            self.reward_sums[key] = self.reward_sums.get(key, 0.0) + float(value.mean())
 
     def summary(self) -> dict[str, float]:
         out = {'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
                'mean_episode_length': float(np.mean(self.lengths)) if self.lengths else math.nan,
-               'episodes': self.episodes, 'balls': self.balls,
-               'success_rate': self.successes / self.balls if self.balls else math.nan,
-               'hit_rate': self.hits / self.balls if self.balls else math.nan}
-        for i, name in enumerate(self.failure_reasons):
-            out[f'ball/{name}'] = int(self.reason_counts[i]) / self.balls if self.balls else math.nan
-        for key, total in self.term_sums.items():
-            out[f'episode/{key}'] = total / self.term_counts[key]
+               'episodes': self.episodes}
+        for key, total in self.log_sums.items():
+            out[key] = total / self.log_weights[key]
+        for key, total in self.reward_sums.items():
+            out[f'step_reward/{key}'] = total / max(self.steps, 1)
         return out
 
 
 class OnPolicyRunner:
-    def __init__(self, env, cfg: TrainConfig, run_dir: str | pathlib.Path, failure_reasons: Sequence[str] = (),
-                 tensorboard: bool = True):
+    def __init__(self, env: env_contract.VecEnv, cfg: TrainConfig, run_dir: str | pathlib.Path,
+                 tensorboard: bool = True, motion_prior: MotionPrior | None = None):
         self.env = env
         self.cfg = cfg
         self.run_dir = pathlib.Path(run_dir)
         self.device = torch.device(env.device)
-        self.failure_reasons = list(failure_reasons)
         self.tensorboard = tensorboard
+        self.motion_prior = motion_prior
         p = cfg.policy
         self.actor_critic = ActorCritic(env.num_obs, env.num_critic_obs, env.num_actions,
                                         actor_hidden_dims=p.actor_hidden_dims, critic_hidden_dims=p.critic_hidden_dims,
@@ -202,6 +194,7 @@ class OnPolicyRunner:
                 'optimizer': self.alg.optimizer.state_dict(), 'learning_rate': self.alg.learning_rate,
                 'config': config_to_dict(self.cfg), 'rng': capture_rng_state(self.shuffle),
                 'sessions': [dict(s) for s in self.sessions],
+                'motion_prior': self.motion_prior.state_dict() if self.motion_prior is not None else None,
                 'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))}}
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
@@ -228,6 +221,8 @@ class OnPolicyRunner:
         self.wall_time_s = float(data['wall_time_s'])
         self.last_stats = dict(data.get('last_stats') or {})
         self.sessions = [dict(s) for s in data.get('sessions') or []]
+        if self.motion_prior is not None and data.get('motion_prior') is not None:
+            self.motion_prior.load_state_dict(data['motion_prior'])
         if restore_rng:
             restore_rng_state(data['rng'], self.shuffle)
         return path
@@ -250,7 +245,7 @@ class OnPolicyRunner:
     def _collect(self, obs: torch.Tensor, critic_obs: torch.Tensor, stats: EpisodeStatistics):
         """One rollout of num_steps_per_env steps into the storage; returns the next obs and timings."""
         gamma = self.cfg.ppo.gamma
-        world_s = policy_s = 0.0
+        world_s = policy_s = style_s = 0.0
         self.storage.clear()
         with torch.inference_mode():
             for _ in range(self.storage.num_steps):
@@ -258,16 +253,24 @@ class OnPolicyRunner:
                 step = self.alg.act(obs, critic_obs)
                 self._sync()
                 t1 = time.perf_counter()
-                obs, critic_obs, rewards, dones, info = self.env.step(step.actions)
+                obs, critic_obs, rewards, dones, extras = self.env.step(step.actions)
                 self._sync()
                 t2 = time.perf_counter()
                 rewards = rewards.to(torch.float32)
                 if not (torch.isfinite(obs).all() and torch.isfinite(critic_obs).all() and torch.isfinite(rewards).all()):
                     raise FloatingPointError('the env returned non-finite observations or rewards; '
                                              'stopping before they poison the normalisers')
-                stats.record(rewards, dones, info)
+                parts = None
+                if self.motion_prior is not None:
+                    style = self.motion_prior.observe(extras[env_contract.EXTRAS_STYLE_STATE], dones,
+                                                      self.env.style_state())
+                    parts = {'task': rewards, 'style': style}
+                    rewards = self.motion_prior.mix(rewards, style)
+                    self._sync()
+                    style_s += time.perf_counter() - t2
+                stats.record(rewards, dones, extras, parts)
                 # A time-limit end is not a real terminal: bootstrap with the value of the state it was cut at.
-                time_outs = info.get('time_outs')
+                time_outs = extras.get(env_contract.EXTRAS_TIME_OUTS)
                 if time_outs is not None:
                     rewards = rewards + gamma * step.values * time_outs.to(torch.float32)
                 self.storage.add(step.norm_obs, step.norm_critic_obs, step.actions, rewards, dones.to(torch.float32),
@@ -276,20 +279,20 @@ class OnPolicyRunner:
                 policy_s += t1 - t0
             last_values = self.alg.value(critic_obs)
             self.storage.compute_returns(last_values, gamma, self.cfg.ppo.lam, self.cfg.ppo.normalize_advantages)
-        return obs, critic_obs, world_s, policy_s
+        return obs, critic_obs, world_s, policy_s, style_s
 
     def learn(self, until_iteration: int, progress_bar: bool | None = None) -> dict[str, Any]:
         """Train until the run has `until_iteration` iterations; Ctrl-C stops after saving a checkpoint."""
         progress_bar = self.cfg.runner.progress_bar if progress_bar is None else progress_bar
         start = self.iteration
         log = TrainingLog(self.run_dir, start, tensorboard=self.tensorboard)
-        stats = EpisodeStatistics(self.env.num_envs, self.device, self.failure_reasons)
+        stats = EpisodeStatistics(self.env.num_envs, self.device)
         bar = None
         if progress_bar and until_iteration > start:
             from tqdm import tqdm
             tty = sys.stderr.isatty()
             bar = tqdm(total=until_iteration, initial=start, unit='it', dynamic_ncols=True,
-                       mininterval=0.5 if tty else 30.0, desc='PPO')
+                       mininterval=0.5 if tty else 30.0, desc='PPO' if self.motion_prior is None else 'AMP')
         self.actor_critic.train()
         batch = self.storage.num_steps * self.env.num_envs
         session = {'start_iteration': start, 'end_iteration': start, 'wall_time_s': 0.0,
@@ -298,15 +301,23 @@ class OnPolicyRunner:
         try:
             with torch.inference_mode():
                 obs, critic_obs = self.env.reset()
+                if self.motion_prior is not None:
+                    self.motion_prior.start(self.env.style_state())
             while self.iteration < until_iteration:
                 t_start = time.perf_counter()
                 self.alg.apply_schedule(self.iteration, until_iteration)
                 stats.reset_iteration()
-                obs, critic_obs, world_s, policy_s = self._collect(obs, critic_obs, stats)
+                obs, critic_obs, world_s, policy_s, style_s = self._collect(obs, critic_obs, stats)
                 t_learn = time.perf_counter()
                 losses = self.alg.update(self.storage, self.shuffle)
                 self._sync()
+                t_disc = time.perf_counter()
+                if self.motion_prior is not None:
+                    losses.update(self.motion_prior.update())
+                    self._sync()
                 t_end = time.perf_counter()
+                # The discriminator's share of an iteration: scoring windows in the rollout plus its updates.
+                style_s += t_end - t_disc
                 self.iteration += 1
                 self.env_steps += batch
                 iteration_s = t_end - t_start
@@ -316,13 +327,14 @@ class OnPolicyRunner:
                 self.last_stats = {'iteration': self.iteration, 'env_steps': self.env_steps,
                                    'wall_time_s': self.wall_time_s, 'iteration_time_s': iteration_s,
                                    'samples_per_s': batch / iteration_s, 'world_s': world_s, 'policy_s': policy_s,
-                                   'learn_s': t_end - t_learn, 'world_share': world_s / iteration_s,
+                                   'learn_s': t_disc - t_learn, 'style_s': style_s,
+                                   'world_share': world_s / iteration_s, 'style_share': style_s / iteration_s,
                                    **stats.summary(), **losses}
                 log.write(self.last_stats)
                 self._save_checkpoints()
                 if bar is not None:
                     bar.update(1)
-                    bar.set_postfix(success=_fmt(self.last_stats['success_rate']),
+                    bar.set_postfix(success=_fmt(self.last_stats.get('success_rate', math.nan)),
                                     ret=_fmt(self.last_stats['mean_return']),
                                     sps=f'{self.last_stats["samples_per_s"]:.0f}', refresh=False)
         except KeyboardInterrupt:

@@ -1,0 +1,213 @@
+"""What StylePong's nodes share: parameters from one table, throttled warnings, and the executor loop.
+
+    PARAMETERS = (Param('rate_hz', 60.0, 'loop rate', low=1.0, high=1000.0), ...)
+    values = declare_parameters(node, PARAMETERS)      # dict name -> value in the default's type
+    warnings = ThrottledLog(node.get_logger(), period_s=1.0)
+    warnings.warn('joint_state', lambda: f'rejected: {reason}')
+    sys.exit(run_node('player', PlayerNode, config_errors=(ActorMismatchError,)))
+
+Parameters are declared with dynamic typing, so that `-p rate_hz:=60` (an integer) works for a float
+parameter, and then converted and checked here: a wrong type, a value outside its range, a list of the
+wrong length or a name not among its choices raises ParameterError with one line that names the parameter.
+`run_node` turns that (and any error class the node adds) into that line on stderr and exit code 2, so a
+mistyped launch file fails loudly at start instead of running a robot with a half-understood setting.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Union
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+ParameterValue = Union[bool, int, float, str, list]
+EXIT_CONFIG_ERROR = 2
+
+
+class ParameterError(ValueError):
+    """A parameter has the wrong type or value; the message is one line naming it."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One row of a node's parameter table: the default's type is the parameter's type.
+
+    low/high bound numbers (and every element of a numeric list); length fixes a list's length;
+    choices lists the strings a str parameter may take.
+    """
+    name: str
+    default: ParameterValue
+    description: str
+    low: float | None = None
+    high: float | None = None
+    length: int | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = True
+
+    def describe(self) -> str:
+        text = self.description
+        if self.low is not None or self.high is not None:
+            text += f' [{self.low if self.low is not None else "-inf"}, {self.high if self.high is not None else "inf"}]'
+        if self.choices:
+            text += f' (one of {", ".join(self.choices)})'
+        return text
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def typed_value(param: Param, value: Any) -> ParameterValue:
+    """`value` in the type of `param.default`, checked against the row's bounds; ParameterError otherwise."""
+    default = param.default
+    kind = type(default).__name__
+
+    def bad(why: str) -> ParameterError:
+        return ParameterError(f'parameter {param.name} {why}, got {value!r}')
+
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise bad('must be true or false')
+        return value
+    if isinstance(default, (int, float)):
+        if not _is_number(value) or (isinstance(default, int) and not isinstance(value, int)):
+            raise bad(f'must be {"an integer" if isinstance(default, int) else "a number"}')
+        number = type(default)(value)
+        _check_bounds(param, [float(number)], bad)
+        return number
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise bad('must be a string')
+        if param.choices and value not in param.choices:
+            raise bad(f'must be one of {", ".join(param.choices)}')
+        return value
+    if isinstance(default, list):
+        if isinstance(value, (str, bytes)) or not hasattr(value, '__len__'):
+            raise bad('must be a list')
+        items = list(value)
+        if param.length is not None and len(items) != param.length:
+            raise bad(f'must have {param.length} elements')
+        strings = isinstance(default[0], str) if default else bool(items) and isinstance(items[0], str)
+        if strings:
+            if not all(isinstance(v, str) for v in items):
+                raise bad('must be a list of strings')
+            return items
+        if not all(_is_number(v) for v in items):
+            raise bad('must be a list of numbers')
+        numbers = [float(v) for v in items]
+        _check_bounds(param, numbers, bad)
+        return numbers
+    raise TypeError(f'parameter {param.name}: unsupported default type {kind}')
+
+
+def _check_bounds(param: Param, numbers: list[float], bad: Callable[[str], ParameterError]) -> None:
+    low = -math.inf if param.low is None else param.low
+    high = math.inf if param.high is None else param.high
+    for number in numbers:
+        if not math.isfinite(number):
+            raise bad('must be finite')
+        if not low <= number <= high:
+            raise bad(f'must be within [{param.low}, {param.high}]')
+
+
+def declare_parameters(node: Node, table: Iterable[Param]) -> dict[str, ParameterValue]:
+    """Declare every row on `node` (descriptions and bounds visible to `ros2 param describe`) and return
+    the checked values, name -> value. Raises ParameterError on the first bad one."""
+    rows = list(table)
+    for row in rows:
+        descriptor = ParameterDescriptor(description=row.describe(), read_only=row.read_only, dynamic_typing=True)
+        node.declare_parameter(row.name, row.default, descriptor)
+    return {row.name: typed_value(row, node.get_parameter(row.name).value) for row in rows}
+
+
+class ThrottledLog:
+    """Warnings (or infos) throttled per key: at most one per period_s, saying how many were held back.
+
+    `text` may be a callable, so that under a flood of bad messages the text is built only when logged.
+    Times are monotonic wall time: a flood is a flood whatever clock the node runs on.
+    """
+
+    def __init__(self, logger, period_s: float = 1.0, clock: Callable[[], float] = time.monotonic):
+        self._logger = logger
+        self._period_s = period_s
+        self._clock = clock
+        self._last_s: dict[str, float] = {}
+        self._held_back: dict[str, int] = {}
+
+    def warn(self, key: str, text: str | Callable[[], str]) -> bool:
+        return self._log(key, text, self._logger.warning)
+
+    def info(self, key: str, text: str | Callable[[], str]) -> bool:
+        return self._log(key, text, self._logger.info)
+
+    def _log(self, key: str, text, emit: Callable[[str], Any]) -> bool:
+        now = self._clock()
+        if now - self._last_s.get(key, -math.inf) < self._period_s:
+            self._held_back[key] = self._held_back.get(key, 0) + 1
+            return False
+        self._last_s[key] = now
+        message = text() if callable(text) else text
+        held_back = self._held_back.pop(key, 0)
+        if held_back:
+            message += f' ({held_back} more since the last such message)'
+        emit(message)
+        return True
+
+
+def one_line(error: BaseException) -> str:
+    return ' '.join(str(error).split()) or type(error).__name__
+
+
+def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None = None,
+             config_errors: tuple[type[BaseException], ...] = ()) -> int:
+    """Build the node and spin it until Ctrl-C or SIGTERM; returns the process exit code.
+
+    A ParameterError, rclpy's parameter exceptions or any of `config_errors` raised while building the
+    node print `<program>: <reason>` (one line) on stderr and return EXIT_CONFIG_ERROR. The node's
+    `close()`, if it has one, runs on the way out (statistics, files).
+    """
+    # Ctrl-C and SIGTERM only ask the loop below to stop: rclpy's own handler would raise inside a
+    # callback half-way through it.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop_requested: list[int] = []
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda received, _frame: stop_requested.append(received))
+    node = None
+    # The C++ events executor costs a fraction of the Python one per wake-up. Its spin() never returns
+    # to Python (no Ctrl-C), hence spin_once in a loop.
+    executor = EventsExecutor()
+    errors = (ParameterError, InvalidParameterValueException, InvalidParameterTypeException, *config_errors)
+    try:
+        node = make_node()
+        executor.add_node(node)
+        while rclpy.ok() and not stop_requested:
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except errors as error:
+        print(f'{program}: {one_line(error)}', file=sys.stderr)
+        return EXIT_CONFIG_ERROR
+    except RCLError:
+        if rclpy.ok():
+            raise
+        # Stopped while the node was still being built: nothing else to clean up.
+    finally:
+        # The executor lets go of the node's handles first: destroying them while it holds them can hang.
+        executor.shutdown()
+        if node is not None:
+            close = getattr(node, 'close', None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

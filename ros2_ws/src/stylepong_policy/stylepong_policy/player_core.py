@@ -1,0 +1,568 @@
+"""The 60 Hz player without ROS: checks inputs, runs the actor, limits every command, keeps statistics.
+
+player_node.py wires this to topics; tests drive it directly with made-up times and messages.
+
+States
+  disabled  publishes nothing (start-up, or /player/enable false)
+  ready     moves the arm to home at a gentle speed (home_speed_rad_s, home_acceleration_rad_s2), then holds
+  playing   while a fresh ball is in play: observation (spec's layout, built here with numpy) -> actor ->
+            joint position targets (spec's decoding) -> limiter; back to ready when no ball message has
+            been accepted for ball_timeout_s (the ball is gone, or the camera lost it)
+No command at all while the joint states are stale (none accepted for joint_timeout_periods periods):
+ros2_control's forward_position_controller then holds its last target, which is the safe thing; when
+they come back, commands start again from the measured position, at rest.
+
+Timing (the actor was trained with at most 1/60 s between observation and actuation and breaks when
+actuation timing drifts): while playing, a policy step runs when a ball message arrives whose stamp is
+at least (1 - PHASE_TOLERANCE) of a period after the stamp of the ball that drove the previous step, so
+the player is phase-locked to the camera (every second frame of a 120 Hz camera) and acts on each ball
+observation as soon as it arrives. If no such message comes within FALLBACK_PERIODS periods of the last
+step (lost frames, a slower camera), the step runs anyway on the latest ball (checked at every joint
+state). Ready moves, where nothing is fast, run on a plain 60 Hz timer.
+
+Every command passes CommandLimiter: within the URDF position limits less a margin, at most the velocity
+limit per period and the acceleration limit, braking early enough that the position limits hold without
+ever exceeding the acceleration limit. Messages with NaN/inf, the wrong length or joint names, the wrong
+frame, implausible values or stamps are rejected (counted, a throttled warning in the node) and never
+reach the actor.
+"""
+from __future__ import annotations
+
+import collections
+import enum
+import functools
+import math
+import pathlib
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from stylepong_policy import spec
+from stylepong_policy.actor_contract import (ONNX_INPUT, ONNX_OUTPUT, ActorMismatchError, check_contract,
+                                             onnx_path, parse_onnx_metadata)
+from stylepong_sim import world_spec as ws
+
+FRAME_WORLD = 'world'
+# A ball message may drive a step when its stamp is this fraction of a period short of a full period
+# after the previous step's ball: a 120 Hz camera's frames are half a period apart, so exactly every
+# second one qualifies, and jitter of a quarter period in the stamps changes nothing.
+PHASE_TOLERANCE = 0.25
+# No qualifying ball message this many periods after the last step: step on the latest ball anyway.
+FALLBACK_PERIODS = 1.25
+# Steps closer together than this (in arrival time) are refused, whatever the stamps say (a burst).
+MIN_STEP_SPACING_PERIODS = 0.5
+# Measured joints may lie a little outside the URDF limits (encoder noise, a controller's overshoot).
+JOINT_POSITION_TOLERANCE_RAD = 0.05
+JOINT_VELOCITY_FACTOR = 2.0
+STATS_WINDOW = 4096
+
+
+class State(str, enum.Enum):
+    DISABLED = 'disabled'
+    READY = 'ready'
+    PLAYING = 'playing'
+
+
+# --- limits and the command limiter ------------------------------------------------------------------
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint bounds for commands (URDF joint order): positions, velocity, acceleration."""
+    lower_rad: np.ndarray
+    upper_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    acceleration_rad_s2: np.ndarray
+
+    @classmethod
+    def for_commands(cls, position_margin_rad: float, velocity_scale: float,
+                     acceleration_rad_s2: Sequence[float]) -> 'JointLimits':
+        """The URDF's limits narrowed by a margin (positions) and a scale (velocities)."""
+        decoding = spec.action_decoding()
+        lower = np.asarray(decoding['lower_limit_rad'], dtype=float) + position_margin_rad
+        upper = np.asarray(decoding['upper_limit_rad'], dtype=float) - position_margin_rad
+        from stylepong_description import robot_model as rm
+        velocity = np.asarray(rm.joint_limits().velocity_rad_s, dtype=float) * velocity_scale
+        return cls(lower, upper, velocity, np.asarray(acceleration_rad_s2, dtype=float))
+
+
+def stopping_speed(distance_rad: np.ndarray, acceleration_rad_s2: np.ndarray, period_s: float) -> np.ndarray:
+    """The largest speed per period from which CommandLimiter can stop within `distance_rad`.
+
+    The limiter moves x += v * T and changes v by at most a T per period, so from speed v = m u
+    (u = a T) it stops after the distance T (v + (v - u) + (v - 2u) + ...) over the positive terms. For
+    n positive terms and v in ((n-1) u, n u] that is T (n v - u n (n-1) / 2): solved here for v.
+    Consistent by construction: from the largest allowed v, the next period's bound is at least v - u.
+    """
+    d = np.maximum(np.asarray(distance_rad, dtype=float), 0.0)
+    u = acceleration_rad_s2 * period_s
+    steps = d / period_s / u                           # distance in units of u T
+    n = np.maximum(np.ceil((-1.0 + np.sqrt(1.0 + 8.0 * steps)) / 2.0), 1.0)
+    return (d / period_s + u * n * (n - 1.0) / 2.0) / n
+
+
+class CommandLimiter:
+    """Turns targets into commands within position, velocity-per-period and acceleration limits.
+
+    A command segment starts (`start`) at rest at a measured position; each `step` moves toward the
+    target as fast as the limits allow, braking so that it stops at the target (no overshoot unless the
+    target jumps closer than the braking distance) and always before a position limit.
+    """
+
+    def __init__(self, limits: JointLimits, period_s: float):
+        self.limits = limits
+        self.period_s = period_s
+        self.position_rad: np.ndarray | None = None
+        self.velocity_rad_s = np.zeros(len(limits.lower_rad))
+
+    @property
+    def active(self) -> bool:
+        return self.position_rad is not None
+
+    def start(self, position_rad: np.ndarray) -> None:
+        self.position_rad = np.clip(np.asarray(position_rad, dtype=float), self.limits.lower_rad, self.limits.upper_rad)
+        self.velocity_rad_s = np.zeros_like(self.position_rad)
+
+    def stop(self) -> None:
+        self.position_rad = None
+
+    def step(self, target_rad: np.ndarray, max_speed_rad_s: float | None = None,
+             max_acceleration_rad_s2: float | None = None) -> np.ndarray:
+        """The next command toward `target_rad` (optionally slower than the limits: home moves)."""
+        lim = self.limits
+        dt = self.period_s
+        x, v_prev = self.position_rad, self.velocity_rad_s
+        v_max = lim.velocity_rad_s if max_speed_rad_s is None else np.minimum(lim.velocity_rad_s, max_speed_rad_s)
+        a_max = (lim.acceleration_rad_s2 if max_acceleration_rad_s2 is None
+                 else np.minimum(lim.acceleration_rad_s2, max_acceleration_rad_s2))
+        target = np.clip(np.where(np.isfinite(target_rad), target_rad, x), lim.lower_rad, lim.upper_rad)
+        to_target = target - x
+        # Wanted: reach the target, but no faster than what still stops there.
+        wanted = np.clip(to_target / dt, -stopping_speed(-to_target, a_max, dt), stopping_speed(to_target, a_max, dt))
+        # Hard: the acceleration window, the speed limit and braking before the position limits. The three
+        # intervals intersect pairwise (the previous step kept the braking bound), hence all together.
+        low = np.maximum(np.maximum(v_prev - a_max * dt, -v_max), -stopping_speed(x - lim.lower_rad, a_max, dt))
+        high = np.minimum(np.minimum(v_prev + a_max * dt, v_max), stopping_speed(lim.upper_rad - x, a_max, dt))
+        v = np.clip(wanted, low, np.maximum(low, high))
+        command = np.clip(x + v * dt, lim.lower_rad, lim.upper_rad)
+        self.velocity_rad_s = (command - x) / dt
+        self.position_rad = command
+        return command.copy()
+
+
+# --- observation and action (numpy twins of spec.player_observation / spec.decode_action) -----------
+_HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD, dtype=np.float64)
+_HOME32 = _HOME.astype(np.float32)
+_SCALE32 = np.asarray(spec.ACTION_SCALE_RAD, dtype=np.float32)
+
+
+def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: np.ndarray,
+                      ball_velocity_m_s: np.ndarray, goal_xy_m: np.ndarray, last_action: np.ndarray) -> np.ndarray:
+    """The actor's observation [1, NUM_OBS] float32 in spec.OBS_LAYOUT order (joints in URDF order)."""
+    parts = (np.asarray(q_rad, dtype=np.float32) - _HOME32, qd_rad_s, ball_position_m,
+             ball_velocity_m_s, goal_xy_m, last_action)
+    for (name, size), part in zip(spec.OBS_LAYOUT, parts):
+        if np.shape(part) != (size,):
+            raise ValueError(f'{name} needs {size} values, got shape {np.shape(part)}')
+    return np.concatenate([np.asarray(p, dtype=np.float32) for p in parts])[None, :]
+
+
+def clip_action(action: np.ndarray) -> np.ndarray:
+    return np.clip(action, -spec.ACTION_CLIP, spec.ACTION_CLIP)
+
+
+def decode_action(action: np.ndarray) -> np.ndarray:
+    """Joint position targets (rad, URDF order) for one raw action, computed in float32 as
+    spec.decode_action computes them."""
+    lower, upper = _decoding()
+    target = _HOME32 + _SCALE32 * clip_action(np.asarray(action, dtype=np.float32))
+    return np.clip(target, lower, upper).astype(np.float64)
+
+
+@functools.lru_cache(maxsize=1)
+def _decoding() -> tuple[np.ndarray, np.ndarray]:
+    d = spec.action_decoding()
+    return (np.asarray(d['lower_limit_rad'], dtype=np.float32), np.asarray(d['upper_limit_rad'], dtype=np.float32))
+
+
+class JointOrder:
+    """Indices of spec.JOINT_NAMES in a JointState's name list, remembered for the last list seen."""
+
+    def __init__(self):
+        self._names: tuple[str, ...] = ()
+        self._index: np.ndarray | None = None
+
+    def index(self, names: Sequence[str]) -> np.ndarray | None:
+        names = tuple(names)
+        if names != self._names:
+            position = {name: i for i, name in enumerate(names)}
+            self._index = (np.array([position[n] for n in spec.JOINT_NAMES])
+                           if all(n in position for n in spec.JOINT_NAMES) else None)
+            self._names = names
+        return self._index
+
+
+# --- actors ------------------------------------------------------------------------------------------
+class OnnxActor:
+    """The exported `<name>.onnx` in onnxruntime, one thread (a 2-core robot computer runs more than this)."""
+    backend = 'onnx'
+
+    def __init__(self, path: str | pathlib.Path, expected: dict | None = None):
+        import onnxruntime
+        self.path = pathlib.Path(path)
+        if not self.path.is_file():
+            raise ActorMismatchError(f'actor file {self.path} does not exist')
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = 1
+        options.inter_op_num_threads = 1
+        options.execution_mode = onnxruntime.ExecutionMode.ORT_SEQUENTIAL
+        try:
+            self._session = onnxruntime.InferenceSession(str(self.path), options, providers=['CPUExecutionProvider'])
+        except Exception as error:  # noqa: BLE001 - onnxruntime raises its own classes for damaged files
+            raise ActorMismatchError(f'{self.path} is not a loadable ONNX model: {error}') from error
+        props = self._session.get_modelmeta().custom_metadata_map
+        self.metadata = parse_onnx_metadata(dict(props), self.path)
+        check_contract(self.metadata, self.path, expected)
+        inputs, outputs = self._session.get_inputs(), self._session.get_outputs()
+        if [i.name for i in inputs] != [ONNX_INPUT] or [o.name for o in outputs] != [ONNX_OUTPUT]:
+            raise ActorMismatchError(f'{self.path} has inputs {[i.name for i in inputs]} and outputs '
+                                     f'{[o.name for o in outputs]}, expected [{ONNX_INPUT!r}] and [{ONNX_OUTPUT!r}]')
+        out = self(np.zeros((1, int(self.metadata['num_obs'])), dtype=np.float32))
+        if out.shape != (1, int(self.metadata['num_actions'])):
+            raise ActorMismatchError(f'{self.path} outputs shape {out.shape}, its metadata promises '
+                                     f'(1, {self.metadata["num_actions"]})')
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self._session.run([ONNX_OUTPUT], {ONNX_INPUT: obs})[0]
+
+
+class TorchScriptActor:
+    """The exported `<name>.pt` with its sidecar, in torch (one thread, inference mode)."""
+    backend = 'torchscript'
+
+    def __init__(self, path: str | pathlib.Path, expected: dict | None = None):
+        import torch
+
+        from stylepong_policy.rl.export import load_actor
+        torch.set_num_threads(1)
+        self._torch = torch
+        loaded = load_actor(path, expected)
+        self.path, self.metadata, self._module = loaded.path, loaded.metadata, loaded.module
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with self._torch.inference_mode():
+            return self._module(self._torch.from_numpy(obs)).numpy()
+
+
+BACKENDS = ('onnx', 'torchscript')
+
+
+def load_actor(path: str | pathlib.Path, backend: str, expected: dict | None = None):
+    """The actor of an export (`<name>.pt` or `<name>.onnx`: the file of `backend` beside it is used)."""
+    path = pathlib.Path(path)
+    if backend == 'onnx':
+        return OnnxActor(onnx_path(path), expected)
+    if backend == 'torchscript':
+        return TorchScriptActor(path.with_suffix('.pt'), expected)
+    raise ValueError(f'backend must be one of {BACKENDS}, got {backend!r}')
+
+
+# --- statistics --------------------------------------------------------------------------------------
+class Samples:
+    """The last STATS_WINDOW values of one measurement, and how many there were in all."""
+
+    def __init__(self):
+        self.values: collections.deque[float] = collections.deque(maxlen=STATS_WINDOW)
+        self.count = 0
+        self.max = -math.inf
+
+    def add(self, value: float) -> None:
+        self.values.append(value)
+        self.count += 1
+        self.max = max(self.max, value)
+
+    def summary(self, scale: float = 1e3) -> dict:
+        """count, p50, p99, max (of the window; max_ever over all), in ms by default."""
+        if not self.values:
+            return {'count': 0}
+        v = np.fromiter(self.values, dtype=float) * scale
+        return {'count': self.count, 'mean': round(float(v.mean()), 4), 'p50': round(float(np.percentile(v, 50)), 4),
+                'p99': round(float(np.percentile(v, 99)), 4), 'max': round(float(v.max()), 4),
+                'max_ever': round(self.max * scale, 4)}
+
+
+# --- the player --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlayerConfig:
+    rate_hz: float = spec.ACTION_RATE_HZ
+    goal_xy_m: tuple[float, float] = (0.685, 0.0)
+    position_margin_rad: float = 0.02
+    velocity_limit_scale: float = 1.0
+    acceleration_limit_rad_s2: tuple[float, ...] = (400.0,) * spec.NUM_ACTIONS
+    home_speed_rad_s: float = 1.0
+    home_acceleration_rad_s2: float = 4.0
+    home_tolerance_rad: float = 0.01
+    joint_timeout_periods: float = 3.0
+    ball_timeout_s: float = 0.05
+    max_ball_age_s: float = 0.2
+    max_ball_speed_m_s: float = 30.0
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.rate_hz
+
+    def validate(self) -> None:
+        if not math.isclose(self.rate_hz, spec.ACTION_RATE_HZ):
+            raise ValueError(f'rate_hz must be the actor\'s action rate {spec.ACTION_RATE_HZ} Hz, got {self.rate_hz}')
+        if len(self.acceleration_limit_rad_s2) != spec.NUM_ACTIONS:
+            raise ValueError(f'acceleration_limit_rad_s2 needs {spec.NUM_ACTIONS} values')
+        check_goal(self.goal_xy_m)
+
+
+def check_goal(goal_xy_m: Sequence[float]) -> None:
+    """ValueError unless the goal is a finite point on the opponent's half (x > 0)."""
+    x, y = (float(v) for v in goal_xy_m)
+    if not (math.isfinite(x) and math.isfinite(y) and 0.0 < x <= ws.HALF_LENGTH_M and abs(y) <= ws.HALF_WIDTH_M):
+        raise ValueError(f"goal ({x}, {y}) m is not on the opponent's half "
+                         f'(0 < x <= {ws.HALF_LENGTH_M}, |y| <= {ws.HALF_WIDTH_M})')
+
+
+@dataclass
+class StepResult:
+    command: np.ndarray | None
+    state: State
+    policy: bool = False           # the actor ran
+    problem: str = ''              # why there is no command ('' when there is one, or when disabled)
+
+
+@dataclass
+class _Ball:
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    stamp_s: float
+    received_s: float
+
+
+class PlayerCore:
+    """The player's logic; the caller supplies times (the node's clock, seconds) and calls `step` when
+    `ball_step_due` / `fallback_step_due` / `timer_step_due` say so."""
+
+    def __init__(self, config: PlayerConfig, actor: Callable[[np.ndarray], np.ndarray], *,
+                 perf_counter: Callable[[], float] = time.perf_counter):
+        config.validate()
+        self.config = config
+        self.actor = actor
+        self.period_s = config.period_s
+        self.limits = JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
+                                               config.acceleration_limit_rad_s2)
+        self.limiter = CommandLimiter(self.limits, self.period_s)
+        self.state = State.DISABLED
+        self.goal_xy_m = np.asarray(config.goal_xy_m, dtype=np.float32)
+        self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)
+        self._perf_counter = perf_counter
+        self._joint_order = JointOrder()
+        self._q: np.ndarray | None = None
+        self._qd: np.ndarray | None = None
+        self._joint_received_s = -math.inf
+        self._ball: _Ball | None = None
+        self._step_ball_stamp_s = -math.inf     # stamp of the ball that drove the last policy step
+        self._last_step_s = -math.inf
+        self._last_command_s = -math.inf
+        self._last_command_wall_s = -math.inf
+        # Measured positions are checked against the URDF limits themselves (commands keep a margin inside).
+        self._urdf_lower = self.limits.lower_rad - config.position_margin_rad - JOINT_POSITION_TOLERANCE_RAD
+        self._urdf_upper = self.limits.upper_rad + config.position_margin_rad + JOINT_POSITION_TOLERANCE_RAD
+        self._max_joint_speed = self.limits.velocity_rad_s / config.velocity_limit_scale * JOINT_VELOCITY_FACTOR
+        self.rejected: dict[str, int] = collections.defaultdict(int)
+        self.period = Samples()              # between consecutive policy steps (playing), node clock
+        self.period_wall = Samples()         # the same on the wall clock (monotonic)
+        self.period_ready = Samples()        # between consecutive home moves (ready, the 60 Hz timer)
+        self.latency = Samples()             # ball stamp -> command published, ball-driven steps, node clock
+        self.receipt_latency = Samples()     # ball message's callback -> command published, wall clock
+        self.fallback_ball_age = Samples()   # age of the ball a fallback step used, node clock
+        self.inference = Samples()           # actor call
+        self.counts: dict[str, int] = collections.defaultdict(int)
+        self._last_state_for_period = State.DISABLED
+
+    # --- inputs ------------------------------------------------------------------------------------
+    def _reject(self, kind: str, reason: str) -> str:
+        self.rejected[kind] += 1
+        return reason
+
+    def set_enabled(self, enabled: bool) -> None:
+        if enabled and self.state == State.DISABLED:
+            self.state = State.READY
+            self.limiter.stop()        # the next command starts from the measured position
+        elif not enabled:
+            self.state = State.DISABLED
+            self.limiter.stop()
+
+    def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                       now_s: float) -> str | None:
+        """Accept a JointState's fields, or return why not."""
+        index = self._joint_order.index(names)
+        if index is None:
+            return self._reject('joint_names', f'joint state must name every joint of {list(spec.JOINT_NAMES)}, '
+                                               f'got {list(names)[:12]}')
+        if len(positions) != len(names) or len(velocities) != len(names):
+            return self._reject('joint_length', f'joint state has {len(names)} names, {len(positions)} positions '
+                                                f'and {len(velocities)} velocities')
+        q = np.asarray(positions, dtype=float)[index]
+        qd = np.asarray(velocities, dtype=float)[index]
+        if not (np.isfinite(q).all() and np.isfinite(qd).all()):
+            return self._reject('joint_not_finite', 'joint state has NaN or inf')
+        if (q < self._urdf_lower).any() or (q > self._urdf_upper).any():
+            return self._reject('joint_out_of_limits', f'joint positions {np.round(q, 3).tolist()} outside the URDF limits')
+        if (np.abs(qd) > self._max_joint_speed).any():
+            return self._reject('joint_speed', f'joint velocities {np.round(qd, 2).tolist()} beyond twice the limits')
+        self._q, self._qd, self._joint_received_s = q, qd, now_s
+        return None
+
+    def on_ball(self, frame_id: str, stamp_s: float, position_m: Sequence[float], velocity_m_s: Sequence[float],
+                now_s: float) -> str | None:
+        """Accept a BallState's fields, or return why not."""
+        if frame_id.lstrip('/') != FRAME_WORLD:
+            return self._reject('ball_frame', f'ball state in frame {frame_id!r}, expected {FRAME_WORLD!r}')
+        p = np.asarray(position_m, dtype=float)
+        v = np.asarray(velocity_m_s, dtype=float)
+        if p.shape != (3,) or v.shape != (3,) or not (np.isfinite(p).all() and np.isfinite(v).all()):
+            return self._reject('ball_not_finite', 'ball state has NaN or inf')
+        if abs(p[0]) > ws.CELL_HALF_EXTENT_M[0] or abs(p[1]) > ws.CELL_HALF_EXTENT_M[1] or not 0.0 <= p[2] <= 5.0:
+            return self._reject('ball_outside_cell', f'ball position {np.round(p, 2).tolist()} m is outside the cell')
+        if float(np.linalg.norm(v)) > self.config.max_ball_speed_m_s:
+            return self._reject('ball_speed', f'ball speed {float(np.linalg.norm(v)):.1f} m/s is implausible')
+        age_s = now_s - stamp_s
+        if stamp_s <= 0.0 or not -self.period_s <= age_s <= self.config.max_ball_age_s:
+            return self._reject('ball_stamp', f'ball stamp {stamp_s:.3f} s is {age_s:.3f} s old at {now_s:.3f} s '
+                                              f'(accepted: 0 to {self.config.max_ball_age_s} s)')
+        if self._ball is not None and stamp_s <= self._ball.stamp_s:
+            return self._reject('ball_stamp_order', f'ball stamp {stamp_s:.4f} s not after the last one')
+        self._ball = _Ball(p, v, stamp_s, now_s)
+        return None
+
+    def on_goal(self, frame_id: str, x_m: float, y_m: float) -> str | None:
+        if frame_id.lstrip('/') != FRAME_WORLD:
+            return self._reject('goal_frame', f'goal in frame {frame_id!r}, expected {FRAME_WORLD!r}')
+        try:
+            check_goal((x_m, y_m))
+        except ValueError as error:
+            return self._reject('goal_value', str(error))
+        self.goal_xy_m = np.array([x_m, y_m], dtype=np.float32)
+        return None
+
+    # --- scheduling --------------------------------------------------------------------------------
+    def ball_fresh(self, now_s: float) -> bool:
+        return self._ball is not None and now_s - self._ball.received_s <= self.config.ball_timeout_s
+
+    def joints_fresh(self, now_s: float) -> bool:
+        return now_s - self._joint_received_s <= self.config.joint_timeout_periods * self.period_s
+
+    def ball_step_due(self, now_s: float) -> bool:
+        """After an accepted ball message: does it drive a policy step now (phase-locked)?"""
+        if self.state == State.DISABLED or self._ball is None:
+            return False
+        if self.state == State.READY:
+            return True            # a ball has come: start playing at once
+        if now_s - self._last_step_s < MIN_STEP_SPACING_PERIODS * self.period_s:
+            return False
+        return self._ball.stamp_s - self._step_ball_stamp_s >= (1.0 - PHASE_TOLERANCE) * self.period_s
+
+    def fallback_step_due(self, now_s: float) -> bool:
+        """While playing: no ball message qualified in time, step on the latest ball."""
+        return self.state == State.PLAYING and now_s - self._last_step_s >= FALLBACK_PERIODS * self.period_s
+
+    def timer_step_due(self, now_s: float) -> bool:
+        """The 60 Hz timer drives ready moves (and notices a ball gone stale while playing)."""
+        if self.state == State.READY:
+            return True
+        return self.state == State.PLAYING and (not self.ball_fresh(now_s) or self.fallback_step_due(now_s))
+
+    # --- the step ----------------------------------------------------------------------------------
+    def step(self, now_s: float, wall_s: float | None = None) -> StepResult:
+        """One period: the command to publish now (None: publish nothing, `problem` says why)."""
+        wall_s = time.monotonic() if wall_s is None else wall_s
+        if self.state == State.DISABLED:
+            return StepResult(None, self.state)
+        if not self.joints_fresh(now_s):
+            self.limiter.stop()
+            return StepResult(None, self.state, problem='joint states stale: no command (the controller holds '
+                                                        'its last target)')
+        if not self.limiter.active or now_s - self._last_command_s > self.config.joint_timeout_periods * self.period_s:
+            self.limiter.start(self._q)
+        if self.state == State.PLAYING and not self.ball_fresh(now_s):
+            self.state = State.READY
+        elif self.state == State.READY and self.ball_fresh(now_s):
+            self.state = State.PLAYING
+            self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)   # as at a training episode start
+            self._step_ball_stamp_s = -math.inf
+        policy = self.state == State.PLAYING
+        if policy:
+            command = self._policy_command()
+            self._step_ball_stamp_s = self._ball.stamp_s
+            self._last_step_s = now_s
+        else:
+            command = self.limiter.step(_HOME, self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2)
+        self._record_command(now_s, wall_s, policy)
+        return StepResult(command, self.state, policy=policy)
+
+    def _policy_command(self) -> np.ndarray:
+        ball = self._ball
+        obs = build_observation(self._q, self._qd, ball.position_m, ball.velocity_m_s, self.goal_xy_m,
+                                self.last_action)
+        started = self._perf_counter()
+        raw = np.asarray(self.actor(obs), dtype=np.float32).reshape(-1)
+        self.inference.add(self._perf_counter() - started)
+        if raw.shape != (spec.NUM_ACTIONS,) or not np.isfinite(raw).all():
+            # Never reaches the arm: hold the course (the limiter brakes toward where it is going).
+            self.counts['actor_output_rejected'] += 1
+            return self.limiter.step(self.limiter.position_rad)
+        self.last_action = clip_action(raw)
+        return self.limiter.step(decode_action(raw))
+
+    def _record_command(self, now_s: float, wall_s: float, policy: bool) -> None:
+        if self._last_state_for_period == self.state and now_s - self._last_command_s < 3.0 * self.period_s:
+            if policy:
+                self.period.add(now_s - self._last_command_s)
+                self.period_wall.add(wall_s - self._last_command_wall_s)
+            else:
+                self.period_ready.add(now_s - self._last_command_s)
+        self._last_state_for_period = self.state
+        self._last_command_s, self._last_command_wall_s = now_s, wall_s
+        self.counts['commands'] += 1
+        self.counts['policy_steps' if policy else 'home_steps'] += 1
+
+    def record_published(self, published_s: float, ball_driven: bool, wall_received_s: float | None,
+                         wall_published_s: float) -> None:
+        """After a policy step's command was published (`published_s` on the node clock): for a ball-driven
+        step the latency from the ball's stamp and from the message's callback (wall clock); for a fallback
+        step the age of the ball it used."""
+        if self._ball is None:
+            return
+        if ball_driven:
+            self.latency.add(published_s - self._ball.stamp_s)
+            if wall_received_s is not None:
+                self.receipt_latency.add(wall_published_s - wall_received_s)
+        else:
+            self.fallback_ball_age.add(published_s - self._ball.stamp_s)
+        self.counts['ball_driven_steps' if ball_driven else 'fallback_steps'] += 1
+
+    def at_home(self) -> bool:
+        if self._q is None or not self.limiter.active:
+            return False
+        return bool(np.abs(self._q - _HOME).max() <= self.config.home_tolerance_rad
+                    and np.abs(self.limiter.position_rad - _HOME).max() <= 1e-6)
+
+    def status(self, now_s: float) -> dict:
+        period = self.period.summary()
+        if self.period.values:
+            jitter = np.abs(np.fromiter(self.period.values, dtype=float) - self.period_s) * 1e3
+            period['jitter_p99'] = round(float(np.percentile(jitter, 99)), 4)
+            period['jitter_max'] = round(float(jitter.max()), 4)
+        return {'state': self.state.value, 'at_home': self.at_home(), 'ball_fresh': self.ball_fresh(now_s),
+                'joints_fresh': self.joints_fresh(now_s), 'goal_xy_m': [round(float(v), 4) for v in self.goal_xy_m],
+                'period_ms': period, 'period_wall_ms': self.period_wall.summary(),
+                'period_ready_ms': self.period_ready.summary(),
+                'latency_ms': self.latency.summary(), 'receipt_latency_ms': self.receipt_latency.summary(),
+                'fallback_ball_age_ms': self.fallback_ball_age.summary(),
+                'inference_ms': self.inference.summary(), 'counts': dict(self.counts),
+                'rejected': dict(self.rejected)}

@@ -1,0 +1,253 @@
+"""The adversarial motion prior: a discriminator on sequences of L arm states, and the style reward it gives.
+
+The method of "Stylized Table Tennis Robots Skill Learning with Incomplete Human Demonstrations" (after
+Peng et al.'s AMP): a discriminator D learns to tell windows of L consecutive arm states (q, qdot at the
+policy rate) of the demonstrations from those of the policy, with the least-squares GAN loss
+
+    E_ref[(D - 1)^2] + E_policy[(D + 1)^2] + w_gp E_ref[|grad D|^2]
+
+and weight decay; the policy is rewarded for windows D takes for demonstrations,
+r = w_task r_task + w_style r_style. Windows longer than a transition (L > 2) matter here: a slow,
+dragged demonstration changes little from one frame to the next, and a two-frame discriminator barely
+sees the motion's shape.
+
+Nothing here knows the task: the runner hands over the env's per-step style frames (rl.env contract).
+The pieces:
+  ReferenceMotion   windows of the demonstrations, uniform over all windows inside one clip
+  StyleHistory      each environment's last L frames, restarted at its episode's first frame
+  ReplayBuffer      recent policy windows, for the discriminator's negatives
+  Discriminator     one running normaliser of its inputs, then an MLP trunk and a linear head
+  style_reward      the reward for a discriminator output
+  MotionPrior       owns them all, trains D and scores the policy's windows
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from .config import AMPConfig
+from .networks import make_mlp
+from .normalizer import RunningNormalizer
+
+STYLE_REWARDS = ('lsgan', 'log')
+# The bounded -log form: a discriminator "probability" of 1 - 1e-4 or more earns the full reward.
+LOG_REWARD_FLOOR = 1e-4
+
+
+class ReferenceMotion:
+    """Every window of `length` consecutive frames lying inside one clip, drawn uniformly.
+
+    frames [F, D] (all clips concatenated), clip_starts / clip_lengths [C]. The window start indices are
+    built once; a draw is one random index per window and a gather.
+    """
+
+    def __init__(self, frames: np.ndarray | torch.Tensor, clip_starts: Sequence[int], clip_lengths: Sequence[int],
+                 length: int, device: torch.device | str = 'cpu'):
+        if length < 1:
+            raise ValueError(f'window length must be at least 1, got {length}')
+        self.device = torch.device(device)
+        self.frames = torch.as_tensor(np.asarray(frames), dtype=torch.float32, device=self.device)
+        starts = [np.arange(s, s + n - length + 1) for s, n in zip(clip_starts, clip_lengths) if n >= length]
+        if not starts:
+            raise ValueError(f'no reference clip has {length} frames')
+        self.starts = torch.as_tensor(np.concatenate(starts), dtype=torch.long, device=self.device)
+        self.offsets = torch.arange(length, device=self.device)
+        self.length = int(length)
+
+    @classmethod
+    def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
+                     device: torch.device | str = 'cpu') -> 'ReferenceMotion':
+        """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, of the clips with
+        these speed factors (None: all, originals and speed-ups)."""
+        clips = dataset.select(speed_factors=speed_factors)
+        if not len(clips):
+            raise ValueError(f'the dataset has no clip with speed factor in {list(speed_factors or [])}')
+        return cls(dataset.states(), dataset.clip_start[clips], dataset.clip_length[clips], length, device)
+
+    @property
+    def num_windows(self) -> int:
+        return int(self.starts.numel())
+
+    def windows(self, indices: torch.Tensor) -> torch.Tensor:
+        """Windows [B, L, D] starting at self.starts[indices]."""
+        return self.frames[self.starts[indices][:, None] + self.offsets[None, :]]
+
+    def sample(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        index = torch.randint(self.num_windows, (count,), generator=generator, device=self.device)
+        return self.windows(index)
+
+
+class StyleHistory:
+    """The last L style frames of each environment [N, L, D], oldest first.
+
+    A new episode's history is its first frame repeated: a window never mixes two episodes.
+    """
+
+    def __init__(self, first_frames: torch.Tensor, length: int):
+        self.frames = first_frames[:, None, :].repeat(1, length, 1)
+
+    def push(self, frames: torch.Tensor) -> torch.Tensor:
+        """Append this step's frames [N, D]; returns the windows ending with them."""
+        self.frames = torch.cat((self.frames[:, 1:], frames[:, None, :]), dim=1)
+        return self.frames
+
+    def restart(self, env_ids: torch.Tensor, first_frames: torch.Tensor) -> None:
+        self.frames[env_ids] = first_frames[:, None, :]
+
+
+class ReplayBuffer:
+    """The last `capacity` policy windows (first in, first out); uniform draws among those held."""
+
+    def __init__(self, capacity: int, window_shape: tuple[int, int], device: torch.device | str):
+        self.data = torch.zeros((int(capacity), *window_shape), device=device)
+        self.size = 0
+        self.next = 0
+
+    def insert(self, windows: torch.Tensor) -> None:
+        capacity = self.data.shape[0]
+        windows = windows[-capacity:]
+        count = windows.shape[0]
+        index = (self.next + torch.arange(count, device=self.data.device)) % capacity
+        self.data[index] = windows
+        self.next = (self.next + count) % capacity
+        self.size = min(self.size + count, capacity)
+
+    def sample(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        if self.size == 0:
+            raise RuntimeError('the replay buffer is empty')
+        return self.data[torch.randint(self.size, (count,), generator=generator, device=self.data.device)]
+
+
+class Discriminator(nn.Module):
+    """D(window): normalise each frame with one running mean/std, flatten, MLP trunk, linear head."""
+
+    def __init__(self, frame_size: int, length: int, hidden_dims: Sequence[int], activation: str = 'elu',
+                 normalizer_clip: float = 5.0):
+        super().__init__()
+        self.frame_size, self.length = int(frame_size), int(length)
+        self.normalizer = RunningNormalizer(self.frame_size, clip=normalizer_clip)
+        mlp = make_mlp(self.frame_size * self.length, hidden_dims, 1, activation)
+        self.trunk = mlp[:-1]
+        self.head = mlp[-1]
+
+    def normalize(self, windows: torch.Tensor) -> torch.Tensor:
+        """Normalised windows [B, L * D]: the input of both the loss and the gradient penalty."""
+        return self.normalizer(windows).flatten(1)
+
+    def forward(self, normalized: torch.Tensor) -> torch.Tensor:
+        return self.head(self.trunk(normalized)).squeeze(-1)
+
+    def score(self, windows: torch.Tensor) -> torch.Tensor:
+        """D of raw windows [B, L, D] -> [B]."""
+        return self(self.normalize(windows))
+
+
+def style_reward(d: torch.Tensor, kind: str = 'lsgan') -> torch.Tensor:
+    """The style reward in [0, 1] for discriminator outputs d (LSGAN targets: +1 reference, -1 policy).
+
+    'lsgan'  AMP's max(0, 1 - (d - 1)^2 / 4): 1 at the reference target, 0 at the policy target and
+             beyond; bounded and smooth, the form AMP found stable with a least-squares discriminator.
+    'log'    the paper's -log form, made bounded: with p = clamp((d + 1) / 2, 0, 1) the discriminator's
+             belief that the window is a demonstration, -log(max(1 - p, 1e-4)) / -log(1e-4). The paper's
+             -log D is unbounded (and undefined for d <= 0) on an LSGAN output, so this maps d to [0, 1]
+             first and caps the log, as the logistic AMP implementations do.
+    """
+    if kind == 'lsgan':
+        return (1.0 - 0.25 * (d - 1.0).square()).clamp_min(0.0)
+    if kind == 'log':
+        p = ((d + 1.0) * 0.5).clamp(0.0, 1.0)
+        return -torch.log((1.0 - p).clamp_min(LOG_REWARD_FLOOR)) / -math.log(LOG_REWARD_FLOOR)
+    raise ValueError(f'unknown style reward {kind!r}; choose one of {STYLE_REWARDS}')
+
+
+def _adam_with_decay(disc: Discriminator, cfg: AMPConfig) -> torch.optim.Adam:
+    """One optimiser, two weight decays: light on the trunk, heavy on the head (a head with large weights
+    is how a least-squares discriminator overfits and saturates)."""
+    return torch.optim.Adam([
+        {'params': list(disc.trunk.parameters()), 'weight_decay': cfg.weight_decay_trunk},
+        {'params': list(disc.head.parameters()), 'weight_decay': cfg.weight_decay_head},
+    ], lr=cfg.learning_rate)
+
+
+class MotionPrior:
+    """The discriminator, its data and its training, and the style reward for the policy's windows."""
+
+    def __init__(self, cfg: AMPConfig, reference: ReferenceMotion, frame_size: int, num_envs: int,
+                 device: torch.device | str, seed: int = 0):
+        self.cfg = cfg
+        self.device = torch.device(device)
+        self.reference = reference
+        self.discriminator = Discriminator(frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation,
+                                           cfg.normalizer_clip).to(self.device)
+        self.optimizer = _adam_with_decay(self.discriminator, cfg)
+        self.replay = ReplayBuffer(cfg.replay_size, (cfg.sequence_length, frame_size), self.device)
+        self.generator = torch.Generator(device=self.device)
+        self.generator.manual_seed(int(seed) + 7907)
+        self.history: StyleHistory | None = None
+        self.num_envs = int(num_envs)
+        # The normaliser starts from the demonstrations, so the first rewards are not on raw radians.
+        self.discriminator.normalizer.update(reference.frames)
+
+    # --- during rollouts ---------------------------------------------------------------------------
+    def start(self, first_frames: torch.Tensor) -> None:
+        """Every environment begins a new episode with these frames [N, D]."""
+        self.history = StyleHistory(first_frames, self.cfg.sequence_length)
+
+    def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor) -> torch.Tensor:
+        """One policy step: frames [N, D] reached by this step (before resets), dones [N], and the frames
+        every environment is in now (after resets). Stores the windows; returns the style reward [N]."""
+        if self.history is None:
+            raise RuntimeError('call start() with the first frames before observe()')
+        windows = self.history.push(frames)
+        reward = style_reward(self.discriminator.score(windows), self.cfg.style_reward)
+        self.replay.insert(windows)
+        done_ids = torch.nonzero(dones).squeeze(1)
+        if done_ids.numel():
+            self.history.restart(done_ids, next_first_frames[done_ids])
+        return reward
+
+    def mix(self, task_reward: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style."""
+        return self.cfg.w_task * task_reward + self.cfg.w_style * style
+
+    # --- training ----------------------------------------------------------------------------------
+    def update(self) -> dict[str, float]:
+        """cfg.updates_per_iteration minibatch steps of the discriminator; the means of what it logs."""
+        cfg, disc = self.cfg, self.discriminator
+        totals = {'loss': 0.0, 'grad_penalty': 0.0, 'd_reference': 0.0, 'd_policy': 0.0, 'accuracy': 0.0}
+        for _ in range(cfg.updates_per_iteration):
+            reference = self.reference.sample(cfg.batch_size, self.generator)
+            policy = self.replay.sample(cfg.batch_size, self.generator)
+            norm_reference = disc.normalize(reference).requires_grad_(True)
+            norm_policy = disc.normalize(policy)
+            d_reference = disc(norm_reference)
+            d_policy = disc(norm_policy)
+            lsgan = 0.5 * ((d_reference - 1.0).square().mean() + (d_policy + 1.0).square().mean())
+            gradient, = torch.autograd.grad(d_reference.sum(), norm_reference, create_graph=True)
+            penalty = gradient.square().sum(-1).mean()
+            loss = lsgan + cfg.grad_penalty * penalty
+            self.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            self.optimizer.step()
+            # The statistics move after the step, so the loss and its penalty saw one normalisation.
+            disc.normalizer.update(torch.cat((reference, policy)).detach())
+            totals['loss'] += float(lsgan.detach())
+            totals['grad_penalty'] += float(penalty.detach())
+            totals['d_reference'] += float(d_reference.detach().mean())
+            totals['d_policy'] += float(d_policy.detach().mean())
+            totals['accuracy'] += 0.5 * float((d_reference > 0).float().mean() + (d_policy < 0).float().mean())
+        return {f'disc/{k}': v / max(cfg.updates_per_iteration, 1) for k, v in totals.items()}
+
+    # --- checkpoints -------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        return {'discriminator': self.discriminator.state_dict(), 'optimizer': self.optimizer.state_dict(),
+                'generator': self.generator.get_state()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.discriminator.load_state_dict(state['discriminator'])
+        self.optimizer.load_state_dict(state['optimizer'])
+        self.generator.set_state(state['generator'].cpu())   # generator states are CPU byte tensors

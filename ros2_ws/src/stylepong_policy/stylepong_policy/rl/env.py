@@ -1,0 +1,55 @@
+"""The batched-environment contract the runner, PPO and the motion prior are written against.
+
+Like rsl_rl's VecEnv: N environments stepped together on tensors, each resetting itself when its
+episode ends. Nothing here knows what the task is; the table-tennis task (stylepong_policy.task) and the
+toy task of the tests both follow it.
+
+Sizes: `num_envs`, `num_obs` (the actor's input), `num_critic_obs` (the critic's, privileged),
+`num_actions`, `num_style_features` (one frame of the state the style discriminator sees); `device`.
+
+`reset() -> (obs [N, num_obs], critic_obs [N, num_critic_obs])` starts every environment afresh.
+
+`step(actions [N, num_actions]) -> (obs, critic_obs, rewards [N], dones [N] bool, extras)`: ended
+episodes are already reset, so obs are the new episodes' first observations. `extras` holds
+  'time_outs'    [N] bool: episodes cut by a time limit rather than ended by the task (the runner
+                 bootstraps their value instead of treating them as terminal);
+  'log'          {name: float}: statistics of the episodes that ended in this step, each the mean over
+                 them (empty when none ended); the runner averages them over an iteration weighted by
+  'log_weight'   int: how many episodes 'log' averages;
+  'style_state'  [N, num_style_features]: the frame the style discriminator sees, after the step and
+                 before any reset (so the last frame of an ended episode is still its own).
+An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
+`evaluate`); the runner reads only these.
+
+`style_state() -> [N, num_style_features]`: the current frame (after resets), so that a new episode's
+style history starts from its own first frame.
+"""
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import torch
+
+EXTRAS_TIME_OUTS = 'time_outs'
+EXTRAS_LOG = 'log'
+EXTRAS_LOG_WEIGHT = 'log_weight'
+EXTRAS_STYLE_STATE = 'style_state'
+
+
+class VecEnv(Protocol):
+    num_envs: int
+    num_obs: int
+    num_critic_obs: int
+    num_actions: int
+    num_style_features: int
+    device: torch.device
+
+    def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
+        ...
+
+    def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
+                                                   dict[str, Any]]:
+        ...
+
+    def style_state(self) -> torch.Tensor:
+        ...

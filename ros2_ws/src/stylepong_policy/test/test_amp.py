@@ -1,0 +1,165 @@
+"""The adversarial motion prior (stylepong_policy.rl.amp): reference windows, history, replay, the
+discriminator's loss and what it learns, the style reward, and AMP training on the toy task."""
+import pathlib
+
+import numpy as np
+import pytest
+import torch
+
+from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.rl.amp import (MotionPrior, ReferenceMotion, ReplayBuffer, StyleHistory, style_reward)
+from stylepong_policy.rl.config import AMPConfig, config_from_dict
+from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+
+import ppo_toy_task as TOY  # noqa: N812  (beside this file: conftest.py)
+
+BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
+
+
+def test_reference_windows_never_cross_a_clip_and_are_drawn_uniformly():
+    frames = np.arange(10, dtype=float)[:, None] * np.ones((1, 2))
+    reference = ReferenceMotion(frames, clip_starts=[0, 4, 9], clip_lengths=[4, 5, 1], length=3)
+    assert reference.num_windows == 2 + 3           # the 1-frame clip has none
+    windows = reference.sample(20000, torch.Generator().manual_seed(0))
+    first = windows[:, 0, 0].long()
+    assert set(first.tolist()) == {0, 1, 4, 5, 6}
+    counts = torch.bincount(first, minlength=7)[[0, 1, 4, 5, 6]].float()
+    assert (counts / counts.sum() - 0.2).abs().max() < 0.02
+    assert torch.equal(windows[:, 1:, 0] - windows[:, :-1, 0], torch.ones(20000, 2))   # consecutive frames
+
+
+def test_style_history_restarts_a_new_episode_from_its_own_first_frame():
+    history = StyleHistory(torch.zeros(2, 1), length=3)
+    history.push(torch.tensor([[1.0], [1.0]]))
+    windows = history.push(torch.tensor([[2.0], [2.0]]))
+    assert windows[:, :, 0].tolist() == [[0.0, 1.0, 2.0]] * 2
+    history.restart(torch.tensor([1]), torch.tensor([[9.0]]))
+    windows = history.push(torch.tensor([[3.0], [10.0]]))
+    assert windows[:, :, 0].tolist() == [[1.0, 2.0, 3.0], [9.0, 9.0, 10.0]]
+
+
+def test_replay_buffer_keeps_the_most_recent_windows():
+    buffer = ReplayBuffer(5, (1, 1), 'cpu')
+    for start in (0, 3, 6):
+        buffer.insert(torch.arange(start, start + 3, dtype=torch.float32).reshape(3, 1, 1))
+    assert buffer.size == 5
+    assert sorted(buffer.data.flatten().tolist()) == [4.0, 5.0, 6.0, 7.0, 8.0]
+    assert set(buffer.sample(200, torch.Generator().manual_seed(1)).flatten().tolist()) <= {4.0, 5.0, 6.0, 7.0, 8.0}
+
+
+def test_style_rewards_are_bounded_and_rise_with_the_discriminator_output():
+    d = torch.linspace(-3.0, 3.0, 61)
+    for kind in ('lsgan', 'log'):
+        r = style_reward(d, kind)
+        assert r.min() >= 0.0 and r.max() <= 1.0 + 1e-6
+        assert r[d <= -1.0].max() == 0.0                      # the policy target earns nothing
+        rising = r[(d >= -1.0) & (d <= 1.0)]
+        assert (rising[1:] >= rising[:-1]).all() and rising[-1] > 0.99
+    assert style_reward(torch.tensor([1.0]))[0] == 1.0 and style_reward(torch.tensor([0.0]))[0] == 0.75
+    with pytest.raises(ValueError):
+        style_reward(d, 'bce')
+
+
+def _shipped_or_synthetic_dataset(tmp_path) -> ReferenceDataset:
+    """The dataset of the shipped clips; a synthetic swing set where the bags are not there."""
+    if any(BAGS.glob('*/metadata.yaml')):
+        from stylepong_policy import build_dataset
+        assert build_dataset.run([str(BAGS), '-o', str(tmp_path / 'd.npz')]) == 0
+        return ReferenceDataset.load(tmp_path / 'd.npz')
+    from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
+    t = np.arange(120) / 60.0
+    originals = []
+    for i in range(4):
+        phase = 2.0 * np.pi * (t / 2.0) + 0.3 * i
+        q = 0.6 * np.sin(phase)[:, None] * np.linspace(0.5, 1.0, 6)[None, :]
+        qd = 0.6 * np.pi * np.cos(phase)[:, None] * np.linspace(0.5, 1.0, 6)[None, :]
+        originals.append(SourceClip(Clip(t=t, q=q, qd=qd), label='forward', source=f'synthetic{i}'))
+    return assemble_dataset(originals, (2, 3, 5), [f'j{i}' for i in range(6)], 60.0)
+
+
+def _slowed(windows: torch.Tensor, reference: ReferenceMotion) -> torch.Tensor:
+    """The same motions played at half speed: every second window frame repeated is too crude, so take
+    windows over half-spaced frames by interpolating the reference and halving the velocities."""
+    starts = reference.starts[torch.randint(reference.num_windows, (windows.shape[0],))].float()
+    times = starts[:, None] + 0.5 * torch.arange(reference.length)[None, :].float()
+    lower = times.floor().long().clamp(max=reference.frames.shape[0] - 2)
+    frac = (times - lower)[..., None]
+    frames = reference.frames[lower] * (1 - frac) + reference.frames[lower + 1] * frac
+    half = frames.shape[-1] // 2
+    return torch.cat((frames[..., :half], 0.5 * frames[..., half:]), dim=-1)
+
+
+@pytest.mark.parametrize('negative', ['shuffled', 'slowed'])
+def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_ones(tmp_path, negative):
+    """LSGAN training against windows whose frames are shuffled among the demonstrations (every pose is
+    right, the motion is not) or which are the demonstrations played at half speed: on fresh samples D
+    puts the reference above 0 and the fakes below."""
+    torch.manual_seed(0)
+    dataset = _shipped_or_synthetic_dataset(tmp_path)
+    cfg = AMPConfig(sequence_length=5, batch_size=512, updates_per_iteration=1, grad_penalty=1.0)
+    # Slowed: against the original clips only, since half of an x2 clip's speed is its original's.
+    speeds = [1] if negative == 'slowed' else None
+    reference = ReferenceMotion.from_dataset(dataset, cfg.sequence_length, speeds)
+    prior = MotionPrior(cfg, reference, frame_size=12, num_envs=1, device='cpu', seed=0)
+
+    def fakes(count):
+        if negative == 'shuffled':
+            # Each frame from its own random reference window: every frame is a demonstrated state, but
+            # the sequence is no motion, so only the frames' order and coherence give it away.
+            frames = [reference.sample(count)[:, i] for i in range(cfg.sequence_length)]
+            return torch.stack(frames, dim=1)
+        return _slowed(reference.sample(count), reference)
+
+    for _ in range(300):
+        prior.replay.size = 0
+        prior.replay.insert(fakes(cfg.batch_size))
+        stats = prior.update()
+    with torch.no_grad():
+        d_reference = prior.discriminator.score(reference.sample(2000))
+        d_fake = prior.discriminator.score(fakes(2000))
+    accuracy = 0.5 * ((d_reference > 0).float().mean() + (d_fake < 0).float().mean())
+    assert accuracy > 0.85, (negative, float(accuracy), stats)
+    assert d_reference.mean() > 0.3 and d_fake.mean() < -0.3
+
+
+def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():
+    """The penalty is the gradient of D with respect to the normalised reference windows the loss used:
+    for a linear discriminator it is exactly |w|^2, whatever the normaliser's statistics."""
+    cfg = AMPConfig(sequence_length=2, hidden_dims=[], batch_size=64, updates_per_iteration=1, grad_penalty=1.0,
+                    learning_rate=1e-12)
+    frames = np.random.default_rng(0).normal(3.0, 5.0, size=(50, 3))
+    reference = ReferenceMotion(frames, [0], [50], 2)
+    prior = MotionPrior(cfg, reference, frame_size=3, num_envs=1, device='cpu')
+    prior.replay.insert(reference.sample(64))
+    weight = prior.discriminator.head.weight.detach().clone()
+    stats = prior.update()
+    assert stats['disc/grad_penalty'] == pytest.approx(float(weight.square().sum()), rel=1e-4)
+
+
+def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_path):
+    """AMP alone (no task reward) on the toy task, the reference a steady motion at 0.06 per step along
+    +x: the style reward per step rises and the policy ends up moving like the clip."""
+    seed_everything(0)
+    # 64 clips of 20 frames from random starts in the task's square: the style is the motion, not where.
+    rng = np.random.default_rng(0)
+    starts = rng.uniform(-1.0, 1.0, size=(64, 1, 2))
+    positions = starts + np.stack([0.06 * np.arange(20), np.zeros(20)], axis=1)[None]
+    velocities = np.broadcast_to(np.array([0.06, 0.0]), positions.shape)
+    frames = np.concatenate([positions, velocities], axis=2).reshape(-1, 4)
+    cfg = config_from_dict({
+        'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 0.5},
+        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3},
+        'runner': {'seed': 0, 'save_interval': 1000},
+        'amp': {'sequence_length': 3, 'hidden_dims': [32, 32], 'batch_size': 512, 'updates_per_iteration': 4,
+                'learning_rate': 1e-3, 'grad_penalty': 1.0, 'w_task': 0.0, 'w_style': 1.0, 'replay_size': 20000}})
+    env = TOY.ReachTask(num_envs=128, seed=0, episode_steps=30)
+    reference = ReferenceMotion(frames, np.arange(64) * 20, [20] * 64, cfg.amp.sequence_length)
+    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    runner = OnPolicyRunner(env, cfg, tmp_path, tensorboard=False, motion_prior=prior)
+    first = runner.learn(1, progress_bar=False)['step_reward/style']
+    last = runner.learn(60, progress_bar=False)['step_reward/style']
+    assert last > first + 0.2, (first, last)
+    with torch.inference_mode():
+        obs, _ = env.reset()
+        velocity = runner.actor_critic.act_deterministic(obs).clamp(-1, 1) * env.step_size
+    assert velocity[:, 0].mean() > 0.03 and velocity[:, 1].abs().mean() < 0.03, velocity.mean(0)

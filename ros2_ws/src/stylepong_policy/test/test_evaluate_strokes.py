@@ -1,0 +1,136 @@
+"""`evaluate` with --save-strokes and --dtw on the shipped PPO actor (1 seed, a few balls), and
+`run_evaluation`, the function other code calls."""
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from stylepong_policy import evaluate, strokes
+from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+PPO_ACTOR = PACKAGE / 'models' / 'ppo_actor.pt'
+BALLS = 12
+SEED = 1000
+
+
+def write_reference(path: pathlib.Path) -> pathlib.Path:
+    """A small reference dataset in the robot's joint order: one swing per label, x1 and x2."""
+    from stylepong_description.robot_model import JOINT_NAMES
+    from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
+
+    t = np.arange(90) / 60.0
+    home = np.array(HOME_JOINT_POSITIONS_RAD)
+    sources = []
+    for k, label in enumerate(strokes.DIRECTIONS):
+        swing = 0.4 * np.sin(np.pi * t / t[-1])[:, None] * np.eye(6)[k]
+        q = home + swing
+        sources.append(SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), label, f'synthetic:{label}'))
+    assemble_dataset(sources, (2,), JOINT_NAMES, 60.0).save(path)
+    return path
+
+
+def json_strings(value):
+    if isinstance(value, dict):
+        for item in value.values():
+            yield from json_strings(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from json_strings(item)
+    elif isinstance(value, str):
+        yield value
+
+
+@pytest.fixture(scope='module')
+def evaluated(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('evaluate')
+    write_reference(folder / 'reference.npz')
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(folder)   # relative paths, as a person types them
+        status = evaluate.main(['--actor', str(PPO_ACTOR), '--seeds', '1', '--first-seed', str(SEED), '--balls',
+                                str(BALLS), '--save-strokes', 'out/strokes.npz', '--dtw', 'reference.npz',
+                                '--json', 'out/eval.json', '--num-threads', '1'])
+    assert status == 0
+    return folder
+
+
+def test_stroke_file_holds_every_ball_from_launch_to_the_follow_through(evaluated):
+    saved = strokes.load_strokes(evaluated / 'out' / 'strokes.npz')
+    assert len(saved.strokes) == BALLS and saved.rate_hz == 60.0 and saved.speed == 'all'
+    assert saved.actor == 'ppo_actor.pt'            # an absolute path outside the working folder: its name only
+    assert [s.ball for s in saved.strokes] == list(range(BALLS)) and {s.seed for s in saved.strokes} == {SEED}
+    for s in saved.strokes:
+        assert s.direction in strokes.DIRECTIONS
+        assert s.direction == strokes.direction_of(s.arrival_y_m)
+        assert 4.0 <= s.launch_speed_m_s <= 6.6
+        assert s.joint_positions_rad.shape == (len(s.ball_position_m), 6)
+        assert s.joint_positions_rad.dtype == np.float32
+        if s.hit:
+            # From the launch (frame 0) to 0.3 s (18 frames) after the first contact, unless decided sooner.
+            assert len(s.joint_positions_rad) == min(s.hit_frame + 18, s.verdict_frame) + 1
+        else:
+            assert len(s.joint_positions_rad) == s.verdict_frame + 1
+        assert s.success == (s.outcome == evaluate.SUCCESS_REASON)
+        # The ball starts over the opponent's half and the arm at home.
+        assert s.ball_position_m[0, 0] > 0.0
+        assert s.joint_positions_rad[0] == pytest.approx(np.array([0.0, -1.9, 1.9, -1.57, -1.57, -1.57]), abs=1e-5)
+    # The same balls, labelled from their launch: the horizontal path is a straight line in this world.
+    plane_x = strokes.paddle_home_position_m()[0]
+    for s in saved.strokes:
+        p, v = s.ball_position_m[0], s.launch_velocity_m_s
+        assert s.arrival_y_m == pytest.approx(p[1] + (plane_x - p[0]) * v[1] / v[0], abs=1e-4)
+
+
+def test_json_has_directions_smoothness_dtw_and_no_absolute_path(evaluated):
+    result = json.loads((evaluated / 'out' / 'eval.json').read_text())
+    assert result['balls'] == BALLS and result['seeds'] == [SEED]
+    assert sum(d['balls'] for d in result['directions'].values()) == BALLS
+    assert result['strokes_file'] == 'out/strokes.npz' and result['dtw_dataset'] == 'reference.npz'
+    saved = strokes.load_strokes(evaluated / 'out' / 'strokes.npz')
+    counts = {d: sum(s.direction == d for s in saved.strokes) for d in strokes.DIRECTIONS}
+    for direction in strokes.DIRECTIONS:
+        dtw = result['dtw'][direction]
+        assert dtw['strokes'] == counts[direction] and dtw['reference_clips'] == 2
+        if counts[direction]:
+            assert dtw['mean_rad'] > 0 and 0 < dtw['mean_per_path_step_rad'] < dtw['mean_rad']
+            assert result['smoothness'][direction]['peak_joint_speed_rad_s'] > 0
+    assert result['mean_successes_per_seed'] == pytest.approx(result['success_rate'] * BALLS)
+    for text in json_strings(result):
+        assert not text.startswith('/'), text
+
+
+def test_dtw_in_the_json_is_recomputable_from_the_stroke_file(evaluated):
+    from stylepong_policy import style_metrics as sm
+    from stylepong_policy.dataset import ReferenceDataset
+
+    result = json.loads((evaluated / 'out' / 'eval.json').read_text())
+    dataset = ReferenceDataset.load(evaluated / 'reference.npz')
+    saved = strokes.load_strokes(evaluated / 'out' / 'strokes.npz')
+    for direction in strokes.DIRECTIONS:
+        chosen = [s for s in saved.strokes if s.direction == direction]
+        if not chosen:
+            continue
+        clips = [dataset.clip(int(c)).q for c in dataset.select(labels=[direction])]
+        distances = [min(sm.dtw_distance_rad(s.joint_positions_rad, c) for c in clips) for s in chosen]
+        assert np.mean(distances) == pytest.approx(result['dtw'][direction]['mean_rad'], rel=1e-12)
+
+
+def test_run_evaluation_returns_what_evaluate_prints(evaluated):
+    summary = evaluate.run_evaluation(PPO_ACTOR, seeds=1, first_seed=SEED, balls=BALLS, speed='all',
+                                      randomize=False, device='cpu')
+    printed = json.loads((evaluated / 'out' / 'eval.json').read_text())
+    assert summary['per_seed'] == printed['per_seed'] and summary['failures'] == printed['failures']
+    assert summary['directions'] == printed['directions'] and 'dtw' not in summary
+    assert set(printed) - set(summary) == {'dtw', 'dtw_dataset', 'dtw_call', 'strokes_file'}
+    # A loaded actor is accepted as well, and the path it was loaded from is reported as given.
+    from stylepong_policy.rl.export import load_actor
+    again = evaluate.run_evaluation(load_actor(PPO_ACTOR), seeds=1, first_seed=SEED, balls=BALLS)
+    assert again['per_seed'] == summary['per_seed']
+
+
+def test_portable_path_keeps_relative_paths_and_never_writes_a_foreign_absolute_one(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert evaluate.portable_path('models/a.pt') == 'models/a.pt'
+    assert evaluate.portable_path(tmp_path / 'x' / 'a.pt') == 'x/a.pt'
+    assert evaluate.portable_path('/elsewhere/b.pt') == 'b.pt'

@@ -1,0 +1,91 @@
+"""`paper_tables` on a tiny setting, the shipped PPO actor standing in for every row."""
+import json
+import pathlib
+
+import pytest
+
+from stylepong_policy import paper_tables
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+PPO_ACTOR = PACKAGE / 'models' / 'ppo_actor.pt'
+REPOSITORY = PACKAGE.parents[2]
+
+
+def stand_ins() -> str:
+    return ','.join(f'{name}={PPO_ACTOR}' for name in paper_tables.ACTOR_NAMES)
+
+
+def json_strings(value):
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield str(key)
+            yield from json_strings(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from json_strings(item)
+    elif isinstance(value, str):
+        yield value
+
+
+@pytest.fixture(scope='module')
+def written(tmp_path_factory):
+    out = tmp_path_factory.mktemp('results')
+    (out / 'sim2sim_mujoco.json').write_text(json.dumps({
+        'simulator': 'MuJoCo cell', 'success_rate': 0.5, 'balls_per_seed': 10, 'seeds': [1000, 1001],
+        'actor': 'models/amp_actor.pt'}))
+    status = paper_tables.main(['--out', str(out), '--actors', stand_ins(), '--seeds', '1', '--balls', '8',
+                                '--bags', str(REPOSITORY / 'ros2_ws' / 'bags'), '--num-threads', '1'])
+    assert status == 0
+    return out
+
+
+def test_markdown_has_every_table_with_the_papers_figures_beside_ours(written):
+    text = (written / 'README.md').read_text()
+    for heading in ('## Table I', '## Table II', '## Table III', '## Smoothness', '## Table IV', '## Fig. 2'):
+        assert heading in text, heading
+    for figure in ('96.27 %', '90.32 %', '148.23', '62.73', '0.423', '85.91 %', '71.39 %'):
+        assert figure in text, figure                   # the paper's, beside ours
+    assert 'seed 1000 x 8 balls' in text and 'seed 2000 x 8 balls' in text
+    assert 'Stand-in actors' in text
+    assert 'MuJoCo cell (ours, `sim2sim_mujoco.json`)' in text and '50.00 %' in text
+    for image in ('table1_success.png', 'table2_dtw.png', 'table3_speed.png', 'smoothness.png', 'strokes.png'):
+        assert (written / image).stat().st_size > 5_000, image
+        assert f']({image})' in text
+
+
+def test_json_record_has_every_evaluation_and_no_absolute_path(written):
+    record = json.loads((written / 'paper_tables.json').read_text())
+    for name in paper_tables.ACTOR_NAMES:
+        assert set(record['evaluations'][name]) == {'all', 'low', 'high'}
+        assert record['evaluations'][name]['all']['balls'] == 8
+        assert set(record['evaluations'][name]['all']['dtw']) == {'forward', 'leftward', 'rightward'}
+    assert record['evaluations']['ppo']['low']['seeds'] == [2000]
+    assert record['figure']['direction'] in ('forward', 'leftward', 'rightward')
+    for text in json_strings(record):
+        assert not text.startswith('/'), text
+    assert (written / paper_tables.REFERENCE_NAME).is_file()
+
+
+def test_without_sim2sim_files_table_four_says_not_measured(tmp_path):
+    rows = paper_tables.load_sim2sim(tmp_path)
+    assert rows == []
+    (tmp_path / 'sim2sim_broken.json').write_text('{')
+    assert 'unreadable' in paper_tables.load_sim2sim(tmp_path)[0]['error']
+
+
+def test_a_missing_shipped_actor_fails_clearly(tmp_path, capsys):
+    status = paper_tables.main(['--out', str(tmp_path / 'r'), '--models-dir', str(tmp_path),
+                                '--actors', f'ppo={PPO_ACTOR}', '--no-figure'])
+    assert status == 2
+    error = capsys.readouterr().err
+    assert 'amp-noaug' in error and 'amp_actor.pt' in error and '--actors' in error
+    assert not (tmp_path / 'r').exists()
+
+
+def test_actor_overrides_are_checked():
+    assert paper_tables.parse_actor_overrides('ppo=a.pt,amp=b.pt') == {'ppo': pathlib.Path('a.pt'),
+                                                                     'amp': pathlib.Path('b.pt')}
+    with pytest.raises(ValueError):
+        paper_tables.parse_actor_overrides('dqn=a.pt')
+    with pytest.raises(ValueError):
+        paper_tables.parse_actor_overrides('ppo')

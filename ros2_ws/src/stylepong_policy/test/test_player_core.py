@@ -1,0 +1,308 @@
+"""The player's logic without ROS: state machine, limits on every command, stale inputs, rejected messages,
+phase-locked timing, and the numpy observation/decoding against the spec's torch ones."""
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from stylepong_policy import player_core as pc
+from stylepong_policy import spec
+
+PERIOD_S = 1.0 / spec.ACTION_RATE_HZ
+HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD)
+NAMES = list(spec.JOINT_NAMES)
+BALL_P = (-0.9, 0.1, 1.0)
+BALL_V = (-5.0, 0.0, 0.5)
+
+
+class WildActor:
+    """An actor that answers anything: huge, alternating, occasionally non-finite or the wrong shape."""
+
+    def __init__(self, seed: int = 0):
+        self.rng = np.random.default_rng(seed)
+        self.calls = 0
+        self.observations = []
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        self.observations.append(obs.copy())
+        kind = self.calls % 7
+        if kind == 3:
+            return np.full((1, 6), np.nan, dtype=np.float32)
+        if kind == 5:
+            return np.zeros((1, 4), dtype=np.float32)
+        return (self.rng.normal(0.0, 50.0, (1, 6)) * (-1) ** self.calls).astype(np.float32)
+
+
+def make_core(actor=None, **config) -> pc.PlayerCore:
+    return pc.PlayerCore(pc.PlayerConfig(**config), actor or WildActor())
+
+
+def check_commands(commands: list[np.ndarray], limits: pc.JointLimits) -> None:
+    """Six finite values within the position limits; per-period velocity and acceleration limits."""
+    tol = 1e-9
+    previous_velocity = np.zeros(6)
+    for k, command in enumerate(commands):
+        assert command.shape == (6,) and np.isfinite(command).all()
+        assert (command >= limits.lower_rad - tol).all() and (command <= limits.upper_rad + tol).all()
+        if k == 0:
+            continue
+        velocity = (command - commands[k - 1]) / PERIOD_S
+        assert (np.abs(velocity) <= limits.velocity_rad_s + 1e-6).all(), (k, velocity)
+        if k >= 2:
+            acceleration = (velocity - previous_velocity) / PERIOD_S
+            assert (np.abs(acceleration) <= limits.acceleration_rad_s2 * (1 + 1e-9) + 1e-6).all(), (k, acceleration)
+        previous_velocity = velocity
+
+
+def test_numpy_observation_equals_the_spec_player_observation():
+    rng = np.random.default_rng(1)
+    order = rng.permutation(6)
+    for _ in range(50):
+        q, qd = HOME + rng.normal(0, 1, 6), rng.normal(0, 3, 6)
+        ball_p, ball_v, goal, last = rng.normal(0, 1, 3), rng.normal(0, 5, 3), rng.normal(0, 1, 2), rng.uniform(-1, 1, 6)
+        names = [NAMES[i] for i in order]
+        expected = spec.player_observation(names, q[order], qd[order], ball_p, ball_v, goal, last).numpy()
+        index = pc.JointOrder().index(names)
+        got = pc.build_observation(q[order][index], qd[order][index], ball_p, ball_v, goal, last)
+        assert got.dtype == np.float32 and got.shape == (1, spec.NUM_OBS)
+        np.testing.assert_array_equal(got, expected)
+
+
+def test_numpy_decoding_equals_the_spec_decoding():
+    actions = np.random.default_rng(2).normal(0, 2, (200, 6)).astype(np.float32)
+    expected = spec.decode_action(torch.from_numpy(actions)).numpy()
+    got = np.stack([pc.decode_action(a) for a in actions])
+    np.testing.assert_array_equal(got.astype(np.float32), expected)
+
+
+def test_state_machine_disabled_ready_playing_ready_disabled():
+    core = make_core()
+    t = 10.0
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.step(t).command is None and core.state == pc.State.DISABLED
+    assert not core.ball_step_due(t) and not core.timer_step_due(t)
+    core.set_enabled(True)
+    assert core.state == pc.State.READY and core.timer_step_due(t)
+    result = core.step(t)
+    np.testing.assert_allclose(result.command, HOME, atol=1e-12)   # already home: holds it
+    assert core.at_home()
+    # A ball arrives: it drives a policy step at once.
+    t += 0.004
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.on_ball('world', t, BALL_P, BALL_V, t) is None
+    assert core.ball_step_due(t)
+    result = core.step(t)
+    assert result.state == pc.State.PLAYING and result.policy
+    # The ball goes (no message for ball_timeout_s): back to ready on the timer.
+    t += core.config.ball_timeout_s + 0.01
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.timer_step_due(t)
+    result = core.step(t)
+    assert result.state == pc.State.READY and not result.policy and result.command is not None
+    core.set_enabled(False)
+    assert core.step(t).command is None and core.state == pc.State.DISABLED
+
+
+def test_playing_starts_with_a_zero_last_action_and_feeds_back_the_clipped_action():
+    actor = WildActor()
+    core = make_core(actor)
+    core.set_enabled(True)
+    t = 1.0
+    for k in range(6):
+        core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+        core.on_ball('world', t, BALL_P, BALL_V, t)
+        if core.ball_step_due(t):
+            core.step(t)
+        t += PERIOD_S
+    first, second = actor.observations[0][0], actor.observations[1][0]
+    np.testing.assert_array_equal(first[-6:], np.zeros(6))
+    assert np.abs(second[-6:]).max() <= 1.0 and np.abs(second[-6:]).max() == 1.0
+
+
+def test_every_command_is_within_the_limits_for_adversarial_inputs():
+    rng = np.random.default_rng(3)
+    core = make_core(WildActor(4))
+    core.set_enabled(True)
+    limits = core.limits
+    commands, t = [], 5.0
+    q = HOME.copy()
+    for k in range(3000):
+        t += PERIOD_S / 2
+        if rng.random() < 0.3:   # joints jump by radians, within the URDF limits, or are garbage
+            q = rng.uniform(limits.lower_rad, limits.upper_rad)
+        bad_joint = rng.random() < 0.1
+        joints = [np.nan] * 6 if bad_joint else q
+        core.on_joint_state(NAMES, joints, rng.normal(0, 1, 6), t)
+        ball = rng.normal(0, 3, 3) if rng.random() < 0.5 else np.array([np.inf, 0, 0])
+        accepted = core.on_ball('world', t, ball, rng.normal(0, 5, 3), t) is None
+        due = (accepted and core.ball_step_due(t)) or core.timer_step_due(t) or core.fallback_step_due(t)
+        if due:
+            result = core.step(t)
+            if result.command is not None:
+                commands.append(result.command)
+    assert len(commands) > 500
+    check_commands(commands, limits)
+    assert core.counts['actor_output_rejected'] > 0
+
+
+@pytest.mark.parametrize('start', ['lower', 'upper'])
+def test_limiter_brakes_before_position_limits_without_exceeding_the_acceleration(start):
+    limits = pc.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
+    limiter = pc.CommandLimiter(limits, PERIOD_S)
+    limiter.start(limits.lower_rad + 0.5 if start == 'lower' else limits.upper_rad - 0.5)
+    target = limits.upper_rad + 10 if start == 'lower' else limits.lower_rad - 10   # beyond the far limit
+    commands = [limiter.position_rad.copy()] + [limiter.step(target) for _ in range(600)]
+    check_commands(commands, limits)
+    far = limits.upper_rad if start == 'lower' else limits.lower_rad
+    np.testing.assert_allclose(commands[-1], far, atol=1e-9)   # it got there and stopped
+
+
+def test_limiter_reaches_a_target_and_stops_there():
+    limits = pc.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
+    limiter = pc.CommandLimiter(limits, PERIOD_S)
+    limiter.start(HOME)
+    target = HOME + np.array([1.0, -0.7, 0.3, 1.2, -1.4, 0.05])
+    commands = [limiter.step(target) for _ in range(120)]
+    check_commands([HOME] + commands, limits)
+    np.testing.assert_allclose(commands[-1], target, atol=1e-9)
+    np.testing.assert_allclose(limiter.velocity_rad_s, 0.0, atol=1e-9)
+
+
+def test_ready_moves_home_gently_and_arrives():
+    core = make_core()
+    core.set_enabled(True)
+    q = HOME + np.array([0.8, -0.5, 0.4, 0.0, 0.3, -1.0])
+    t, commands = 0.0, []
+    for _ in range(400):
+        core.on_joint_state(NAMES, q, np.zeros(6), t)
+        result = core.step(t)
+        commands.append(result.command)
+        q = result.command   # a perfect servo
+        t += PERIOD_S
+    steps = np.abs(np.diff(np.array(commands), axis=0)) / PERIOD_S
+    assert steps.max() <= core.config.home_speed_rad_s + 1e-9
+    np.testing.assert_allclose(commands[-1], HOME, atol=1e-9)
+    assert core.at_home()
+
+
+def test_stale_joint_states_stop_commands_and_restart_from_the_measured_position():
+    core = make_core()
+    core.set_enabled(True)
+    t = 0.0
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.step(t).command is not None
+    t += 3.5 * PERIOD_S           # no joint state for more than 3 periods
+    result = core.step(t)
+    assert result.command is None and 'stale' in result.problem
+    moved = HOME + 0.3
+    core.on_joint_state(NAMES, moved, np.zeros(6), t)
+    command = core.step(t).command
+    assert np.abs(command - moved).max() <= core.config.home_speed_rad_s * PERIOD_S + 1e-9
+
+
+@pytest.mark.parametrize('names, positions, velocities, kind', [
+    (NAMES[:5], list(HOME[:5]), [0.0] * 5, 'joint_names'),
+    (NAMES, list(HOME[:5]), [0.0] * 6, 'joint_length'),
+    (NAMES, list(HOME), [], 'joint_length'),
+    (NAMES, [math.nan] + list(HOME[1:]), [0.0] * 6, 'joint_not_finite'),
+    (NAMES, list(HOME), [math.inf] + [0.0] * 5, 'joint_not_finite'),
+    (NAMES, [0.0, 0.0, 4.0, 0.0, 0.0, 0.0], [0.0] * 6, 'joint_out_of_limits'),
+    (NAMES, list(HOME), [100.0] + [0.0] * 5, 'joint_speed'),
+])
+def test_bad_joint_states_are_rejected(names, positions, velocities, kind):
+    core = make_core()
+    assert core.on_joint_state(names, positions, velocities, 1.0)
+    assert core.rejected[kind] == 1 and not core.joints_fresh(1.0)
+
+
+@pytest.mark.parametrize('frame, stamp, position, velocity, kind', [
+    ('base_link', 1.0, BALL_P, BALL_V, 'ball_frame'),
+    ('world', 1.0, (math.nan, 0.0, 1.0), BALL_V, 'ball_not_finite'),
+    ('world', 1.0, BALL_P, (0.0, math.inf, 0.0), 'ball_not_finite'),
+    ('world', 1.0, (40.0, 0.0, 1.0), BALL_V, 'ball_outside_cell'),
+    ('world', 1.0, BALL_P, (300.0, 0.0, 0.0), 'ball_speed'),
+    ('world', 0.0, BALL_P, BALL_V, 'ball_stamp'),
+    ('world', 0.5, BALL_P, BALL_V, 'ball_stamp'),     # 0.5 s old
+    ('world', 1.5, BALL_P, BALL_V, 'ball_stamp'),     # from the future
+])
+def test_bad_ball_states_are_rejected_and_never_reach_the_actor(frame, stamp, position, velocity, kind):
+    actor = WildActor()
+    core = make_core(actor)
+    core.set_enabled(True)
+    core.on_joint_state(NAMES, HOME, np.zeros(6), 1.0)
+    assert core.on_ball(frame, stamp, position, velocity, 1.0)
+    assert core.rejected[kind] == 1
+    assert not core.ball_step_due(1.0) and not core.ball_fresh(1.0)
+    core.step(1.0)
+    assert actor.calls == 0 and core.state == pc.State.READY
+
+
+def test_goal_messages_are_checked():
+    core = make_core()
+    assert core.on_goal('world', 0.5, 0.2) is None
+    np.testing.assert_allclose(core.goal_xy_m, [0.5, 0.2])
+    assert core.on_goal('base_link', 0.5, 0.2) and core.rejected['goal_frame'] == 1
+    assert core.on_goal('world', -0.5, 0.2) and core.on_goal('world', math.nan, 0.0)
+    assert core.rejected['goal_value'] == 2
+    np.testing.assert_allclose(core.goal_xy_m, [0.5, 0.2])
+
+
+def test_steps_are_phase_locked_to_every_second_frame_of_a_120_hz_camera():
+    core = make_core(lambda obs: np.zeros((1, 6), dtype=np.float32))
+    core.set_enabled(True)
+    t, stepped = 2.0, []
+    for k in range(240):
+        t = 2.0 + k / 120.0
+        core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+        if core.on_ball('world', t, BALL_P, BALL_V, t + 0.0003) is None and core.ball_step_due(t + 0.0003):
+            core.step(t + 0.0003)
+            stepped.append(k)
+    assert np.all(np.diff(stepped) == 2)
+    np.testing.assert_allclose(np.fromiter(core.period.values, float), PERIOD_S, atol=1e-6)
+
+
+def test_a_lost_frame_shifts_the_phase_and_a_burst_does_not_speed_the_loop_up():
+    core = make_core(lambda obs: np.zeros((1, 6), dtype=np.float32))
+    core.set_enabled(True)
+    times = []
+    for k in range(40):
+        t = 3.0 + k / 120.0
+        core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+        if k == 10:
+            continue   # a lost camera frame
+        if core.on_ball('world', t, BALL_P, BALL_V, t) is None and core.ball_step_due(t):
+            core.step(t)
+            times.append(t)
+    gaps = np.round(np.diff(times) * 120).astype(int)
+    assert set(gaps) <= {2, 3}
+    # A 1 kHz burst of (valid, increasing) stamps: at most one step per half period.
+    steps = 0
+    for k in range(200):
+        t = 4.0 + k * 0.001
+        core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+        if core.on_ball('world', t, BALL_P, BALL_V, t) is None and core.ball_step_due(t):
+            core.step(t)
+            steps += 1
+    assert steps <= 0.2 / (pc.MIN_STEP_SPACING_PERIODS * PERIOD_S) and steps >= 0.2 / PERIOD_S - 2
+
+
+def test_fallback_steps_on_the_latest_ball_when_frames_stop():
+    core = make_core(lambda obs: np.zeros((1, 6), dtype=np.float32))
+    core.set_enabled(True)
+    core.on_joint_state(NAMES, HOME, np.zeros(6), 1.0)
+    core.on_ball('world', 1.0, BALL_P, BALL_V, 1.0)
+    core.step(1.0)
+    t = 1.0 + 1.1 * PERIOD_S
+    assert not core.fallback_step_due(t)
+    t = 1.0 + (pc.FALLBACK_PERIODS + 0.01) * PERIOD_S
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.fallback_step_due(t) and core.step(t).policy
+
+
+def test_config_refuses_another_rate_and_a_goal_off_the_table():
+    with pytest.raises(ValueError, match='rate_hz'):
+        pc.PlayerConfig(rate_hz=50.0).validate()
+    with pytest.raises(ValueError, match="opponent's half"):
+        pc.PlayerConfig(goal_xy_m=(-0.5, 0.0)).validate()

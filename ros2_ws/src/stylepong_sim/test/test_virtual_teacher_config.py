@@ -1,0 +1,59 @@
+"""config/virtual_teacher.yaml lists every virtual_teacher parameter with the node's default; `seed` picks the take."""
+import pathlib
+
+import pytest
+import rclpy
+import yaml
+
+from stylepong_sim.teacher import SwingVariation, sample_variation
+from stylepong_sim.virtual_teacher_node import PARAMETERS, VirtualTeacherNode
+
+CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'virtual_teacher.yaml'
+
+
+def _node(*ros_args: str) -> tuple[VirtualTeacherNode, rclpy.Context]:
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', *ros_args], context=context)
+    return VirtualTeacherNode(context=context), context
+
+
+def _close(node, context) -> None:
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def test_the_yaml_holds_every_parameter_with_the_nodes_default():
+    in_yaml = yaml.safe_load(CONFIG.read_text())['virtual_teacher']['ros__parameters']
+    assert set(in_yaml) == set(PARAMETERS)
+    for name, (default, _) in PARAMETERS.items():
+        assert in_yaml[name] == default and type(in_yaml[name]) is type(default), name
+    node, context = _node('--params-file', str(CONFIG))
+    try:
+        assert node.p == {name: default for name, (default, _) in PARAMETERS.items()}
+    finally:
+        _close(node, context)
+
+
+@pytest.mark.parametrize('swing', ['forward', 'rightward'])
+def test_the_seed_parameter_picks_the_take_and_variation_zero_is_the_nominal_stroke(swing):
+    node, context = _node('-p', f'swing:={swing}', '-p', 'seed:=5')
+    try:
+        assert node.teacher.path.variation == sample_variation(swing, 5)
+    finally:
+        _close(node, context)
+    node, context = _node('-p', f'swing:={swing}', '-p', 'seed:=5', '-p', 'variation:=0.0')
+    try:
+        assert node.teacher.path.variation == SwingVariation()
+    finally:
+        _close(node, context)
+
+
+@pytest.mark.parametrize('override', ['seed:=-1', 'variation:=1.5', 'seed:=2.0'])
+def test_a_bad_seed_or_variation_is_refused(override):
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', '-p', override], context=context)
+    try:
+        with pytest.raises(ValueError):
+            VirtualTeacherNode(context=context)
+    finally:
+        rclpy.try_shutdown(context=context)
