@@ -29,7 +29,9 @@ CYCLES = 20000
 
 def controller_cycles() -> np.ndarray:
     from stylepong_description import robot_model as rm
-    from stylepong_fdcc.fdcc import DragTeachController, FdccConfig, gravity_wrench_on_tool, tool_load_from_model
+    from stylepong_fdcc.drag_teach_controller import DragTeachController
+    from stylepong_fdcc.fdcc_config import FdccConfig
+    from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
     from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
 
     controller = DragTeachController(FdccConfig())

@@ -3,6 +3,7 @@ import contextlib
 import os
 import pathlib
 import re
+import select
 import signal
 import stat
 import subprocess
@@ -148,10 +149,17 @@ def test_topic_list_echo_hz(talker):
     assert echo.rstrip().endswith('---')
     assert 'z: 1.25' in echo
 
-    hz = subprocess.Popen(['ros2', 'topic', 'hz', '/test/ball'], stdout=subprocess.PIPE, text=True)
-    time.sleep(4.5)
+    hz = subprocess.Popen(['ros2', 'topic', 'hz', '/test/ball'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True)
+    # Three reports after the topic is discovered (which can take one 3 s announcement period).
+    lines, deadline = [], time.monotonic() + 20.0
+    while sum(line.startswith('average rate') for line in lines) < 3 and time.monotonic() < deadline:
+        if select.select([hz.stdout], [], [], max(0.0, deadline - time.monotonic()))[0]:
+            lines.append(hz.stdout.readline())
     hz.send_signal(signal.SIGINT)
-    out, _ = hz.communicate(timeout=10)
+    rest, err = hz.communicate(timeout=10)
+    out = ''.join(lines) + rest
+    assert hz.returncode == 0 and 'Traceback' not in err, err
     rates = [float(r) for r in re.findall(r'average rate: ([0-9.]+)', out)]
     assert rates, out
     assert 40.0 < rates[-1] < 60.0

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `make demo`: the pipeline end to end in simulation, saying what each step did: record one
-# demonstration clip by kinesthetic teaching, build the reference-motion dataset, and evaluate the
-# shipped policy with a video of its strokes. Everything it writes goes to runs/demo/.
+# demonstration clip by kinesthetic teaching, build the reference-motion dataset, and play the shipped
+# policy through ROS (player + rally_eval in ur5_sim) with a video of the rally. Everything it writes goes
+# to runs/demo/. ACTOR=<name>.pt make demo plays another exported actor.
 set -eo pipefail
 cd "$(dirname "$0")/.."
 echo "[demo] loading the UR5 + paddle model in Pinocchio and MuJoCo"
@@ -65,16 +66,50 @@ ros2 run stylepong_policy build_dataset "$BAG" ros2_ws/bags -o "$DEMO_DIR/datase
   | grep '^wrote .*clips' | sed 's/^/[demo] /'
 echo "[demo] dataset in $DEMO_DIR/dataset.npz, its clips plotted in $DEMO_DIR/dataset.png"
 
-# The shipped PPO baseline actor returning balls in the batched world, with a video of a few strokes.
-ACTOR=ros2_ws/src/stylepong_policy/models/ppo_actor.pt
-echo "[demo] evaluating the shipped actor $ACTOR: 2 seeds x 200 balls, all speeds, rendering 4 strokes"
-ros2 run stylepong_policy evaluate --actor "$ACTOR" --seeds 2 --first-seed 1000 --balls 200 --speed all \
-  --json "$DEMO_DIR/evaluation.json" --video "$DEMO_DIR/strokes.mp4" | grep '^seed'
-python3 - "$DEMO_DIR/evaluation.json" <<'PY'
+# The shipped actor playing through ROS: ur5_sim (recording an MP4) + player (ONNX, on the cell's clock) +
+# rally_eval serving 20 evaluation balls. ACTOR is the exported actor (<name>.pt; the .onnx beside it is run).
+ACTOR=${ACTOR:-ros2_ws/src/stylepong_policy/models/ppo_actor.pt}
+BALLS=${BALLS:-20}
+LOGS="$DEMO_DIR/logs"
+mkdir -p "$LOGS"
+if [ ! -f "${ACTOR%.pt}.onnx" ]; then
+  echo "[demo] writing ${ACTOR%.pt}.onnx for the player"
+  python3 -m stylepong_policy.rl.export --onnx "$ACTOR" | sed 's/^/[demo] /'
+fi
+export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
+PIDS=()
+stop_nodes() {
+  for (( i=${#PIDS[@]}-1; i>=0; i-- )); do
+    kill -INT "${PIDS[i]}" 2>/dev/null || true
+    # ur5_sim finishes the MP4 on Ctrl-C: give it time.
+    for _ in $(seq 150); do kill -0 "${PIDS[i]}" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "${PIDS[i]}" 2>/dev/null || true
+  done
+  PIDS=()
+}
+trap stop_nodes EXIT
+trap 'exit 130' INT TERM
+echo "[demo] playing $ACTOR through ROS: ur5_sim + player + rally_eval, $BALLS balls of seed 1000 (about $((BALLS * 5 / 60 + 1)) min)"
+# max_lag_s: when rendering or a busy machine holds the cell back, it runs slower than real time rather
+# than catching up in bursts that the player's commands could not reach in time.
+ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
+  -p video_width:=480 -p video_height:=352 -p video_fps:=25.0 >"$LOGS/ur5_sim.log" 2>&1 &
+PIDS+=($!)
+ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true >"$LOGS/player.log" 2>&1 &
+PIDS+=($!)
+ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed 1000 --seeds 1 --speed all \
+  --json "$DEMO_DIR/rally.json" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[demo]   /'
+stop_nodes
+python3 - "$DEMO_DIR/rally.json" <<'PY'
 import json
 import sys
 
-result = json.load(open(sys.argv[1]))
-print(f"[demo] success rate {result['success_rate']:.3f}, hit rate {result['hit_rate']:.3f} over {result['balls']} balls "
-      f"(results in {sys.argv[1]}); the strokes are in {sys.argv[1].rsplit('/', 1)[0]}/strokes.mp4")
+r = json.load(open(sys.argv[1]))
+p = r['player_status']
+print(f"[demo] success rate {r['success_rate']:.3f} ({round(r['success_rate'] * r['balls'])}/{r['balls']} returned), "
+      f"hit rate {r['hit_rate']:.3f}, failures {r['failures']} (through ROS in ur5_sim)")
+print(f"[demo] player: period p99 jitter {p['period_ms'].get('jitter_p99')} ms, ball-to-command latency p99 "
+      f"{p['latency_ms'].get('p99')} ms, inference p50 {p['inference_ms'].get('p50')} ms ({p['backend']})")
 PY
+echo "[demo] outputs: demonstration clip $BAG; dataset $DEMO_DIR/dataset.npz (plot $DEMO_DIR/dataset.png);"
+echo "[demo]   rally result $DEMO_DIR/rally.json; rally video $DEMO_DIR/rally.mp4; node logs $LOGS"

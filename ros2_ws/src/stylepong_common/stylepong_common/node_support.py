@@ -144,24 +144,32 @@ class ThrottledLog:
         self._last_s: dict[str, float] = {}
         self._held_back: dict[str, int] = {}
 
+    # rclpy ties a severity to the line that calls the logger and raises if one line logs at two
+    # severities: each severity has its own call below.
     def warn(self, key: str, text: str | Callable[[], str]) -> bool:
-        return self._log(key, text, self._logger.warning)
+        message = self._due(key, text)
+        if message is not None:
+            self._logger.warning(message)
+        return message is not None
 
     def info(self, key: str, text: str | Callable[[], str]) -> bool:
-        return self._log(key, text, self._logger.info)
+        message = self._due(key, text)
+        if message is not None:
+            self._logger.info(message)
+        return message is not None
 
-    def _log(self, key: str, text, emit: Callable[[str], Any]) -> bool:
+    def _due(self, key: str, text: str | Callable[[], str]) -> str | None:
+        """The message to log now for `key`, or None while its period has not passed."""
         now = self._clock()
         if now - self._last_s.get(key, -math.inf) < self._period_s:
             self._held_back[key] = self._held_back.get(key, 0) + 1
-            return False
+            return None
         self._last_s[key] = now
         message = text() if callable(text) else text
         held_back = self._held_back.pop(key, 0)
         if held_back:
             message += f' ({held_back} more since the last such message)'
-        emit(message)
-        return True
+        return message
 
 
 def one_line(error: BaseException) -> str:
@@ -174,7 +182,8 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
 
     A ParameterError, rclpy's parameter exceptions or any of `config_errors` raised while building the
     node print `<program>: <reason>` (one line) on stderr and return EXIT_CONFIG_ERROR. The node's
-    `close()`, if it has one, runs on the way out (statistics, files).
+    `close()`, if it has one, runs on the way out (statistics, files); a node that sets `finished` ends the
+    loop, with its `exit_code` (default 0).
     """
     # Ctrl-C and SIGTERM only ask the loop below to stop: rclpy's own handler would raise inside a
     # callback half-way through it.
@@ -190,7 +199,8 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
     try:
         node = make_node()
         executor.add_node(node)
-        while rclpy.ok() and not stop_requested:
+        # A node that ends by itself (a replay) sets `finished` and, optionally, `exit_code`.
+        while rclpy.ok() and not stop_requested and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -210,4 +220,4 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return int(getattr(node, 'exit_code', 0) or 0)

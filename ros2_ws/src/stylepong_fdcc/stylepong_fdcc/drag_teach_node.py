@@ -1,66 +1,110 @@
-"""`ros2 run stylepong_fdcc drag_teach`: drag the arm by its force/torque sensor (FDCC, see fdcc.py).
+"""`ros2 run stylepong_fdcc drag_teach`: drag the arm by its force/torque sensor (FDCC, see fdcc_solver.py).
 
 Subscribes  /joint_states (sensor_msgs/JointState), /force_torque_sensor_broadcaster/wrench
             (geometry_msgs/WrenchStamped: the wrench the environment applies on the tool, frame tool0),
             ~/target_pose (geometry_msgs/PoseStamped in base_link; used when stiffness > 0)
 Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 joint positions, URDF order)
 Services    /drag_teach/tare (std_srvs/Trigger), /drag_teach/enable (std_srvs/SetBool)
-Parameters  config/drag_teach.yaml (read at start-up).
+Parameters  PARAMETERS below, defaults in config/drag_teach.yaml (read at start-up). A bad one stops the
+            node with one line on stderr and exit code 2 (stylepong_common.node_support).
+
+The control cycle runs at 500 Hz beside two 500 Hz subscriptions on a Python process, so the work around
+the controller is kept small (benchmarks/40_drag_teach.py): joint states and wrenches are read from their
+serialized bytes (`sensor_messages`), the clock is read without building a Time object, and the command
+message is built once and refilled.
 """
 from __future__ import annotations
 
+import array
+import gc
 import math
 import sys
 import time
+from typing import Any
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped, WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
+from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model as rm
-from stylepong_fdcc.fdcc import CycleStatistics, DragTeachController, FdccConfig
+from stylepong_fdcc.cycle_statistics import CycleStatistics
+from stylepong_fdcc.drag_teach_controller import DragTeachController
+from stylepong_fdcc.fdcc_config import DYNAMICS_MODELS, FdccConfig
+from stylepong_fdcc.sensor_messages import JointStateReader, wrench_from_cdr
 
+PROGRAM = 'drag_teach'
 BASE_FRAMES = ('', rm.BASE_FRAME, 'base')
 WARN_THROTTLE_S = 1.0
+CONTROL_RATE_RANGE_HZ = (10.0, 2000.0)
 
-# name: (default, description). Defaults come from FdccConfig, so the YAML file and the code agree.
+# Defaults come from FdccConfig, so the YAML file and the code agree. Bounds here are what a parameter
+# alone must satisfy; FdccConfig.validate checks the rest (strictly positive values, clamp below rejection).
 _DEFAULTS = FdccConfig()
-PARAMETERS = {
-    'control_rate_hz': (500.0, 'control cycle rate; commands are published at this rate'),
-    'start_enabled': (True, 'publish commands from start-up (else wait for /drag_teach/enable)'),
-    'tare_on_enable': (True, 'take the sensor bias when control is enabled (and at start-up)'),
-    'damping': (list(_DEFAULTS.damping), 'K_D: x, y, z in N s/m, rx, ry, rz in N m s/rad (base_link axes)'),
-    'stiffness': (list(_DEFAULTS.stiffness), 'K_P: x, y, z in N/m, rx, ry, rz in N m/rad; 0 = free dragging'),
-    'joint_damping_nms_per_rad': (_DEFAULTS.joint_damping_nms_per_rad, 'joint-space damping, N m s/rad'),
-    'dynamics_model': (_DEFAULTS.dynamics_model, "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)"),
-    'virtual_link_mass_kg': (_DEFAULTS.virtual_link_mass_kg, 'virtual model: mass of each link but the last'),
-    'virtual_link_inertia_kg_m2': (_DEFAULTS.virtual_link_inertia_kg_m2, 'virtual model: their rotational inertia'),
-    'virtual_end_mass_kg': (_DEFAULTS.virtual_end_mass_kg, 'virtual model: mass of the last link'),
-    'virtual_end_inertia_kg_m2': (_DEFAULTS.virtual_end_inertia_kg_m2, 'virtual model: its rotational inertia'),
-    'max_late_periods': (_DEFAULTS.max_late_periods, 'a longer gap between cycles (a stall) is integrated as this many periods'),
-    'gravity_compensation': (_DEFAULTS.gravity_compensation, "remove the paddle's weight from the sensor wrench"),
-    'lowpass_cutoff_hz': (_DEFAULTS.lowpass_cutoff_hz, 'first-order low-pass on the wrench'),
-    'force_deadband_n': (_DEFAULTS.force_deadband_n, 'force magnitudes below this are ignored'),
-    'torque_deadband_nm': (_DEFAULTS.torque_deadband_nm, 'torque magnitudes below this are ignored'),
-    'max_force_n': (_DEFAULTS.max_force_n, 'force magnitude clamp'),
-    'max_torque_nm': (_DEFAULTS.max_torque_nm, 'torque magnitude clamp'),
-    'reject_force_n': (_DEFAULTS.reject_force_n, 'wrenches with a larger force are rejected as sensor faults'),
-    'reject_torque_nm': (_DEFAULTS.reject_torque_nm, 'wrenches with a larger torque are rejected as sensor faults'),
-    'tare_window_s': (_DEFAULTS.tare_window_s, 'the bias is the mean reading over this window'),
-    'position_margin_rad': (_DEFAULTS.position_margin_rad, 'joints stay this far inside the URDF position limits'),
-    'velocity_limit_scale': (_DEFAULTS.velocity_limit_scale, "fraction of the URDF's joint velocity limits"),
-    'acceleration_limit_rad_s2': (list(_DEFAULTS.acceleration_limit_rad_s2), 'joint acceleration limits, rad/s^2'),
-    'watchdog_timeout_s': (_DEFAULTS.watchdog_timeout_s, 'no fresh wrench or joint state for this long: decelerate and hold'),
-    'resume_ramp_s': (_DEFAULTS.resume_ramp_s, 'after a hold, the wrench fades back in over this time'),
-}
+PARAMETERS = (
+    Param('control_rate_hz', 500.0, 'control cycle rate; commands are published at this rate',
+          low=CONTROL_RATE_RANGE_HZ[0], high=CONTROL_RATE_RANGE_HZ[1]),
+    Param('start_enabled', True, 'publish commands from start-up (else wait for /drag_teach/enable)'),
+    Param('tare_on_enable', True, 'take the sensor bias when control is enabled (and at start-up)'),
+    Param('damping', list(_DEFAULTS.damping), 'K_D: x, y, z in N s/m, rx, ry, rz in N m s/rad (base_link axes)',
+          low=0.0, length=6),
+    Param('stiffness', list(_DEFAULTS.stiffness), 'K_P: x, y, z in N/m, rx, ry, rz in N m/rad; 0 = free dragging',
+          low=0.0, length=6),
+    Param('joint_damping_nms_per_rad', _DEFAULTS.joint_damping_nms_per_rad, 'joint-space damping, N m s/rad',
+          low=0.0),
+    Param('dynamics_model', _DEFAULTS.dynamics_model, "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)",
+          choices=DYNAMICS_MODELS),
+    Param('virtual_link_mass_kg', _DEFAULTS.virtual_link_mass_kg, 'virtual model: mass of each link but the last',
+          low=0.0),
+    Param('virtual_link_inertia_kg_m2', _DEFAULTS.virtual_link_inertia_kg_m2, 'virtual model: their rotational inertia',
+          low=0.0),
+    Param('virtual_end_mass_kg', _DEFAULTS.virtual_end_mass_kg, 'virtual model: mass of the last link', low=0.0),
+    Param('virtual_end_inertia_kg_m2', _DEFAULTS.virtual_end_inertia_kg_m2, 'virtual model: its rotational inertia',
+          low=0.0),
+    Param('max_late_periods', _DEFAULTS.max_late_periods,
+          'a longer gap between cycles (a stall) is integrated as this many periods', low=1.0),
+    Param('gravity_compensation', _DEFAULTS.gravity_compensation, "remove the paddle's weight from the sensor wrench"),
+    Param('lowpass_cutoff_hz', _DEFAULTS.lowpass_cutoff_hz, 'first-order low-pass on the wrench', low=0.0),
+    Param('force_deadband_n', _DEFAULTS.force_deadband_n, 'force magnitudes below this are ignored', low=0.0),
+    Param('torque_deadband_nm', _DEFAULTS.torque_deadband_nm, 'torque magnitudes below this are ignored', low=0.0),
+    Param('max_force_n', _DEFAULTS.max_force_n, 'force magnitude clamp', low=0.0),
+    Param('max_torque_nm', _DEFAULTS.max_torque_nm, 'torque magnitude clamp', low=0.0),
+    Param('reject_force_n', _DEFAULTS.reject_force_n, 'wrenches with a larger force are rejected as sensor faults',
+          low=0.0),
+    Param('reject_torque_nm', _DEFAULTS.reject_torque_nm, 'wrenches with a larger torque are rejected as sensor faults',
+          low=0.0),
+    Param('tare_window_s', _DEFAULTS.tare_window_s, 'the bias is the mean reading over this window', low=0.0),
+    Param('position_margin_rad', _DEFAULTS.position_margin_rad, 'joints stay this far inside the URDF position limits',
+          low=0.0),
+    Param('velocity_limit_scale', _DEFAULTS.velocity_limit_scale, "fraction of the URDF's joint velocity limits",
+          low=0.0, high=1.0),
+    Param('acceleration_limit_rad_s2', list(_DEFAULTS.acceleration_limit_rad_s2), 'joint acceleration limits, rad/s^2',
+          low=0.0, length=6),
+    Param('watchdog_timeout_s', _DEFAULTS.watchdog_timeout_s,
+          'no fresh wrench or joint state for this long: decelerate and hold', low=0.0),
+    Param('resume_ramp_s', _DEFAULTS.resume_ramp_s, 'after a hold, the wrench fades back in over this time', low=0.0),
+)
+
+STATE_MESSAGES = {'waiting': 'waiting for joint states and wrenches (and a tare window) before publishing',
+                  'running': 'running: following the sensor wrench',
+                  'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
+                  'disabled': 'disabled'}
+
+
+def fdcc_config(values: dict[str, Any]) -> FdccConfig:
+    """The solver's settings from the checked parameter values; ParameterError names a bad combination."""
+    fields = set(FdccConfig.__dataclass_fields__)
+    config = FdccConfig(nominal_period_s=1.0 / values['control_rate_hz'],
+                        **{k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in fields})
+    try:
+        config.validate()
+    except ValueError as error:
+        raise ParameterError(str(error)) from None
+    return config
 
 
 def quaternion_to_rotation(x: float, y: float, z: float, w: float) -> np.ndarray | None:
@@ -75,115 +119,77 @@ def quaternion_to_rotation(x: float, y: float, z: float, w: float) -> np.ndarray
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def typed_parameter(name: str, value, default):
-    """The parameter's value in its default's type (ints accepted for floats); ValueError otherwise."""
-    def bad() -> ValueError:
-        return ValueError(f'parameter {name} must be {type(default).__name__}'
-                          f'{" of numbers" if isinstance(default, list) else ""}, got {value!r}')
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise bad()
-        return value
-    if isinstance(default, float):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise bad()
-        return float(value)
-    if isinstance(default, list):
-        if isinstance(value, (str, bytes)) or not hasattr(value, '__len__') or any(isinstance(v, bool) or not isinstance(v, (int, float))
-                                                       for v in value):
-            raise bad()
-        return [float(v) for v in value]
-    if not isinstance(value, type(default)):
-        raise bad()
-    return value
+def float64_array(values: np.ndarray) -> array.array:
+    """`values` as the array.array('d') a float64[] message field stores: assigned as such, rclpy's setter
+    skips its per-element type and range checks (a float64 array has passed them by construction)."""
+    out = array.array('d')
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
 
 
 class DragTeachNode(Node):
     def __init__(self, **kwargs):
-        super().__init__('drag_teach', **kwargs)
-        for name, (default, description) in PARAMETERS.items():
-            # dynamic typing: `-p control_rate_hz:=250` (an integer) must work as well as 250.0
-            descriptor = ParameterDescriptor(description=description, read_only=True, dynamic_typing=True)
-            self.declare_parameter(name, default, descriptor)
-        value = {name: typed_parameter(name, self.get_parameter(name).value, default)
-                 for name, (default, _) in PARAMETERS.items()}
-        rate_hz = value['control_rate_hz']
-        if not 10.0 <= rate_hz <= 2000.0:
-            raise ValueError(f'control_rate_hz must be within 10-2000 Hz, got {rate_hz}')
-        config_fields = set(FdccConfig.__dataclass_fields__)
-        config = FdccConfig(nominal_period_s=1.0 / rate_hz,
-                            **{k: tuple(v) if isinstance(v, list) else v for k, v in value.items() if k in config_fields})
-        config.validate()  # a bad parameter stops the node here with a clear message
-        self.controller = DragTeachController(config, enabled=bool(value['start_enabled']),
-                                              tare_on_enable=bool(value['tare_on_enable']))
+        super().__init__(PROGRAM, **kwargs)
+        values = declare_parameters(self, PARAMETERS)
+        config = fdcc_config(values)
+        self.controller = DragTeachController(config, enabled=values['start_enabled'],
+                                              tare_on_enable=values['tare_on_enable'])
         self.stats = CycleStatistics(config.nominal_period_s)
-        self._index_cache: tuple[tuple[str, ...], np.ndarray | None] = ((), None)
+        self.warnings = ThrottledLog(self.get_logger(), period_s=WARN_THROTTLE_S)
+        self._joint_reader = JointStateReader(rm.JOINT_NAMES)
+        self._clock_handle = self.get_clock().handle
         self._state = ''
-        self._last_warning: dict[str, float] = {}
+        self._command_msg = Float64MultiArray()
 
         self.command_pub = self.create_publisher(Float64MultiArray, '/forward_position_controller/commands', 10)
-        self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data)
+        # raw: the callbacks read the few numbers they need from the bytes (sensor_messages).
+        self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data, raw=True)
         self.create_subscription(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', self._on_wrench,
-                                 qos_profile_sensor_data)
+                                 qos_profile_sensor_data, raw=True)
         self.create_subscription(PoseStamped, '~/target_pose', self._on_target_pose, 10)
         self.create_service(Trigger, '/drag_teach/tare', self._on_tare)
         self.create_service(SetBool, '/drag_teach/enable', self._on_enable)
         self.create_timer(config.nominal_period_s, self._on_tick)
         self.get_logger().info(
-            f'FDCC at {rate_hz:g} Hz, {config.dynamics_model} model, damping {list(config.damping)}, '
-            f'stiffness {list(config.stiffness)}; {"enabled" if value["start_enabled"] else "disabled"}')
+            f'FDCC at {values["control_rate_hz"]:g} Hz, {config.dynamics_model} model, damping {list(config.damping)}, '
+            f'stiffness {list(config.stiffness)}; {"enabled" if values["start_enabled"] else "disabled"}')
+        # Everything built so far lives as long as the node: taking it out of the collector's full passes
+        # keeps those passes (tens of milliseconds over rclpy, numpy and Pinocchio) out of the control cycle.
+        gc.collect()
+        gc.freeze()
 
     def _now_s(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
-    def _warn(self, kind: str, text, info: bool = False) -> None:
-        """A warning (or info) throttled per kind of event. `text` may be a callable: under a flood of
-        bad messages the message is built, and the logger called, only once per WARN_THROTTLE_S."""
-        now = time.monotonic()
-        if now - self._last_warning.get(kind, -math.inf) < WARN_THROTTLE_S:
-            return
-        self._last_warning[kind] = now
-        text = text() if callable(text) else text
-        if info:   # rclpy ties a severity to its call site: one call per severity
-            self.get_logger().info(text)
-        else:
-            self.get_logger().warn(text)
+        """The node's clock (ROS time under use_sim_time) in seconds, without building an rclpy Time."""
+        handle = self._clock_handle
+        with handle:
+            return handle.get_now().nanoseconds * 1e-9
 
     # --- inputs ---
-    def _joint_indices(self, names) -> np.ndarray | None:
-        names = tuple(names)
-        if names != self._index_cache[0]:
-            try:
-                indices = np.array([names.index(n) for n in rm.JOINT_NAMES])
-            except ValueError:
-                indices = None
-            self._index_cache = (names, indices)
-        return self._index_cache[1]
-
-    def _on_joint_state(self, msg: JointState) -> None:
-        indices = self._joint_indices(msg.name)
-        if indices is None or len(msg.position) != len(msg.name):
-            self._warn('joint names', f'joint state rejected: it must name every joint of {rm.JOINT_NAMES} with a position')
+    def _on_joint_state(self, raw: bytes) -> None:
+        positions, _, _ = self._joint_reader.positions(raw)
+        if positions is None:
+            self.warnings.warn('joint names',
+                               f'joint state rejected: it must name every joint of {rm.JOINT_NAMES} with a position')
             return
-        fault = self.controller.on_joint_positions(np.asarray(msg.position, dtype=float)[indices], self._now_s())
+        fault = self.controller.on_joint_positions(positions, self._now_s())
         if fault:
-            self._warn('joint values', f'joint state rejected: {fault}')
+            self.warnings.warn('joint values', f'joint state rejected: {fault}')
 
-    def _on_wrench(self, msg: WrenchStamped) -> None:
-        f, t = msg.wrench.force, msg.wrench.torque
-        fault = self.controller.on_wrench(np.array([f.x, f.y, f.z, t.x, t.y, t.z]), self._now_s())
+    def _on_wrench(self, raw: bytes) -> None:
+        fault = self.controller.on_wrench(wrench_from_cdr(raw), self._now_s())
         if fault:
-            self._warn('wrench', lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
+            self.warnings.warn('wrench', lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
 
     def _on_target_pose(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in BASE_FRAMES:
-            self._warn('target frame', f'target pose rejected: frame {msg.header.frame_id!r}, expected {rm.BASE_FRAME!r}')
+            self.warnings.warn('target frame',
+                               f'target pose rejected: frame {msg.header.frame_id!r}, expected {rm.BASE_FRAME!r}')
             return
         p, o = msg.pose.position, msg.pose.orientation
         rotation = quaternion_to_rotation(o.x, o.y, o.z, o.w)
         position = np.array([p.x, p.y, p.z])
         if rotation is None or not np.all(np.isfinite(position)):
-            self._warn('target values', 'target pose rejected: non-finite position or orientation')
+            self.warnings.warn('target values', 'target pose rejected: non-finite position or orientation')
             return
         self.controller.set_target(position, rotation)
 
@@ -211,18 +217,16 @@ class DragTeachNode(Node):
     # --- the control cycle ---
     def _on_tick(self) -> None:
         now_s = self._now_s()
-        started = time.perf_counter()
+        started_s = time.perf_counter()
         result = self.controller.tick(now_s)
         if result.command is not None:
-            self.command_pub.publish(Float64MultiArray(data=result.command.tolist()))
-        self.stats.record(now_s, time.perf_counter() - started)
+            self._command_msg.data = float64_array(result.command)
+            self.command_pub.publish(self._command_msg)
+        self.stats.record(now_s, time.perf_counter() - started_s)
         if result.state != self._state:
-            reasons = {'waiting': 'waiting for joint states and wrenches (and a tare window) before publishing',
-                       'running': 'running: following the sensor wrench',
-                       'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
-                       'disabled': 'disabled'}
             # Throttled per state: a flaky sensor toggles between running and holding many times a second.
-            self._warn(result.state, reasons[result.state], info=result.state != 'holding')
+            log = self.warnings.warn if result.state == 'holding' else self.warnings.info
+            log(result.state, STATE_MESSAGES[result.state])
             self._state = result.state
 
     def log_statistics(self) -> None:
@@ -234,30 +238,13 @@ class DragTeachNode(Node):
             f'compute mean {s["compute_mean_s"] * 1e6:.0f} us, p99 {s["compute_p99_s"] * 1e6:.0f} us; '
             f'{self.controller.rejected_wrenches} wrenches and {self.controller.rejected_joint_states} joint states rejected')
 
+    def close(self) -> None:
+        """On the way out (stylepong_common.node_support.run_node): what the cycles achieved."""
+        self.log_statistics()
 
-def main(args=None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = DragTeachNode()
-    except (ValueError, RuntimeError) as error:
-        print(f'drag_teach: {error}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    try:
-        # The events executor: the standard one spends three quarters of this node's CPU time deciding
-        # what to run next (1500 callbacks/s). Its spin() would not return to Python for Ctrl-C, hence
-        # spin_once in a loop.
-        executor = EventsExecutor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.log_statistics()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(PROGRAM, DragTeachNode, args)
 
 
 if __name__ == '__main__':

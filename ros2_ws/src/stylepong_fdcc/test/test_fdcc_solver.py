@@ -3,7 +3,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_fdcc.fdcc import FdccConfig, FdccSolver, simulate_push
+from stylepong_fdcc.compare_dynamics_models import simulate_push
+from stylepong_fdcc.fdcc_config import FdccConfig
+from stylepong_fdcc.fdcc_solver import FdccSolver, dynamics_model
 from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
 
 HOME = np.array(HOME_JOINT_POSITIONS_RAD)
@@ -78,7 +80,6 @@ def test_the_virtual_model_follows_the_hand_better_than_the_urdf_model():
 
 
 def test_the_urdf_model_has_the_robots_mass_and_no_gravity():
-    from stylepong_fdcc.fdcc import dynamics_model
     urdf = dynamics_model(FdccConfig(dynamics_model='urdf'))
     virtual = dynamics_model(FdccConfig(dynamics_model='virtual'))
     assert sum(i.mass for i in urdf.inertias) > 15.0

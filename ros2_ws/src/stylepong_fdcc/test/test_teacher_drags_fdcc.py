@@ -3,7 +3,9 @@ import numpy as np
 import pinocchio as pin
 
 from stylepong_description import robot_model as rm
-from stylepong_fdcc.fdcc import DragTeachController, FdccConfig, gravity_wrench_on_tool, tool_load_from_model
+from stylepong_fdcc.drag_teach_controller import DragTeachController
+from stylepong_fdcc.fdcc_config import FdccConfig
+from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
 from stylepong_sim import world_spec as ws
 from stylepong_sim.teacher import CellKinematics, VirtualTeacher
 

@@ -366,6 +366,7 @@ class ReferenceDataset:
         try:
             with os.fdopen(handle, 'wb') as stream:
                 np.savez(stream, **arrays)
+            os.chmod(temporary, 0o644)   # mkstemp makes it private; a dataset is meant to be shared
             os.replace(temporary, path)
         except BaseException:
             pathlib.Path(temporary).unlink(missing_ok=True)

@@ -304,7 +304,8 @@ def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
 # Video
 
 
-def render_video(strokes: Sequence[st.Stroke], path: pathlib.Path, camera: str = 'overview', hold_s: float = 0.5) -> int:
+def render_video(strokes: Sequence[st.Stroke], path: pathlib.Path, camera: str = 'overview',
+                 hold_s: float = 0.5) -> int:
     """Replay strokes in the cell's MuJoCo model (kinematics only: joint positions and the ball marker
     set each frame) and encode them with the cell's video recorder. Returns frames written."""
     import mujoco
@@ -349,7 +350,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--dtw', type=pathlib.Path, metavar='DATASET', help='reference dataset (.npz) for DTW')
     parser.add_argument('--video', type=pathlib.Path, help='render a few strokes of the first seed to this MP4')
     parser.add_argument('--video-strokes', type=int, default=4, help='strokes in the video')
-    parser.add_argument('--camera', default='overview', help="camera of the cell's scene for the video (overview, robot_view)")
+    parser.add_argument('--camera', default='overview',
+                        help="camera of the cell's scene for the video (overview, robot_view)")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--randomize', action='store_true', help='evaluate with domain randomisation on')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')

@@ -55,7 +55,8 @@ def _paired_bars(ax, labels: Sequence[str], paper: Sequence[float | None], ours:
 
 
 def success_chart(path: str | os.PathLike, labels: Sequence[str], paper: Sequence[float | None],
-                  ours: Sequence[float | None], ours_std: Sequence[float | None], title: str, setting: str) -> pathlib.Path:
+                  ours: Sequence[float | None], ours_std: Sequence[float | None], title: str,
+                  setting: str) -> pathlib.Path:
     """Success rates (fractions) of several methods or speed bands, paper beside ours."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(max(5.5, 1.4 * len(labels) + 2), 4.2))

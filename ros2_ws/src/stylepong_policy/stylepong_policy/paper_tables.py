@@ -242,6 +242,11 @@ def load_sim2sim(folder: pathlib.Path) -> list[dict]:
 # Markdown
 
 
+def band_text(band: str) -> str:
+    lo, hi = SPEED_RANGES_M_S[band]
+    return f'{lo:.1f}-{hi:.1f}'
+
+
 def percent(value: float | None, std: float | None = None) -> str:
     if value is None:
         return 'n/a'
@@ -284,13 +289,15 @@ def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
     for name in ('ppo', 'amp'):
         dtw = summaries[name]['all']['dtw']
         rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)'] +
-                    [cell for d in st.DIRECTIONS for cell in (number(paper.TABLE_II[name][d]), number(dtw[d]['mean_rad']))])
+                    [cell for d in st.DIRECTIONS
+                     for cell in (number(paper.TABLE_II[name][d]), number(dtw[d]['mean_rad']))])
     rows.append(['ratio amp / ppo'] + [cell for d in st.DIRECTIONS for cell in (
         number(paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d], 3), number(dtw_ratio(summaries, d), 3))])
     extra = []
     for name in ACTOR_NAMES:
         dtw = summaries[name]['all']['dtw']
-        extra.append([f'`{name}`'] + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in st.DIRECTIONS]
+        extra.append([f'`{name}`']
+                     + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in st.DIRECTIONS]
                      + [number(dtw[d]['mean_per_path_step_rad'], 4) for d in st.DIRECTIONS]
                      + [' / '.join(str(dtw[d]['strokes']) for d in st.DIRECTIONS)])
     dtw_ppo = summaries['ppo']['all']['dtw']
@@ -320,10 +327,10 @@ def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> li
             rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)' + ('' if fig else ' (not in the paper)'), band,
                          f'{fig.attempts if fig else "-"} / {ours["balls_per_seed"]}',
                          number(fig.mean_success) if fig else '-', number(ours['mean_successes_per_seed']),
-                         percent(fig.success_rate) if fig else '-', percent(ours['success_rate'], ours['success_rate_std'])])
+                         percent(fig.success_rate) if fig else '-',
+                         percent(ours['success_rate'], ours['success_rate_std'])])
     return ['## Table III: success at low and high incoming speeds', '',
-            f'Setting: {protocol.bands_setting()}: low {SPEED_RANGES_M_S["low"][0]:.1f}-{SPEED_RANGES_M_S["low"][1]:.1f}, '
-            f'high {SPEED_RANGES_M_S["high"][0]:.1f}-{SPEED_RANGES_M_S["high"][1]:.1f} m/s.', '',
+            f'Setting: {protocol.bands_setting()}: low {band_text("low")}, high {band_text("high")} m/s.', '',
             *table(['Method', 'Speed', 'Attempts per seed (paper / ours)', 'Mean (paper)', 'Mean (ours)',
                     'Success rate (paper)', 'Success rate (ours, ± std over seeds)'], rows), '',
             '![Table III](table3_speed.png)', '']
@@ -338,7 +345,8 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
             s = summary['smoothness'][d]
             dtw = summary['dtw'][d]
             rows.append([f'`{name}`', d, str(summary['directions'][d]['balls']),
-                         number(s and s['peak_joint_speed_rad_s']), number(s and s['peak_joint_acceleration_rad_s2'], 1),
+                         number(s and s['peak_joint_speed_rad_s']),
+                         number(s and s['peak_joint_acceleration_rad_s2'], 1),
                          number(s and s['mean_abs_jerk_rad_s3'], 1), number(dtw['mean_rad']),
                          number(dtw['mean_per_path_step_rad'], 4)])
     for d in st.DIRECTIONS:
@@ -399,7 +407,8 @@ def figure_section(figure: dict | None, protocol: Protocol) -> list[str]:
         return ['## Fig. 2: strokes', '', 'Not rendered (--no-figure, or no ball of the chosen direction).', '']
     return ['## Fig. 2: strokes', '',
             f'The same {figure["direction"]} ball (seed {figure["seed"]}, ball {figure["ball"]}, '
-            f'{figure["launch_speed_m_s"]} m/s) for PPO ({figure["outcomes"]["ppo"]}) and AMP ({figure["outcomes"]["amp"]}), '
+            f'{figure["launch_speed_m_s"]} m/s) for PPO ({figure["outcomes"]["ppo"]}) and '
+            f'AMP ({figure["outcomes"]["amp"]}), '
             f'and the {figure["reference_row"]}: seven frames each, the cell\'s MuJoCo scene, camera '
             f'`{figure["camera"]}`. Setting: {protocol.setting("all")}.', '', '![Fig. 2](strokes.png)', '']
 
@@ -458,8 +467,10 @@ def write_charts(out: pathlib.Path, summaries, reference_rows, protocol: Protoco
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='paper_tables', description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=pathlib.Path, required=True, help='folder for README.md, charts, JSON')
-    parser.add_argument('--actors', help=f'name=path,... for any of {", ".join(ACTOR_NAMES)} (default: the shipped ones)')
-    parser.add_argument('--models-dir', type=pathlib.Path, default=DEFAULT_MODELS_DIR, help='where the shipped actors are')
+    parser.add_argument('--actors',
+                        help=f'name=path,... for any of {", ".join(ACTOR_NAMES)} (default: the shipped ones)')
+    parser.add_argument('--models-dir', type=pathlib.Path, default=DEFAULT_MODELS_DIR,
+                        help='where the shipped actors are')
     parser.add_argument('--seeds', type=int, default=10, help='seeds per table')
     parser.add_argument('--balls', type=int, default=200, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED, help='first seed of Tables I, II')
@@ -471,7 +482,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--figure-direction', choices=st.DIRECTIONS, default='forward', help='the ball of Fig. 2')
     parser.add_argument('--camera', default='figure', help="Fig. 2's camera: figure (close to the robot), or the "
                         "scene's overview or robot_view")
-    parser.add_argument('--save-strokes', action='store_true', help='also write every stroke (strokes_<actor>_<band>.npz)')
+    parser.add_argument('--save-strokes', action='store_true',
+                        help='also write every stroke (strokes_<actor>_<band>.npz)')
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)

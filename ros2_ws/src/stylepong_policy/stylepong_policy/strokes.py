@@ -185,6 +185,7 @@ def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz:
     try:
         with os.fdopen(handle, 'wb') as stream:
             np.savez_compressed(stream, **arrays)
+        os.chmod(temporary, 0o644)   # mkstemp makes it private; a result file is for everyone to read
         os.replace(temporary, path)
     except BaseException:
         pathlib.Path(temporary).unlink(missing_ok=True)

@@ -27,6 +27,7 @@ import json
 import math
 import pathlib
 import platform
+import shlex
 import signal
 import sys
 import time
@@ -254,7 +255,9 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM (a session or job manager stopping us) ends training like Ctrl-C: checkpoint kept, actor exported.
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     started = time.perf_counter()
-    runner.learn(cfg.runner.iterations)
+    # Each session of a (resumed, multi-stage) run records the command that ran it, as typed.
+    command = shlex.join(['train'] + (sys.argv[1:] if argv is None else list(argv)))
+    runner.learn(cfg.runner.iterations, session_info={'command': command})
     if runner.iteration == 0:
         print('train: no iteration completed; nothing to export', file=sys.stderr)
         return 130 if runner.interrupted else 1

@@ -113,7 +113,8 @@ def _stroke(seed, ball, frames, direction, success):
     rng = np.random.default_rng(seed * 100 + ball)
     return st.Stroke(seed=seed, ball=ball, joint_positions_rad=rng.normal(size=(frames, 6)).astype(np.float32),
                      ball_position_m=rng.normal(size=(frames, 3)).astype(np.float32), direction=direction,
-                     arrival_y_m=0.25, launch_velocity_m_s=np.array([-5.0, 0.3, 1.0]), outcome='returned' if success else 'net',
+                     arrival_y_m=0.25, launch_velocity_m_s=np.array([-5.0, 0.3, 1.0]),
+                     outcome='returned' if success else 'net',
                      success=success, hit=True, hit_frame=frames - 19, verdict_frame=frames + 10)
 
 

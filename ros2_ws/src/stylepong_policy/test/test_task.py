@@ -95,6 +95,21 @@ def test_observation_delay_shows_an_older_ball():
     torch.testing.assert_close(obs[3, ball], 0.5 * (history[0, 3, :3] + history[1, 3, :3]))
 
 
+def test_every_action_delay_lets_the_command_reach_the_servo():
+    """With any drawn action delay (0..2 physics steps, at most one policy period) a held action reaches the
+    servo by the next policy step: no environment's arm is left frozen at its reset pose."""
+    env = _env(3, randomize=True, max_action_delay_s=1.0 / 60.0)
+    env.reset()
+    env.episode.action_delay_physics_steps[:] = torch.arange(3)
+    action = torch.tensor([[0.3, -0.2, 0.5, 0.4, -0.5, 0.2]] * 3)
+    start = env.world.q_rad.clone()
+    for _ in range(2):
+        env.step(action)
+    target = spec.decode_action(spec.clip_action(action)).to(env.world.q_cmd_rad.dtype)
+    torch.testing.assert_close(env.world.q_cmd_rad.T, target)
+    assert bool(((env.world.q_rad - start).abs().amax(dim=0) > 1e-3).all())
+
+
 def _force_return(env, i, start, velocity):
     """Put env i's ball in flight as if the paddle had just struck it."""
     w = env.world

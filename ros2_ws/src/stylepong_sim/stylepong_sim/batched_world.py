@@ -161,7 +161,8 @@ class BatchedWorld:
         self.q_rad = home.repeat(1, n)
         self.qd_rad_s = torch.zeros(6, n, **kw)
         self.q_ref_rad = self.q_rad.clone()
-        self.q_cmd_rad = self.q_rad.clone()
+        self.q_cmd_rad = self.q_rad.clone()       # the target the servo is tracking now
+        self.q_issued_rad = self.q_rad.clone()    # the latest command given to `step` (delayed to the servo)
         self.ball_pos_m = torch.zeros(3, n, **kw)
         self.ball_vel_m_s = torch.zeros(3, n, **kw)
         self.time_s = torch.zeros(n, **kw)
@@ -223,6 +224,7 @@ class BatchedWorld:
         self.qd_rad_s[:, env_ids] = 0.0 if qd_rad_s is None else qd_rad_s
         self.q_ref_rad[:, env_ids] = q
         self.q_cmd_rad[:, env_ids] = q
+        self.q_issued_rad[:, env_ids] = q
         self.ball_pos_m[:, env_ids] = ball_pos_m
         self.ball_vel_m_s[:, env_ids] = ball_vel_m_s
         self.time_s[env_ids] = 0.0
@@ -241,14 +243,18 @@ class BatchedWorld:
         """Apply the joint position command q_cmd [6, N] for one policy period; returns its events.
 
         delay_steps [N] (long, 0..physics_steps): the command reaches the servo only after that many
-        physics steps (the previous command holds until then): the action latency of a real cell.
+        physics steps (the previous command given to `step` holds until then): the action latency of a
+        real cell. With physics_steps it takes effect at the start of the next period.
         """
         with torch_threads(self.cpu_threads):
             return self._step(q_cmd_rad, delay_steps)
 
     def _step(self, q_cmd_rad: torch.Tensor, delay_steps: torch.Tensor | None) -> StepEvents:
-        previous = self.q_cmd_rad
+        # The delayed command is the previous *issued* one, not the servo's current target: with a delay of
+        # a whole policy period the target would otherwise hold its old value forever.
+        previous = self.q_issued_rad
         command = torch.maximum(torch.minimum(q_cmd_rad, self.model.upper_rad), self.model.lower_rad)
+        self.q_issued_rad = command
         paddle_hit = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         own_bounce = torch.zeros_like(paddle_hit)
         was_open = self.open.clone()

@@ -247,6 +247,45 @@ def test_action_delay_holds_the_previous_command():
     assert moved[0] > 1e-3 and moved[1] < 1e-9
 
 
+def test_action_delay_of_d_physics_steps_applies_each_command_d_steps_late_per_env_and_reset_clears_it():
+    """Per env, the servo target in each physics step is the command given d physics steps earlier: with
+    d = physics_steps the previous period's command, never one that stays stuck at its reset value."""
+    world = _world(3)
+    n, steps = world.num_envs, world.physics_steps
+    delays = torch.arange(steps + 1)                       # one env per delay: 0, 1, ..., physics_steps
+    targets = []                                           # the servo target in every physics step
+    arm_step = world._arm_step
+
+    def recording_arm_step(inverse, bias):
+        targets.append(world.q_cmd_rad[0].clone())
+        arm_step(inverse, bias)
+
+    world._arm_step = recording_arm_step
+    home = world.q_rad[0].clone()
+    commands = [home + 0.1 * (i + 1) for i in range(4)]    # joint 0's target in each policy period
+    for value in commands:
+        q_cmd = world.q_rad.clone()
+        q_cmd[0] = value
+        world.step(q_cmd, delay_steps=delays)
+    # Physics step t of env e tracks the command given at physics step t - d_e (its reset pose before 0).
+    expected = torch.stack([torch.stack([commands[(t - int(d)) // steps][e] if t >= int(d) else home[e]
+                                         for e, d in enumerate(delays)]) for t in range(steps * len(commands))])
+    torch.testing.assert_close(torch.stack(targets), expected, rtol=0.0, atol=0.0)
+    assert (world.q_rad[0] - home).abs().min() > 1e-3    # every env's arm follows its commands
+
+    # A reset forgets the command in flight: the delayed env then holds its reset pose, not the old command.
+    targets.clear()
+    world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.zeros(3, n, dtype=torch.float64),
+                     torch.zeros(3, n, dtype=torch.float64))
+    start = world.q_rad[0].clone()
+    q_cmd = world.q_rad.clone()
+    q_cmd[0] = start + 0.3
+    world.step(q_cmd, delay_steps=delays)
+    torch.testing.assert_close(targets[0][-1], start[-1], rtol=0.0, atol=0.0)
+    torch.testing.assert_close(targets[-1][-1], start[-1], rtol=0.0, atol=0.0)
+    torch.testing.assert_close(targets[0][0], start[0] + 0.3, rtol=0.0, atol=0.0)
+
+
 def test_incoming_balls_follow_the_world_spec_distribution():
     """Same candidates, same verdicts: launch velocities agree with world_spec's aim (its 2 ms Euler flights
     differ by millimetres) and the accept/reject decisions agree except on borderline draws."""

@@ -281,8 +281,10 @@ class OnPolicyRunner:
             self.storage.compute_returns(last_values, gamma, self.cfg.ppo.lam, self.cfg.ppo.normalize_advantages)
         return obs, critic_obs, world_s, policy_s, style_s
 
-    def learn(self, until_iteration: int, progress_bar: bool | None = None) -> dict[str, Any]:
-        """Train until the run has `until_iteration` iterations; Ctrl-C stops after saving a checkpoint."""
+    def learn(self, until_iteration: int, progress_bar: bool | None = None,
+              session_info: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Train until the run has `until_iteration` iterations; Ctrl-C stops after saving a checkpoint.
+        session_info (e.g. the command line) is kept with this session's record in checkpoints."""
         progress_bar = self.cfg.runner.progress_bar if progress_bar is None else progress_bar
         start = self.iteration
         log = TrainingLog(self.run_dir, start, tensorboard=self.tensorboard)
@@ -296,7 +298,7 @@ class OnPolicyRunner:
         self.actor_critic.train()
         batch = self.storage.num_steps * self.env.num_envs
         session = {'start_iteration': start, 'end_iteration': start, 'wall_time_s': 0.0,
-                   'num_envs': self.env.num_envs, 'device': describe_device(self.device)}
+                   'num_envs': self.env.num_envs, 'device': describe_device(self.device), **(session_info or {})}
         self.sessions.append(session)
         try:
             with torch.inference_mode():

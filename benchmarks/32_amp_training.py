@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""AMP training throughput end to end, and the discriminator's share of an iteration.
+
+Runs the real runner with the motion prior (`train --method amp`'s path: rollouts, style reward from
+the discriminator on every step's windows, PPO update, discriminator updates, checkpoint and CSV log)
+on `stylepong_policy.task.make_env` with the shipped config/amp.yaml, the reference motions built from
+the shipped clips, N environments on the CPU; prints one Markdown section for BENCHMARKS.md.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see train.py), before torch loads
+
+import torch
+
+NUM_ENVS = int(os.environ.get('BENCH_AMP_NUM_ENVS', 2048))
+WARMUP_ITERATIONS = 1
+MEASURED_ITERATIONS = 2
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def measure(run_dir: pathlib.Path) -> dict[str, float]:
+    from stylepong_policy import task
+    from stylepong_policy.rl.config import load_config
+    from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+    from stylepong_policy.train import default_config_path, make_motion_prior
+
+    cfg = load_config(default_config_path('amp'))
+    cfg.task['num_envs'] = NUM_ENVS
+    cfg.runner.save_interval = 10 ** 6
+    seed_everything(1)
+    env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
+    prior, _ = make_motion_prior(cfg, env, run_dir, torch.device('cpu'))
+    runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False, motion_prior=prior)
+    runner.learn(WARMUP_ITERATIONS, progress_bar=False)
+    keys = ('world_s', 'policy_s', 'learn_s', 'style_s', 'iteration_time_s')
+    totals = dict.fromkeys(keys, 0.0)
+    for it in range(MEASURED_ITERATIONS):
+        stats = runner.learn(WARMUP_ITERATIONS + it + 1, progress_bar=False)
+        for key in keys:
+            totals[key] += stats[key]
+    samples = MEASURED_ITERATIONS * cfg.ppo.num_steps_per_env * NUM_ENVS
+    wall = totals['iteration_time_s']
+    return {'samples_per_s': samples / wall, 'iteration_s': wall / MEASURED_ITERATIONS,
+            'world_share': totals['world_s'] / wall, 'policy_share': totals['policy_s'] / wall,
+            'learn_share': totals['learn_s'] / wall, 'style_share': totals['style_s'] / wall,
+            'hidden': cfg.policy.actor_hidden_dims, 'disc_hidden': cfg.amp.hidden_dims,
+            'length': cfg.amp.sequence_length, 'updates': cfg.amp.updates_per_iteration,
+            'batch': cfg.amp.batch_size}
+
+
+def main() -> int:
+    torch.set_num_threads(2)
+    load_before = os.getloadavg()[0]
+    # The dataset build and the runner print progress; only this script's Markdown goes to stdout.
+    with tempfile.TemporaryDirectory() as run_dir, contextlib.redirect_stdout(io.StringIO()):
+        r = measure(pathlib.Path(run_dir))
+    print('## AMP training throughput (end to end)\n')
+    print(f'`benchmarks/32_amp_training.py`: the runner with the motion prior on `stylepong_policy.task.make_env`, '
+          f'N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
+          f'`config/amp.yaml` (actor and critic {r["hidden"]}, discriminator {r["disc_hidden"]} on windows of '
+          f'{r["length"]} arm states, {r["updates"]} discriminator steps of {r["batch"]} + {r["batch"]} windows '
+          f'per iteration), reference motions built from `ros2_ws/bags`; {WARMUP_ITERATIONS} warm-up iteration, '
+          f'then the mean of {MEASURED_ITERATIONS}. Load average before the run: {load_before:.1f}.\n')
+    print('| samples/s | s/iteration | world | policy inference | PPO update | discriminator (scoring + updates) |')
+    print('|---|---|---|---|---|---|')
+    print(f'| {r["samples_per_s"]:,.0f} | {r["iteration_s"]:.1f} | {100 * r["world_share"]:.0f} % | '
+          f'{100 * r["policy_share"]:.0f} % | {100 * r["learn_share"]:.0f} % | {100 * r["style_share"]:.0f} % |')
+    print('\nShares are of training wall time. The shipped style actors were trained on a GPU; their summaries '
+          '(`models/amp_summary.json`, `models/amp_noaug_summary.json`) give the samples per second there.')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
