@@ -25,6 +25,7 @@ setup(
             'build_dataset = stylepong_policy.build_dataset:main',
             'train = stylepong_policy.train:main',
             'evaluate = stylepong_policy.evaluate:main',
+            'select_checkpoint = stylepong_policy.select_checkpoint:main',
             'paper_tables = stylepong_policy.paper_tables:main',
             'player = stylepong_policy.player_node:main',
         ],

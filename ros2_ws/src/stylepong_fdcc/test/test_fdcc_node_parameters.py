@@ -1,49 +1,68 @@
-"""drag_teach's parameters: the YAML file, the node's defaults and the solver's settings agree; bad ones are refused."""
+"""drag_teach's parameters: the YAML file, the node's table and the solver's settings agree; bad ones are
+refused in one line naming them, with stylepong_common's exit code."""
 import pathlib
+import subprocess
+import sys
 
 import pytest
 import rclpy
 import yaml
 from rclpy.parameter import Parameter
 
-from stylepong_fdcc.drag_teach_node import PARAMETERS, DragTeachNode, quaternion_to_rotation, typed_parameter
-from stylepong_fdcc.fdcc import FdccConfig
+from stylepong_common.node_support import EXIT_CONFIG_ERROR, ParameterError
+from stylepong_fdcc.drag_teach_node import PARAMETERS, DragTeachNode, quaternion_to_rotation
+from stylepong_fdcc.fdcc_config import FdccConfig
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'drag_teach.yaml'
 
 
 def test_the_yaml_file_holds_every_parameter_with_the_node_default():
     values = yaml.safe_load(CONFIG.read_text())['drag_teach']['ros__parameters']
-    assert set(values) == set(PARAMETERS)
-    for name, (default, _) in PARAMETERS.items():
-        assert values[name] == default, name
+    assert list(values) == [row.name for row in PARAMETERS]
+    for row in PARAMETERS:
+        assert values[row.name] == row.default and type(values[row.name]) is type(row.default), row.name
 
 
 def test_every_solver_setting_is_a_parameter():
     derived = {'nominal_period_s'}   # from control_rate_hz
-    assert set(FdccConfig.__dataclass_fields__) - derived <= set(PARAMETERS)
+    assert set(FdccConfig.__dataclass_fields__) - derived <= {row.name for row in PARAMETERS}
 
 
-def test_integers_pass_for_floats_and_wrong_types_are_refused():
-    assert typed_parameter('control_rate_hz', 250, 500.0) == 250.0
-    assert typed_parameter('damping', [30, 30, 30, 3, 3, 3], [30.0] * 6) == [30.0, 30.0, 30.0, 3.0, 3.0, 3.0]
-    with pytest.raises(ValueError, match='control_rate_hz'):
-        typed_parameter('control_rate_hz', 'fast', 500.0)
-    with pytest.raises(ValueError, match='start_enabled'):
-        typed_parameter('start_enabled', 1, True)
+def test_integers_pass_for_floats_and_the_node_builds_its_config_from_them():
+    rclpy.init()
+    try:
+        node = DragTeachNode(parameter_overrides=[Parameter('control_rate_hz', value=250),
+                                                  Parameter('damping', value=[30, 30, 30, 3, 3, 3])])
+        assert node.controller.config.nominal_period_s == 1.0 / 250.0
+        assert node.controller.config.damping == (30.0, 30.0, 30.0, 3.0, 3.0, 3.0)
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
 
 
 @pytest.mark.parametrize('override', [Parameter('damping', value=[30.0, 30.0, 30.0]),
+                                      Parameter('damping', value=[0.0] * 6),
                                       Parameter('dynamics_model', value='heavy'),
                                       Parameter('control_rate_hz', value=5.0),
-                                      Parameter('max_force_n', value=-1.0)])
+                                      Parameter('control_rate_hz', value='fast'),
+                                      Parameter('start_enabled', value=1),
+                                      Parameter('max_force_n', value=-1.0),
+                                      Parameter('max_force_n', value=600.0)])
 def test_the_node_refuses_bad_parameters_with_their_name(override):
     rclpy.init()
     try:
-        with pytest.raises(ValueError, match=override.name.split('_')[0]):
+        with pytest.raises(ParameterError, match=override.name.split('_')[0]):
             DragTeachNode(parameter_overrides=[override])
     finally:
         rclpy.try_shutdown()
+
+
+def test_a_bad_parameter_ends_the_program_with_one_line_and_the_shared_exit_code():
+    run = subprocess.run([sys.executable, '-m', 'stylepong_fdcc.drag_teach_node', '--ros-args',
+                          '-p', 'control_rate_hz:=5.0'], capture_output=True, text=True, timeout=60)
+    assert run.returncode == EXIT_CONFIG_ERROR
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('drag_teach: ') and 'control_rate_hz' in lines[0], run.stderr
 
 
 def test_quaternions_are_normalised_and_degenerate_ones_refused():

@@ -7,8 +7,8 @@ from stylepong_fdcc.clip_writer import (IN_PROGRESS_NAME, ClipError, ClipWriter,
                                         label_from_bag_dir_name, label_problem, open_clip)
 from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
 
-from tests.bag_check import (JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_mcap_ros2,
-                             read_with_rosbags, storage_file)
+from tests.bag_check import (JOINT_NAMES, JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_mcap_ros2,
+                             read_with_rosbags, read_with_sqlite3, storage_file)
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 WRENCH = '/force_torque_sensor_broadcaster/wrench'
@@ -76,6 +76,13 @@ def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, st
         assert mcap.stamps[JOINT_STATES] == stamps
         assert mcap.metadata_counts[JOINT_STATES] == 1500
         assert 'rosbag2' in mcap.custom_data
+    else:   # the .db3 file through Python's sqlite3 and a CDR decoder of its own
+        sql, joint_states = read_with_sqlite3(storage_file(clip.bag_dir, '.db3'))
+        assert sql.custom_data == {'label': 'forward'}
+        assert sql.stamps == {JOINT_STATES: stamps, WRENCH: []}
+        assert sql.log_times[JOINT_STATES] == [s + 300_000 for s in stamps]
+        assert sql.metadata_counts == {JOINT_STATES: 1500, WRENCH: 0}
+        assert all(js.name == list(JOINT_NAMES) and js.position == [js.stamp_ns * 1e-9] * 6 for js in joint_states)
 
 
 def test_topics_can_join_a_running_clip(tmp_path):

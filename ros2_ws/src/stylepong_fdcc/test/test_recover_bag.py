@@ -16,7 +16,7 @@ from stylepong_fdcc.msg_definitions import MessageDefinitions
 from stylepong_fdcc.recover_bag import RecoveryError, main, recover_bag
 
 from tests.bag_check import (JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_mcap_ros2,
-                             read_with_rosbags, storage_file)
+                             read_with_rosbags, read_with_sqlite3, storage_file)
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 WRENCH = '/force_torque_sensor_broadcaster/wrench'
@@ -97,6 +97,10 @@ def test_a_killed_clip_is_recovered_with_everything_flushed_and_its_label(tmp_pa
     assert content.metadata_counts == {JOINT_STATES: 1000, WRENCH: 0}
     if storage == 'mcap':
         assert read_with_mcap_ros2(storage_file(crashed, '.mcap')).stamps[JOINT_STATES] == flushed
+    else:   # the .db3 file alone, through Python's sqlite3: the WAL was folded in, nothing uncommitted kept
+        sql, joint_states = read_with_sqlite3(storage_file(crashed, '.db3'))
+        assert sql.stamps[JOINT_STATES] == flushed
+        assert [js.position[0] for js in joint_states] == [stamp * 1e-9 for stamp in flushed]
 
 
 def mcap_chunk_ends(path):
