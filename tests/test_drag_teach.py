@@ -147,7 +147,12 @@ def test_a_10_n_push_along_x_moves_the_tool_along_x_and_it_stays_where_it_was_le
     left_at = tool_position(recent[-1][1])
     displacement = left_at - before
     distance = float(np.linalg.norm(displacement))
-    assert distance > 0.02, f'the tool moved only {distance * 100:.1f} cm'
+    print(f'a 10 N push for 1 s moved the tool {distance * 100:.1f} cm, direction {np.round(displacement / distance, 4)}')
+    # About 0.3 m (stylepong_fdcc.fdcc_solver: 0.29-0.33 m): the push's impulse over the default damping,
+    # 10 N s / 30 N s/m = 0.333 m, less what the cell's transport delays take (measured here: 0.295 m).
+    impulse_over_damping_m = 10.0 * 1.0 / 30.0
+    assert 0.8 * impulse_over_damping_m <= distance <= 1.05 * impulse_over_damping_m, \
+        f'the tool moved {distance * 100:.1f} cm, not about {impulse_over_damping_m * 100:.0f} cm'
     assert displacement[0] / distance >= 0.9, f'the tool moved along {displacement / distance}'
     time.sleep(3.0)
     after = probe.joints_between(recent[-1][0], time.monotonic())

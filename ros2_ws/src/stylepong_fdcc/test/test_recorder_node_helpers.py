@@ -9,11 +9,11 @@ from stylepong_fdcc.recorder_node import resolve_output_dir, rosbags_qos, subscr
 
 
 def test_a_relative_output_dir_is_taken_from_the_project_root_not_the_current_directory():
-    cwd = Path('/home/user/somewhere')
-    isolated = Path('/work/project/ros2_ws/install/stylepong_fdcc')
-    merged = Path('/work/project/ros2_ws/install')
-    assert resolve_output_dir('ros2_ws/bags', isolated, cwd) == Path('/work/project/ros2_ws/bags')
-    assert resolve_output_dir('ros2_ws/bags', merged, cwd) == Path('/work/project/ros2_ws/bags')
+    cwd = Path('/srv/someone/somewhere')
+    isolated = Path('/srv/project/ros2_ws/install/stylepong_fdcc')
+    merged = Path('/srv/project/ros2_ws/install')
+    assert resolve_output_dir('ros2_ws/bags', isolated, cwd) == Path('/srv/project/ros2_ws/bags')
+    assert resolve_output_dir('ros2_ws/bags', merged, cwd) == Path('/srv/project/ros2_ws/bags')
     assert resolve_output_dir('ros2_ws/bags', Path('/opt/ros/jazzy'), cwd) == cwd / 'ros2_ws/bags'
     assert resolve_output_dir('ros2_ws/bags', None, cwd) == cwd / 'ros2_ws/bags'
     assert resolve_output_dir('/data/clips', isolated, cwd) == Path('/data/clips')

@@ -20,8 +20,10 @@ The cell steps physics at 1 ms; here physics runs at `physics_rate_hz` (default 
 60 Hz policy step) with the ball integrated by the midpoint rule (exact for gravity, so the coarser
 step loses nothing: landing points agree with the cell's to millimetres) and the arm at
 `arm_substeps` finer steps per physics step (480 Hz), with the inertia and bias torques updated once per
-policy step (`dynamics_every`). Joint trajectories agree with the cell's within 2 % RMS, ball landings
-within 6 mm (test_batched_world_agreement). Robot-link contacts use capsules fitted to the links'
+policy step (`dynamics_every`). Joint trajectories agree with the cell's within 2 % RMS, the ball's
+table contacts within 6 mm and its floor landings within 7 mm (test_batched_world_agreement); the
+compiled world (`compile=True`) steps the same states as the eager one to float32 rounding
+(test_batched_world_compiled). Robot-link contacts use capsules fitted to the links'
 collision meshes (the cell queries the meshes themselves).
 """
 from __future__ import annotations

@@ -1,9 +1,13 @@
 """The batched torch world agrees with the MuJoCo cell (stylepong_sim.cell) on the same inputs.
 
-* Ball: the same launched ball touches the table within 2 cm of where it touches it in the cell, and
-  after that first bounce it lands (floor, or the table's far half) within 2 cm of the cell's landing.
-* Arm: the same joint-position step command gives joint trajectories within 5 % RMS of the cell's
-  (RMS of the difference over 1 s, relative to the RMS of the cell's motion from its start).
+* Ball: the same launched ball touches the table within 6 mm of where it touches it in the cell, and
+  after that first bounce it lands on the floor within 7 mm of the cell's landing (measured: at most
+  5.6 mm and 6.1 mm).
+* Arm: the same joint-position step command gives joint trajectories within 2 % RMS of the cell's
+  (RMS of the difference over 1 s, relative to the RMS of the cell's motion from its start; measured:
+  at most 1.8 %).
+These are the figures stylepong_sim.batched_world's docstring states; both simulators are deterministic,
+so the margins hold from run to run.
 The cell steps at 1 ms and is sampled at the batched world's policy instants (linear interpolation
 between its 1 ms samples); the batched world runs at its defaults (120 Hz physics, 60 Hz policy).
 """
@@ -18,6 +22,9 @@ from stylepong_sim.cell import Cell
 
 HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
 POLICY_DT_S = 1.0 / ws.POLICY_RATE_HZ
+TABLE_CONTACT_TOLERANCE_M = 0.006
+LANDING_TOLERANCE_M = 0.007
+JOINT_RMS_TOLERANCE = 0.02          # of the RMS of the cell's motion
 
 
 def _cell_ball_run(position, velocity, duration_s):
@@ -71,7 +78,8 @@ def test_incoming_balls_bounce_where_the_cell_bounces_them():
         bounces = [e for e in events if e.type == rf.BOUNCE_OWN_SIDE]
         assert bounces, f'ball {i} never bounced in the cell'
         cell_bounce = np.array(bounces[0].position_m)
-        assert np.linalg.norm(first_contact[:2, i] - cell_bounce[:2]) < 0.02, (first_contact[:, i], cell_bounce)
+        assert np.linalg.norm(first_contact[:2, i] - cell_bounce[:2]) < TABLE_CONTACT_TOLERANCE_M, \
+            (first_contact[:, i], cell_bounce)
         # The distribution aims at its drawn bounce point; both simulators land there (drag included).
         assert np.linalg.norm(cell_bounce[:2] - launch.bounce_point_m) < 0.02
 
@@ -90,10 +98,10 @@ def test_landing_after_the_first_bounce_agrees_with_the_cell():
         times, positions, events = _cell_ball_run(position, velocity, 2.0)
         bounces = [e for e in events if e.type in (rf.BOUNCE_OPPONENT_SIDE, rf.BOUNCE_OWN_SIDE)]
         assert bounces and bounces[0].type == rf.BOUNCE_OPPONENT_SIDE, [str(e) for e in events]
-        assert np.linalg.norm(first_contact[:2, i] - np.array(bounces[0].position_m)[:2]) < 0.02
+        assert np.linalg.norm(first_contact[:2, i] - np.array(bounces[0].position_m)[:2]) < TABLE_CONTACT_TOLERANCE_M
         cell_landing = _floor_crossing(times, positions)
         world_landing = _floor_crossing(world_times, trajectories[:, :, i])
-        assert np.linalg.norm(world_landing[:2] - cell_landing[:2]) < 0.02, (world_landing, cell_landing)
+        assert np.linalg.norm(world_landing[:2] - cell_landing[:2]) < LANDING_TOLERANCE_M, (world_landing, cell_landing)
 
 
 def test_a_ball_off_the_still_paddle_lands_where_it_lands_in_the_cell():
@@ -123,7 +131,8 @@ def test_a_ball_off_the_still_paddle_lands_where_it_lands_in_the_cell():
         if bool(events_world.decided[0]):
             break
     assert hit and world.hit[0]
-    assert np.linalg.norm(world.table_contact_pos_m[:2, 0].numpy() - np.array(cell_table.position_m)[:2]) < 0.02
+    assert (np.linalg.norm(world.table_contact_pos_m[:2, 0].numpy() - np.array(cell_table.position_m)[:2])
+            < TABLE_CONTACT_TOLERANCE_M)
 
 
 STEP_COMMANDS = [
@@ -157,6 +166,6 @@ def test_joint_step_response_agrees_with_the_cell(step):
     reference = np.stack([np.interp(times, cell_times, cell_q[:, j]) for j in range(6)], axis=1)
     rms_error = np.sqrt(((world_q - reference) ** 2).mean(axis=0))
     rms_motion = np.sqrt(((reference - HOME) ** 2).mean(axis=0))
-    assert (rms_error <= 0.05 * rms_motion).all(), (rms_error / rms_motion).round(4)
+    assert (rms_error <= JOINT_RMS_TOLERANCE * rms_motion).all(), (rms_error / rms_motion).round(4)
     # And both arrive: the command is reached within a few milliradians after a second.
     np.testing.assert_allclose(world_q[-1], target, atol=5e-3)

@@ -1,0 +1,118 @@
+"""select_checkpoint on a tiny real run: 2 PPO iterations (64 envs, small networks, a numbered checkpoint
+every iteration), then validation, append-only validation.csv, selection.json and the chosen actor."""
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+
+from stylepong_policy import select_checkpoint as sc
+from stylepong_policy.rl.export import load_actor
+
+TOY_CONFIG = """
+policy: {actor_hidden_dims: [32, 32], critic_hidden_dims: [32, 32]}
+ppo: {num_steps_per_env: 8, num_learning_epochs: 1, num_mini_batches: 2}
+runner: {iterations: 2, num_threads: 1, save_interval: 1, keep_checkpoints: 0, progress_bar: false}
+task: {num_envs: 64}
+"""
+SELECT = ['--seeds', '1', '--first-seed', '900', '--balls', '8', '--high-first-seed', '950', '--high-seeds', '1']
+
+
+@pytest.fixture(scope='module')
+def run_dir(tmp_path_factory):
+    root = tmp_path_factory.mktemp('select')
+    (root / 'toy.yaml').write_text(TOY_CONFIG)
+    run = root / 'run'
+    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.train', '--config', str(root / 'toy.yaml'),
+                             '--out', str(run), '--iterations', '2', '--num-envs', '64', '--no-tensorboard'],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert [i for i, _ in sc.numbered_checkpoints(run)] == [1, 2]
+    return run
+
+
+def read_csv(path):
+    with path.open(newline='') as stream:
+        return list(csv.DictReader(stream))
+
+
+def test_every_checkpoint_is_validated_once_and_rows_are_only_appended(run_dir, capsys):
+    # A row someone validated earlier with another setting stays, first, untouched.
+    earlier = {c: '' for c in sc.COLUMNS}
+    earlier.update(iteration='1', samples='512', val_success_all='0.5000', val_hit_rate_all='0.6000', speed='all',
+                   seeds='900-909', balls='200', checkpoint='checkpoints/model_000001.pt')
+    with (run_dir / sc.CSV_NAME).open('w', newline='') as stream:
+        writer = csv.DictWriter(stream, fieldnames=sc.COLUMNS)
+        writer.writeheader()
+        writer.writerow(earlier)
+
+    assert sc.main(['--run', str(run_dir), *SELECT]) == 0
+    rows = read_csv(run_dir / sc.CSV_NAME)
+    assert rows[0] == earlier
+    new = rows[1:]
+    assert [r['iteration'] for r in new] == ['1', '2']
+    assert [r['checkpoint'] for r in new] == ['checkpoints/model_000001.pt', 'checkpoints/model_000002.pt']
+    assert int(new[1]['samples']) == 2 * int(new[0]['samples']) > 0
+    for row in new:
+        assert (row['speed'], row['seeds'], row['balls'], row['high_seeds'], row['high_balls']) == \
+            ('all', '900-900', '8', '950-950', '8')
+        for key in ('val_success_all', 'val_success_high', 'val_hit_rate_all', 'val_hit_rate_high'):
+            assert 0.0 <= float(row[key]) <= 1.0
+    assert (run_dir / sc.CURVE_NAME).stat().st_size > 0
+
+    selection = json.loads((run_dir / sc.SELECTION_NAME).read_text())
+    chosen = sc.choose(new)       # the earlier row's 0.5 was another setting: it is no candidate
+    assert selection['iteration'] == int(chosen['iteration'])
+    assert selection['checkpoint'] == chosen['checkpoint']
+    assert selection['val_success_all'] == float(chosen['val_success_all'])
+    assert selection['rule'] == sc.RULE and selection['candidates'] == 2
+    assert selection['validation']['seeds'] == [900] and selection['validation']['high_seeds'] == [950]
+
+    # Again with the same setting: nothing is run, nothing is added.
+    capsys.readouterr()
+    assert sc.main(['--run', str(run_dir), *SELECT]) == 0
+    assert 'already validated' in capsys.readouterr().out
+    assert read_csv(run_dir / sc.CSV_NAME) == rows
+
+
+def test_the_chosen_checkpoints_actor_is_exported_with_a_sidecar_naming_files_beside_it(run_dir, tmp_path):
+    assert sc.main(['--run', str(run_dir), *SELECT, '--export', str(run_dir / 'selected_actor.pt')]) == 0
+    selection = json.loads((run_dir / sc.SELECTION_NAME).read_text())
+    actor = load_actor(run_dir / 'selected_actor.pt')
+    training = actor.metadata['training']
+    assert training['iterations'] == selection['iteration'] == training['selected_iteration']
+    assert (run_dir / training['config']).is_file() and (run_dir / training['selection']).is_file()
+    assert selection['exported_actor'] == 'selected_actor.pt'
+    # Elsewhere, the sidecar names no file of the run directory.
+    assert sc.main(['--run', str(run_dir), *SELECT, '--export', str(tmp_path / 'actor.pt')]) == 0
+    elsewhere = load_actor(tmp_path / 'actor.pt').metadata['training']
+    assert 'config' not in elsewhere and 'selection' not in elsewhere
+    assert not any(isinstance(v, str) and v.startswith('/') for v in elsewhere.values())
+
+
+@pytest.mark.parametrize('args', [['--first-seed', '1000'], ['--first-seed', '995', '--seeds', '10'],
+                                  ['--high-first-seed', '999', '--high-seeds', '2']])
+def test_evaluation_seeds_are_refused(run_dir, args, capsys):
+    with pytest.raises(SystemExit) as refused:
+        sc.main(['--run', str(run_dir), *args])
+    assert refused.value.code == 2
+    assert 'below 1000' in capsys.readouterr().err
+
+
+def test_the_rule_prefers_success_then_high_speed_success_then_the_earlier_iteration():
+    def row(iteration, success, high=''):
+        return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': high}
+    assert sc.choose([row(1, '0.80'), row(2, '0.90'), row(3, '0.85')])['iteration'] == '2'
+    assert sc.choose([row(1, '0.90', '0.70'), row(2, '0.90', '0.80'), row(3, '0.90', '0.75')])['iteration'] == '2'
+    assert sc.choose([row(4, '0.90', '0.80'), row(2, '0.90', '0.80')])['iteration'] == '2'
+
+
+def test_a_csv_without_the_columns_is_left_alone(tmp_path, capsys):
+    run = tmp_path / 'run'
+    (run / 'checkpoints').mkdir(parents=True)
+    (run / 'checkpoints' / 'model_000001.pt').write_bytes(b'')
+    (run / sc.CSV_NAME).write_text('iteration,samples,val_success_all\n5,100,0.9\n')
+    assert sc.main(['--run', str(run), '--seeds', '1']) == 2
+    assert 'lacks the columns' in capsys.readouterr().err
+    assert (run / sc.CSV_NAME).read_text() == 'iteration,samples,val_success_all\n5,100,0.9\n'
