@@ -97,7 +97,8 @@ def main() -> int:
           f'from the vectorised sampler); "env": `stylepong_policy.task.TableTennisEnv.step` with random '
           f'actions (observations, noise, delays, rewards, domain randomisation, resets). "torch.compile": '
           f'`BatchedWorld(compile=True)` (TaskConfig.compile_world), the same physics fused by inductor '
-          f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). Load average before the run: {load_before:.1f} (other work on the '
+          f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). '
+          f'Load average before the run: {load_before:.1f} (other work on the '
           f'2 cores slows every figure).\n')
     print('| N | world steps/s (eager) | world steps/s (torch.compile) | env steps/s (eager) | '
           'rallies decided in the eager world run |')

@@ -24,9 +24,9 @@ NETWORKS = ([512, 256, 128], [256, 128, 64])
 
 def measure(hidden_dims: list[int]) -> dict[str, float]:
     from stylepong_policy import task
+    from stylepong_policy.rl.config import load_config
     from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
     from stylepong_policy.train import default_config_path
-    from stylepong_policy.rl.config import load_config
 
     cfg = load_config(default_config_path())
     cfg.policy.actor_hidden_dims = list(hidden_dims)

@@ -14,13 +14,12 @@ import os
 import pathlib
 import sys
 import tempfile
-import time
 
 os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see train.py), before torch loads
 
 import torch
 
-NUM_ENVS = int(os.environ.get('BENCH_AMP_NUM_ENVS', 2048))
+NUM_ENVS = int(os.environ.get('BENCH_AMP_NUM_ENVS', 1024))
 WARMUP_ITERATIONS = 1
 MEASURED_ITERATIONS = 2
 ROOT = pathlib.Path(__file__).resolve().parent.parent

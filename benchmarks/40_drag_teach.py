@@ -93,7 +93,7 @@ def node_run() -> tuple[str, tuple[float, float, float]]:
     stats = re.search(r'\d+ cycles in .*?rejected', (logs / 'drag_teach.log').read_text())
     if not stats:
         raise RuntimeError('drag_teach printed no statistics:\n' + (logs / 'drag_teach.log').read_text()[-2000:])
-    return stats.group(0), os.getloadavg()   # noqa: the load is read while the nodes just stopped
+    return stats.group(0), os.getloadavg()   # the load is read while the nodes just stopped
 
 
 def main() -> int:

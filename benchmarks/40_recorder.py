@@ -22,11 +22,11 @@ from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
+
 from stylepong_fdcc.clip_writer import ClipWriter, TopicSpec  # noqa: E402
 from stylepong_fdcc.msg_definitions import MessageDefinitions  # noqa: E402
 from stylepong_fdcc.recover_bag import recover_bag  # noqa: E402
 from stylepong_msgs.srv import StartClip  # noqa: E402
-
 from tests.bag_check import JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_rosbags  # noqa: E402
 from tests.node_process import NodeProcess, wait_until  # noqa: E402
 

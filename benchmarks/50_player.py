@@ -159,8 +159,9 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
         time.sleep(3.0)
         cpu_start, wall_start = _cpu_s(player.pid), time.monotonic()
         out = logs / 'rally.json'
-        subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS), '--first-seed', '900',
-                        '--json', str(out)], env=env, capture_output=True, text=True, timeout=300, check=True)
+        subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS),
+                        '--first-seed', '900', '--json', str(out)],
+                       env=env, capture_output=True, text=True, timeout=300, check=True)
         cpu_share = (_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)
         summary = json.loads(out.read_text())
         return summary['player_status'], cpu_share, summary
@@ -193,7 +194,8 @@ def main() -> int:
           'per backend; the figures are the node\'s own (/player/status): period between policy steps, jitter '
           '= |period - 16.667 ms|, latency = ball header stamp to the command published, inference = the '
           'actor call; CPU share of the player process. (3) The same with ur5_sim in the loop (nominal sensing, '
-          f'real_time_factor 1, max_lag_s 0.01, player on /clock, rally_eval serving {RALLY_BALLS} balls of seed 900): periods '
+          f'real_time_factor 1, max_lag_s 0.01, player on /clock, rally_eval serving {RALLY_BALLS} balls of seed 900): '
+          'periods '
           'and latency on the cell\'s clock (1 ms resolution).\n')
     print('| actor alone, no ROS | p50 (us) | p99 (us) | max (us) |')
     print('|---|---|---|---|')
@@ -216,7 +218,8 @@ def main() -> int:
     shares = ', '.join(f'{backend} {cpu * 100:.1f} %' for backend, (_, cpu) in nodes.items())
     print(f'\nCPU share of the player process (one core = 100 %): alone {shares}; with ur5_sim {sim_cpu * 100:.1f} % '
           '(it then also follows /clock at 1 kHz). Policy steps driven by a ball message / fallback steps with '
-          f'ur5_sim: {sim_status["counts"].get("ball_driven_steps", 0)} / {sim_status["counts"].get("fallback_steps", 0)}; '
+          f'ur5_sim: {sim_status["counts"].get("ball_driven_steps", 0)} / '
+          f'{sim_status["counts"].get("fallback_steps", 0)}; '
           f'rally: {rally["success_rate"]:.2f} success over {rally["balls"]} balls. Load average at the end: '
           f'{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (a shared machine: other work shows in the p99s).')
     return 0

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 from rosbags.highlevel import AnyReader
-from stylepong_description.robot_model import JOINT_NAMES
 
+from stylepong_description.robot_model import JOINT_NAMES
 from tests import joint_state_bags
 
 JOINT_STATES = '/joint_states'

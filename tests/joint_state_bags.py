@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
 from stylepong_description.robot_model import JOINT_NAMES as URDF_JOINTS
 
 # The order ur_robot_driver's joint_state_broadcaster publishes (seen in real UR3e recordings).
@@ -184,7 +185,8 @@ def write_driver_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float, *
     metadata.yaml lists one: the metadata/storage disagreement that makes rosbags yield nothing.
     """
     import yaml
-    from mcap.writer import CompressionType, Writer as McapWriter
+    from mcap.writer import CompressionType
+    from mcap.writer import Writer as McapWriter
     from mcap_ros2._dynamic import serialize_dynamic
 
     rng = np.random.default_rng(seed)

@@ -147,7 +147,8 @@ def test_a_10_n_push_along_x_moves_the_tool_along_x_and_it_stays_where_it_was_le
     left_at = tool_position(recent[-1][1])
     displacement = left_at - before
     distance = float(np.linalg.norm(displacement))
-    print(f'a 10 N push for 1 s moved the tool {distance * 100:.1f} cm, direction {np.round(displacement / distance, 4)}')
+    print(f'a 10 N push for 1 s moved the tool {distance * 100:.1f} cm, '
+          f'direction {np.round(displacement / distance, 4)}')
     # About 0.3 m (stylepong_fdcc.fdcc_solver: 0.29-0.33 m): the push's impulse over the default damping,
     # 10 N s / 30 N s/m = 0.333 m, less what the cell's transport delays take (measured here: 0.295 m).
     impulse_over_damping_m = 10.0 * 1.0 / 30.0
@@ -203,7 +204,8 @@ def test_a_flood_of_nan_inf_and_huge_wrenches_never_makes_a_bad_command(cell):
     assert drag.running()
     # Keeps publishing: commands all through the flood (rates on this shared 2-core machine vary too
     # much under a flood to ask for 500 Hz here; the benchmark measures the rate).
-    assert len(commands) > 0.1 * CONTROL_RATE_HZ * (end - start), f'only {len(commands)} commands in {end - start:.1f} s'
+    assert len(commands) > 0.1 * CONTROL_RATE_HZ * (end - start), \
+        f'only {len(commands)} commands in {end - start:.1f} s'
     assert np.max(np.diff(np.concatenate([[start], times, [end]]))) < 1.0, 'drag_teach stopped publishing'
     assert np.all(np.isfinite(q))
     assert np.all(q >= LIMITS.lower_rad) and np.all(q <= LIMITS.upper_rad)

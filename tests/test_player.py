@@ -192,7 +192,8 @@ def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
             pairs = check_commands(rig.commands, limits)
             assert pairs > 300, pairs
             status = rig.status
-            assert status['rejected'].get('ball_not_finite', 0) > 0 and status['rejected'].get('joint_not_finite', 0) > 0
+            assert (status['rejected'].get('ball_not_finite', 0) > 0
+                    and status['rejected'].get('joint_not_finite', 0) > 0)
             assert status['rejected'].get('joint_length', 0) > 0 and status['rejected'].get('ball_frame', 0) > 0
             assert status['counts'].get('policy_steps', 0) > 100
             print(f'{len(rig.commands)} commands, {pairs} pairs checked; rejected {status["rejected"]}')

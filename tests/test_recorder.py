@@ -20,11 +20,17 @@ from rclpy.qos import QoSPresetProfiles, QoSProfile, ReliabilityPolicy
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+
 from stylepong_msgs.msg import BallState
 from stylepong_msgs.srv import StartClip
-
-from tests.bag_check import (JOINT_NAMES, JOINT_STATES, read_with_mcap_ros2, read_with_rosbags, read_with_sqlite3,
-                             storage_file)
+from tests.bag_check import (
+    JOINT_NAMES,
+    JOINT_STATES,
+    read_with_mcap_ros2,
+    read_with_rosbags,
+    read_with_sqlite3,
+    storage_file,
+)
 from tests.node_process import NodeProcess, wait_until
 
 RATE_HZ = 500.0

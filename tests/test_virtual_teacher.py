@@ -49,7 +49,8 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
     hits = {}
     try:
         for swing in SWINGS:
-            teacher = NodeProcess('stylepong_sim', 'virtual_teacher', params={'swing': swing, 'seed': SEED, 'use_sim_time': True}).start()
+            teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
+                                  params={'swing': swing, 'seed': SEED, 'use_sim_time': True}).start()
             try:
                 assert wait_until(lambda: not teacher.running(), 90.0), f'{swing}: the teacher never finished'
             finally:

@@ -29,6 +29,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
 def shuffled(reference, count: int) -> torch.Tensor:
+    """Negative windows: each frame of a window drawn from a different reference window."""
     return torch.stack([reference.sample(count)[:, i] for i in range(reference.length)], dim=1)
 
 
@@ -44,6 +45,7 @@ def slowed(reference, count: int) -> torch.Tensor:
 
 
 def balanced_accuracy(dataset, length: int, negative: str, steps: int, seed: int) -> float:
+    """Train a discriminator on windows of `length` against one kind of negative; its balanced accuracy."""
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     from stylepong_policy.rl.config import load_config
     from stylepong_policy.train import default_config_path
@@ -65,6 +67,7 @@ def balanced_accuracy(dataset, length: int, negative: str, steps: int, seed: int
 
 
 def main() -> int:
+    """Measure the accuracy per window length and write the results page."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=pathlib.Path, default=ROOT / 'results' / 'amp_sequence_length.md')
     parser.add_argument('--lengths', default='2,3,4,6,8')

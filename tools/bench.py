@@ -16,6 +16,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
 def machine_summary() -> str:
+    """Cores, CPU model, Python and OS of this machine, on one line."""
     cpu = platform.processor() or 'unknown CPU'
     try:
         for line in open('/proc/cpuinfo'):
@@ -29,6 +30,7 @@ def machine_summary() -> str:
 
 
 def main() -> int:
+    """Run the benchmarks and write their sections to --out."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--out', default='BENCHMARKS.md')
     parser.add_argument('only', nargs='*', help='run only benchmarks whose file name contains one of these')

@@ -19,6 +19,7 @@ HEADER = """# Pinned Python environment of StylePong, as tested (Debian 12, CPyt
 
 
 def main() -> int:
+    """Print the lock file of the running environment."""
     pins = {}
     for dist in importlib.metadata.distributions():
         path = getattr(dist, '_path', None)

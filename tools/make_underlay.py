@@ -23,23 +23,26 @@ case ":${{CMAKE_PREFIX_PATH:-}}:" in *":$_sp_prefix:"*) ;; *) export CMAKE_PREFI
 case ":${{PATH:-}}:" in *":$_sp_prefix/bin:"*) ;; *) export PATH="$_sp_prefix/bin${{PATH:+:$PATH}}";; esac
 export ROS_DISTRO=jazzy ROS_VERSION=2 ROS_PYTHON_VERSION=3
 unset _sp_prefix
-"""
+"""  # noqa: E501  (the generated shell script keeps one `case` a line)
 
 
 def write_setup_scripts(prefix: pathlib.Path) -> None:
+    """Write the setup scripts that make the venv at `prefix` a ROS underlay."""
     body = SCRIPT.format(prefix=prefix)
     for name in ('local_setup.sh', 'local_setup.bash', 'local_setup.zsh', 'setup.sh', 'setup.bash', 'setup.zsh'):
         (prefix / name).write_text(body)
 
 
 def fix_cmake_exports(prefix: pathlib.Path) -> int:
+    """Point the rosidl cmake exports at this Python's and numpy's include folders; returns how many changed."""
     include_dir = sysconfig.get_paths()['include']
     numpy_include = numpy.get_include()
     fixed = 0
     for path in prefix.glob('share/*/cmake/*__rosidl_generator_pyExport.cmake'):
         text = path.read_text()
         # The builder's paths: /opt/python/cp311-cp311/include/python3.11 and a numpy include below it.
-        new = re.sub(r'/opt/python/cp311-cp311/[^;"]*?/numpy/_core/include|/opt/python/cp311-cp311/[^;"]*?/numpy/core/include',
+        new = re.sub(r'/opt/python/cp311-cp311/[^;"]*?/numpy/_core/include'
+                     r'|/opt/python/cp311-cp311/[^;"]*?/numpy/core/include',
                      numpy_include, text)
         new = new.replace('/opt/python/cp311-cp311/include/python3.11', include_dir)
         if new != text:
@@ -49,6 +52,7 @@ def fix_cmake_exports(prefix: pathlib.Path) -> int:
 
 
 def main() -> int:
+    """Make the venv given as the first argument a ROS 2 Jazzy underlay."""
     prefix = pathlib.Path(sys.argv[1]).resolve()
     write_setup_scripts(prefix)
     print(f'[setup] rewrote interpreter paths in {fix_cmake_exports(prefix)} cmake export files')

@@ -26,6 +26,7 @@ ACTOR_SUFFIXES = ('.pt', '.json', '.onnx')
 
 
 def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Path]:
+    """Copy a run's selected actor and its records into the models folder; returns the files written."""
     summary = json.loads((run / 'summary.json').read_text())
     selection = json.loads((run / 'selection.json').read_text())
     actor = run / 'selected' / f'{name}_actor.pt'
@@ -47,6 +48,7 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
 
 
 def main() -> int:
+    """Command line of ship_run."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path)
     parser.add_argument('--name', required=True, help='amp, amp_noaug, ppo: the shipped files\' prefix')

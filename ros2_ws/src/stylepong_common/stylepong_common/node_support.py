@@ -57,7 +57,8 @@ class Param:
     def describe(self) -> str:
         text = self.description
         if self.low is not None or self.high is not None:
-            text += f' [{self.low if self.low is not None else "-inf"}, {self.high if self.high is not None else "inf"}]'
+            text += (f' [{self.low if self.low is not None else "-inf"}, '
+                     f'{self.high if self.high is not None else "inf"}]')
         if self.choices:
             text += f' (one of {", ".join(self.choices)})'
         return text
@@ -173,6 +174,7 @@ class ThrottledLog:
 
 
 def one_line(error: BaseException) -> str:
+    """An exception's message on one line (its type's name when the message is empty)."""
     return ' '.join(str(error).split()) or type(error).__name__
 
 

@@ -169,6 +169,7 @@ def mujoco_model():
 
 @dataclass(frozen=True)
 class JointLimits:
+    """Per-joint limits from the URDF, in JOINT_NAMES order."""
     lower_rad: np.ndarray
     upper_rad: np.ndarray
     velocity_rad_s: np.ndarray

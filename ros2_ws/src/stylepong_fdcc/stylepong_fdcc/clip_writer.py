@@ -84,6 +84,7 @@ def label_from_bag_dir_name(name: str) -> str | None:
 
 
 def describe_os_error(err: OSError) -> str:
+    """A short reason for an OSError, naming a full disk or an exceeded quota."""
     if err.errno == errno.ENOSPC:
         return f'disk full ({err.strerror})'
     if err.errno == errno.EDQUOT:
@@ -113,6 +114,7 @@ def recording_process_alive(note: dict) -> bool:
 
 
 def free_space_mb(path: Path) -> float:
+    """Free disk space (MB) on the file system holding `path`."""
     return shutil.disk_usage(path).free / 1e6
 
 
@@ -129,6 +131,7 @@ class TopicSpec:
 
 @dataclasses.dataclass(frozen=True)
 class ClipSummary:
+    """What a closed clip holds: its bag directory, storage, custom data and message counts per topic."""
     bag_dir: Path
     storage: str
     custom_data: dict[str, str]
@@ -185,6 +188,7 @@ class _FlushingWriter(Writer):
 
 
 def storage_plugin(storage: str) -> StoragePlugin:
+    """The rosbags storage plugin of a storage name ('mcap' or 'sqlite3'); ClipError for any other."""
     if storage not in STORAGES:
         raise ClipError(f'unknown storage {storage!r}: use one of {", ".join(STORAGES)}')
     return StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3

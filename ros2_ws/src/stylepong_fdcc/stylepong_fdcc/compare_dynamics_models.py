@@ -46,6 +46,7 @@ def simulate_push(config: FdccConfig, q0: np.ndarray, force_base_n: np.ndarray, 
 
 
 def main() -> None:
+    """Print the solver's response to a 10 N push at the home pose for each dynamics model."""
     from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD  # a developer tool: the cell's home pose
     home = np.array(HOME_JOINT_POSITIONS_RAD)
     print('10 N push along +x of base_link for 1 s at 500 Hz, solver alone, home pose')

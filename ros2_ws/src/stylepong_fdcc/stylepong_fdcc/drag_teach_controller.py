@@ -27,6 +27,7 @@ from stylepong_fdcc.wrench_conditioning import WrenchConditioner, tool_load_from
 
 @dataclass
 class TickResult:
+    """One control cycle's outcome: the joint command to publish (if any) and the controller state."""
     command: np.ndarray | None     # joint positions to publish, None = publish nothing
     state: str                     # 'disabled', 'waiting', 'running', 'holding'
 

@@ -56,8 +56,8 @@ PARAMETERS = (
           low=0.0, length=6),
     Param('joint_damping_nms_per_rad', _DEFAULTS.joint_damping_nms_per_rad, 'joint-space damping, N m s/rad',
           low=0.0),
-    Param('dynamics_model', _DEFAULTS.dynamics_model, "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)",
-          choices=DYNAMICS_MODELS),
+    Param('dynamics_model', _DEFAULTS.dynamics_model,
+          "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)", choices=DYNAMICS_MODELS),
     Param('virtual_link_mass_kg', _DEFAULTS.virtual_link_mass_kg, 'virtual model: mass of each link but the last',
           low=0.0),
     Param('virtual_link_inertia_kg_m2', _DEFAULTS.virtual_link_inertia_kg_m2, 'virtual model: their rotational inertia',
@@ -128,6 +128,7 @@ def float64_array(values: np.ndarray) -> array.array:
 
 
 class DragTeachNode(Node):
+    """The drag_teach node: FDCC on the wrench and joint-state topics, joint position commands out."""
     def __init__(self, **kwargs):
         super().__init__(PROGRAM, **kwargs)
         values = declare_parameters(self, PARAMETERS)
@@ -178,7 +179,8 @@ class DragTeachNode(Node):
     def _on_wrench(self, raw: bytes) -> None:
         fault = self.controller.on_wrench(wrench_from_cdr(raw), self._now_s())
         if fault:
-            self.warnings.warn('wrench', lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
+            self.warnings.warn('wrench',
+                               lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
 
     def _on_target_pose(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in BASE_FRAMES:
@@ -236,7 +238,8 @@ class DragTeachNode(Node):
         self.get_logger().info(
             f'{s["ticks"]} cycles in {s["duration_s"]:.1f} s: {s["rate_hz"]:.1f} Hz, {s["missed_ticks"]} missed, '
             f'compute mean {s["compute_mean_s"] * 1e6:.0f} us, p99 {s["compute_p99_s"] * 1e6:.0f} us; '
-            f'{self.controller.rejected_wrenches} wrenches and {self.controller.rejected_joint_states} joint states rejected')
+            f'{self.controller.rejected_wrenches} wrenches and {self.controller.rejected_joint_states} '
+            'joint states rejected')
 
     def close(self) -> None:
         """On the way out (stylepong_common.node_support.run_node): what the cycles achieved."""
@@ -244,6 +247,7 @@ class DragTeachNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    """Entry point of the drag_teach executable."""
     return run_node(PROGRAM, DragTeachNode, args)
 
 

@@ -17,6 +17,7 @@ from stylepong_fdcc.fdcc_config import FdccConfig
 
 @dataclass(frozen=True)
 class JointMotionLimits:
+    """Joint position, velocity and acceleration limits for the commands, in URDF joint order."""
     lower_rad: np.ndarray
     upper_rad: np.ndarray
     velocity_rad_s: np.ndarray

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 
 def installed_msg_file(msgtype: str) -> Path | None:
@@ -36,6 +36,7 @@ def _referenced_types(fields: list) -> set[str]:
 
 
 class UnknownMessageType(LookupError):
+    """No message definition could be found for a message type."""
     pass
 
 

@@ -28,10 +28,10 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from std_srvs.srv import Trigger
-from stylepong_msgs.srv import StartClip
 
 from stylepong_fdcc.clip_writer import STORAGES, ClipError, ClipWriter, TopicSpec, open_clip
 from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
+from stylepong_msgs.srv import StartClip
 
 JOINT_STATES_TOPIC = '/joint_states'
 JOINT_STATES_TYPE = 'sensor_msgs/msg/JointState'
@@ -73,11 +73,13 @@ def subscription_reliability(offered: list[ReliabilityPolicy]) -> ReliabilityPol
 
 
 def message_class(msgtype: str):
+    """The Python message class of a type name such as 'sensor_msgs/msg/JointState'."""
     package, kind, name = msgtype.split('/')
     return getattr(importlib.import_module(f'{package}.{kind}'), name)
 
 
 class RecorderNode(Node):
+    """The recorder node: writes /joint_states (and any extra topics) of each clip to a rosbag2 bag."""
     def __init__(self):
         super().__init__('recorder')
         self.output_dir = self._declare_output_dir()
@@ -269,6 +271,7 @@ class RecorderNode(Node):
 
 
 def main(args=None):
+    """Entry point of the recorder executable; Ctrl-C closes the open clip properly."""
     rclpy.init(args=args)
     node = None
     try:

@@ -33,10 +33,17 @@ from rosbags.interfaces import Qos
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.metadata import parse_qos
-from rosbags.typesys import Stores, get_typestore, get_types_from_idl, get_types_from_msg
+from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
-from stylepong_fdcc.clip_writer import (IN_PROGRESS_NAME, LABEL_KEY, ROSBAG2_VERSION, STORAGE_SUFFIX,
-                                        label_from_bag_dir_name, recording_process_alive, storage_plugin)
+from stylepong_fdcc.clip_writer import (
+    IN_PROGRESS_NAME,
+    LABEL_KEY,
+    ROSBAG2_VERSION,
+    STORAGE_SUFFIX,
+    label_from_bag_dir_name,
+    recording_process_alive,
+    storage_plugin,
+)
 
 METADATA_NAME = 'metadata.yaml'
 _WORK_DIR_NAME = '.recover_bag_work'
@@ -49,6 +56,7 @@ class RecoveryError(Exception):
 
 @dataclasses.dataclass
 class StoredConnection:
+    """A connection (topic) as found in a bag's storage file."""
     id: int
     topic: str
     msgtype: str
@@ -79,6 +87,7 @@ class StorageScan:
 
 @dataclasses.dataclass
 class RecoveryReport:
+    """What recover_bag found and did for one bag."""
     bag_dir: Path
     storage: str
     outcome: str             # 'healthy' (left untouched), 'recovered', or 'needs recovery' (--check)
@@ -403,6 +412,7 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command line of recover_bag: check or recover each bag directory given."""
     parser = argparse.ArgumentParser(
         prog='recover_bag', description='Make rosbag2 bags left by a killed recorder readable: rebuild '
         'metadata.yaml and re-write the mcap (summary, index, footer) or sqlite3 file with every complete '

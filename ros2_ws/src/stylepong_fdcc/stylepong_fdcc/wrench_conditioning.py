@@ -62,7 +62,8 @@ def wrench_fault(wrench: np.ndarray, reject_force_n: float, reject_torque_nm: fl
     if wrench.shape != (6,) or not np.all(np.isfinite(wrench)):
         return 'non-finite wrench'
     if np.linalg.norm(wrench[:3]) > reject_force_n or np.linalg.norm(wrench[3:]) > reject_torque_nm:
-        return (f'implausible wrench |F| = {np.linalg.norm(wrench[:3]):.3g} N, |T| = {np.linalg.norm(wrench[3:]):.3g} N m '
+        return (f'implausible wrench |F| = {np.linalg.norm(wrench[:3]):.3g} N, '
+                f'|T| = {np.linalg.norm(wrench[3:]):.3g} N m '
                 f'(rejected above {reject_force_n} N / {reject_torque_nm} N m)')
     return None
 

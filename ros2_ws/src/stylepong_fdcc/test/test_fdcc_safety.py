@@ -10,8 +10,13 @@ from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.fdcc_solver import FdccSolver
 from stylepong_fdcc.joint_limits import JointMotionLimits, limit_motion
-from stylepong_fdcc.wrench_conditioning import (WrenchConditioner, deadband_and_clamp, gravity_wrench_on_tool,
-                                                tool_load_from_model, wrench_fault)
+from stylepong_fdcc.wrench_conditioning import (
+    WrenchConditioner,
+    deadband_and_clamp,
+    gravity_wrench_on_tool,
+    tool_load_from_model,
+    wrench_fault,
+)
 from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
 
 HOME = np.array(HOME_JOINT_POSITIONS_RAD)

@@ -3,12 +3,28 @@ import datetime
 import errno
 
 import pytest
-from stylepong_fdcc.clip_writer import (IN_PROGRESS_NAME, ClipError, ClipWriter, TopicSpec, bag_dir_name,
-                                        label_from_bag_dir_name, label_problem, open_clip)
-from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
 
-from tests.bag_check import (JOINT_NAMES, JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_mcap_ros2,
-                             read_with_rosbags, read_with_sqlite3, storage_file)
+from stylepong_fdcc.clip_writer import (
+    IN_PROGRESS_NAME,
+    ClipError,
+    ClipWriter,
+    TopicSpec,
+    bag_dir_name,
+    label_from_bag_dir_name,
+    label_problem,
+    open_clip,
+)
+from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
+from tests.bag_check import (
+    JOINT_NAMES,
+    JOINT_STATE_TYPE,
+    JOINT_STATES,
+    joint_state_cdr,
+    read_with_mcap_ros2,
+    read_with_rosbags,
+    read_with_sqlite3,
+    storage_file,
+)
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 WRENCH = '/force_torque_sensor_broadcaster/wrench'

@@ -5,6 +5,7 @@ from pathlib import Path
 from rclpy.duration import Infinite
 from rclpy.qos import QoSPresetProfiles, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import QosDurability, QosReliability, QosTime
+
 from stylepong_fdcc.recorder_node import resolve_output_dir, rosbags_qos, subscription_reliability
 
 

@@ -11,12 +11,19 @@ import pytest
 import yaml
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
+
 from stylepong_fdcc.clip_writer import IN_PROGRESS_NAME, ClipWriter, TopicSpec
 from stylepong_fdcc.msg_definitions import MessageDefinitions
 from stylepong_fdcc.recover_bag import RecoveryError, main, recover_bag
-
-from tests.bag_check import (JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_mcap_ros2,
-                             read_with_rosbags, read_with_sqlite3, storage_file)
+from tests.bag_check import (
+    JOINT_STATE_TYPE,
+    JOINT_STATES,
+    joint_state_cdr,
+    read_with_mcap_ros2,
+    read_with_rosbags,
+    read_with_sqlite3,
+    storage_file,
+)
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 WRENCH = '/force_torque_sensor_broadcaster/wrench'

@@ -73,6 +73,7 @@ def check_contract(metadata: dict[str, Any], source: str | pathlib.Path, expecte
 
 
 def file_sha256(path: str | pathlib.Path) -> str:
+    """SHA-256 of a file's content, as hex."""
     digest = hashlib.sha256()
     with open(path, 'rb') as f:
         for chunk in iter(lambda: f.read(1 << 20), b''):
@@ -81,10 +82,12 @@ def file_sha256(path: str | pathlib.Path) -> str:
 
 
 def sidecar_path(actor_path: str | pathlib.Path) -> pathlib.Path:
+    """The JSON sidecar beside an exported actor."""
     return pathlib.Path(actor_path).with_suffix('.json')
 
 
 def onnx_path(actor_path: str | pathlib.Path) -> pathlib.Path:
+    """The ONNX file beside an exported actor."""
     return pathlib.Path(actor_path).with_suffix('.onnx')
 
 
@@ -115,6 +118,7 @@ def onnx_metadata_props(metadata: dict[str, Any]) -> dict[str, str]:
 
 
 def parse_onnx_metadata(props: dict[str, str], source: str | pathlib.Path) -> dict[str, Any]:
+    """Decode an ONNX model's metadata_props (JSON values); ActorMismatchError if one is not JSON."""
     metadata = {}
     for key, text in props.items():
         try:

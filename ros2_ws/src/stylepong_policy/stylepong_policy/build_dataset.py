@@ -37,6 +37,7 @@ _DIRECTORY_LABEL = re.compile(r'^([A-Za-z][A-Za-z-]*)_\d')
 
 
 def default_joint_names() -> tuple[str, ...]:
+    """The UR5's joint names in URDF order."""
     from stylepong_description.robot_model import JOINT_NAMES
     return tuple(JOINT_NAMES)
 
@@ -56,6 +57,7 @@ def label_from_name(name: str) -> str | None:
 
 @dataclass
 class BagReport:
+    """What became of one bag: its clips and label, or why it was skipped."""
     path: pathlib.Path
     reason: str | None = None            # why the bag gave no clip; None when used
     topic: str = ''
@@ -72,6 +74,7 @@ class BagReport:
 
 
 def choose_label(bag: pathlib.Path, from_metadata: str | None, fallback: str | None) -> tuple[str, str]:
+    """A bag's label and where it came from: metadata, the directory name, --label, or none."""
     if from_metadata:
         return from_metadata, 'metadata custom_data'
     name_label = label_from_name(bag.name if bag.is_dir() else bag.stem)
@@ -115,6 +118,7 @@ def process_bag(bag: pathlib.Path, args: argparse.Namespace, options: ClipOption
 
 
 def format_report(report: BagReport, speedups: Sequence[int], rate_hz: float) -> list[str]:
+    """The lines build_dataset prints for one bag."""
     lines = []
     if report.used:
         clip_text = '; '.join(
@@ -149,6 +153,7 @@ def _speedups(text: str) -> tuple[int, ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command-line parser of build_dataset."""
     defaults = ClipOptions()
     parser = argparse.ArgumentParser(
         prog='build_dataset', description=__doc__.split('\n\n')[1], epilog=__doc__.split('\n\n')[2])
@@ -163,11 +168,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help='messages with an empty name[] list positions in --joints order')
     parser.add_argument('--rate-hz', type=float, default=DEFAULT_RATE_HZ, help='clip frame rate (default %(default)s)')
     parser.add_argument('--speedups', type=_speedups, default=DEFAULT_SPEEDUPS,
-                        help="comma-separated speed-up factors for augmentation, default 2,3,5 ('none': originals only)")
+                        help="comma-separated speed-up factors for augmentation, default 2,3,5 "
+                             "('none': originals only)")
     parser.add_argument('--idle-speed-rad-s', type=float, default=defaults.idle_speed_rad_s,
-                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed (default %(default)s; 0: no trim)')
+                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed '
+                             '(default %(default)s; 0: no trim)')
     parser.add_argument('--max-gap-s', type=float, default=defaults.max_gap_s,
-                        help='a longer silence in a recording (or 5 message periods) splits it into clips (default %(default)s)')
+                        help='a longer silence in a recording (or 5 message periods) splits it into clips '
+                             '(default %(default)s)')
     parser.add_argument('--label', default=None,
                         help='label for bags with none in metadata custom_data or the directory name')
     parser.add_argument('--plot', type=pathlib.Path, default=None, metavar='PNG',
@@ -184,6 +192,7 @@ def _ros_free_argv(argv: Sequence[str]) -> list[str]:
 
 
 def run(argv: Sequence[str] | None = None) -> int:
+    """Build a dataset from the bags on the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(_ros_free_argv(sys.argv[1:] if argv is None else argv))
     args.joints = args.joints or default_joint_names()
@@ -224,7 +233,8 @@ def run(argv: Sequence[str] | None = None) -> int:
         print(f'build_dataset: cannot write {args.output}: {one_line(error)}', file=sys.stderr)
         return 1
     print(f'wrote {args.output}: {dataset.num_clips} clips ({len(originals)} original + '
-          f'{dataset.num_clips - len(originals)} sped up {"x" + "/x".join(map(str, args.speedups)) if args.speedups else ""}'
+          f'{dataset.num_clips - len(originals)} sped up '
+          f'{"x" + "/x".join(map(str, args.speedups)) if args.speedups else ""}'
           f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}')
     if args.plot is not None:
         try:
@@ -238,6 +248,7 @@ def run(argv: Sequence[str] | None = None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the build_dataset executable (exit code 130 on Ctrl-C)."""
     try:
         code = run(argv)
     except KeyboardInterrupt:

@@ -77,6 +77,7 @@ class Clip:
 
 @dataclass
 class ClipResult:
+    """The clips cut from one recording and notes on how."""
     clips: list[Clip] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
@@ -124,6 +125,7 @@ def grid_times_s(span_s: float, rate_hz: float) -> np.ndarray:
 
 
 def interpolate_columns(x_new: np.ndarray, x: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Linear interpolation of each column of `values` (sampled at `x`) at `x_new`."""
     return np.stack([np.interp(x_new, x, values[:, j]) for j in range(values.shape[1])], axis=1)
 
 
@@ -139,7 +141,9 @@ def velocity_mismatch_rad_s(qd_bag: np.ndarray, qd_positions: np.ndarray) -> np.
     return np.sqrt(np.mean((qd_bag - qd_positions) ** 2, axis=0))
 
 
-def bag_velocity_is_consistent(qd_bag: np.ndarray, qd_positions: np.ndarray, options: ClipOptions) -> tuple[bool, float]:
+def bag_velocity_is_consistent(qd_bag: np.ndarray, qd_positions: np.ndarray,
+                               options: ClipOptions) -> tuple[bool, float]:
+    """Whether the bag's velocities match the position derivative within the tolerances, and the worst mismatch."""
     mismatch = velocity_mismatch_rad_s(qd_bag, qd_positions)
     scale = np.sqrt(np.mean(qd_positions ** 2, axis=0))
     allowed = options.velocity_abs_tolerance_rad_s + options.velocity_rel_tolerance * scale

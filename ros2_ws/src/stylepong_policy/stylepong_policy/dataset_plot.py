@@ -16,6 +16,7 @@ MAX_ROWS = 40   # beyond this a figure is unreadable; the title says how many we
 
 
 def plot_dataset(dataset: ReferenceDataset, path: str | os.PathLike) -> pathlib.Path:
+    """Plot the original clips and their sped-up versions to an image file; returns its path."""
     import matplotlib
     matplotlib.use('Agg')   # headless: no display on the machines that build datasets
     import matplotlib.pyplot as plt

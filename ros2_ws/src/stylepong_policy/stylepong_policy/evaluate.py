@@ -61,6 +61,7 @@ DTW_CALL = "dtaidistance.dtw_ndim.distance_fast(stroke, clip, inner_dist='euclid
 
 @dataclass
 class SeedResult:
+    """The outcome of one evaluation seed: successes, hits, failure reasons and strokes."""
     seed: int
     balls: int
     successes: int
@@ -338,6 +339,7 @@ def render_video(strokes: Sequence[st.Stroke], path: pathlib.Path, camera: str =
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of evaluate."""
     parser = argparse.ArgumentParser(prog='evaluate', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', required=True, type=pathlib.Path, help='exported actor (.pt with its .json)')
     parser.add_argument('--seeds', type=int, default=10, help='number of seeds')
@@ -367,6 +369,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the evaluate executable."""
     args = parse_args(argv)
     try:
         actor = load_actor(args.actor)

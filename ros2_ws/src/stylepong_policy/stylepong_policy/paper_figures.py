@@ -15,6 +15,7 @@ ATTEMPTS_PER_SEED = 200
 
 @dataclass(frozen=True)
 class SuccessFigure:
+    """A success row of the paper: attempts, mean successes and success rate."""
     attempts: int
     mean_success: float
     success_rate: float

@@ -67,6 +67,7 @@ class SetupError(RuntimeError):
 
 @dataclass(frozen=True)
 class Protocol:
+    """The evaluation setting the tables state: seeds, balls per seed, first seeds and device."""
     seeds: int
     balls: int
     first_seed: int
@@ -243,11 +244,13 @@ def load_sim2sim(folder: pathlib.Path) -> list[dict]:
 
 
 def band_text(band: str) -> str:
+    """A speed band's range in m/s, e.g. '4.0-4.8'."""
     lo, hi = SPEED_RANGES_M_S[band]
     return f'{lo:.1f}-{hi:.1f}'
 
 
 def percent(value: float | None, std: float | None = None) -> str:
+    """A rate as a percentage with an optional ± std; 'n/a' for None."""
     if value is None:
         return 'n/a'
     text = f'{100.0 * value:.2f} %'
@@ -255,15 +258,18 @@ def percent(value: float | None, std: float | None = None) -> str:
 
 
 def number(value: float | None, digits: int = 2) -> str:
+    """A number with `digits` decimals; 'n/a' for None."""
     return 'n/a' if value is None else f'{value:.{digits}f}'
 
 
 def table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table's lines."""
     lines = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
     return lines + ['| ' + ' | '.join(row) + ' |' for row in rows]
 
 
 def table_one(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
+    """Table I: success rate at all speeds, the paper's and ours."""
     rows = []
     for name in ACTOR_NAMES:
         ours = summaries[name]['all']
@@ -278,12 +284,14 @@ def table_one(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
 
 
 def dtw_ratio(summaries: dict[str, dict[str, dict]], direction: str) -> float | None:
+    """AMP's mean DTW distance over PPO's in one direction (None when either is missing)."""
     amp = summaries['amp']['all']['dtw'][direction]['mean_rad']
     ppo = summaries['ppo']['all']['dtw'][direction]['mean_rad']
     return amp / ppo if amp is not None and ppo else None
 
 
 def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
+    """Table II: DTW distance to the demonstrations per direction, the paper's and ours."""
     header = ['Method'] + [f'{d.capitalize()} ({who})' for d in st.DIRECTIONS for who in ('paper', 'ours')]
     rows = []
     for name in ('ppo', 'amp'):
@@ -319,6 +327,7 @@ def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
 
 
 def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
+    """Table III: success at low and high incoming speeds, the paper's and ours."""
     rows = []
     for band in ('low', 'high'):
         for name in ('amp-noaug', 'amp', 'ppo'):
@@ -338,6 +347,7 @@ def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> li
 
 def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[str, dict | None],
                        protocol: Protocol) -> list[str]:
+    """The smoothness and DTW section: each actor per direction, and the demonstrations."""
     rows = []
     for name in ACTOR_NAMES:
         summary = summaries[name]['all']
@@ -365,6 +375,7 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
 
 
 def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
+    """Success per stroke direction, and how a ball's direction is decided."""
     rule = summaries['ppo']['all']['direction_rule']
     rows = []
     for name in ACTOR_NAMES:
@@ -380,6 +391,7 @@ def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol
 
 
 def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
+    """Table IV: the paper's rows in two simulators beside ours (the batched world, then each sim2sim row)."""
     out = [[f'{label} (paper)', str(fig.attempts), number(fig.mean_success), percent(fig.success_rate), '-']
            for label, fig in paper.TABLE_IV.items()]
     amp = summaries['amp']['all']
@@ -403,6 +415,7 @@ def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol
 
 
 def figure_section(figure: dict | None, protocol: Protocol) -> list[str]:
+    """The Fig. 2 section (or why it was not rendered)."""
     if figure is None:
         return ['## Fig. 2: strokes', '', 'Not rendered (--no-figure, or no ball of the chosen direction).', '']
     return ['## Fig. 2: strokes', '',
@@ -414,6 +427,7 @@ def figure_section(figure: dict | None, protocol: Protocol) -> list[str]:
 
 
 def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protocol, context: dict) -> str:
+    """The whole README.md of the tables."""
     actors = context['actors']
     stand_ins = {path for path in actors.values() if list(actors.values()).count(path) > 1}
     lines = ['# The paper\'s tables for our actors', '',
@@ -438,6 +452,7 @@ def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protoc
 
 
 def write_charts(out: pathlib.Path, summaries, reference_rows, protocol: Protocol) -> list[str]:
+    """Write the charts of Tables I-III and of smoothness into `out`; returns their file names."""
     names = [f'{paper.PAPER_NAMES[n]}\n({n})' for n in ACTOR_NAMES]
     charts.success_chart(out / 'table1_success.png', names, [paper.TABLE_I[n].success_rate for n in ACTOR_NAMES],
                          [summaries[n]['all']['success_rate'] for n in ACTOR_NAMES],
@@ -465,6 +480,7 @@ def write_charts(out: pathlib.Path, summaries, reference_rows, protocol: Protoco
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of paper_tables."""
     parser = argparse.ArgumentParser(prog='paper_tables', description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=pathlib.Path, required=True, help='folder for README.md, charts, JSON')
     parser.add_argument('--actors',
@@ -515,6 +531,7 @@ def command_line(args: argparse.Namespace) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the paper_tables executable."""
     args = parse_args(argv)
     started = time.perf_counter()
     torch.set_num_threads(args.num_threads)

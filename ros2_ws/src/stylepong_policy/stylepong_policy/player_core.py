@@ -40,8 +40,14 @@ from typing import Callable, Sequence
 import numpy as np
 
 from stylepong_policy import spec
-from stylepong_policy.actor_contract import (ONNX_INPUT, ONNX_OUTPUT, ActorMismatchError, check_contract,
-                                             onnx_path, parse_onnx_metadata)
+from stylepong_policy.actor_contract import (
+    ONNX_INPUT,
+    ONNX_OUTPUT,
+    ActorMismatchError,
+    check_contract,
+    onnx_path,
+    parse_onnx_metadata,
+)
 from stylepong_sim import world_spec as ws
 
 FRAME_WORLD = 'world'
@@ -60,6 +66,7 @@ STATS_WINDOW = 4096
 
 
 class State(str, enum.Enum):
+    """The player's state: disabled, ready (at home) or playing."""
     DISABLED = 'disabled'
     READY = 'ready'
     PLAYING = 'playing'
@@ -168,6 +175,7 @@ def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: 
 
 
 def clip_action(action: np.ndarray) -> np.ndarray:
+    """The action clipped to the actor's action range (spec.ACTION_CLIP)."""
     return np.clip(action, -spec.ACTION_CLIP, spec.ACTION_CLIP)
 
 
@@ -294,6 +302,7 @@ class Samples:
 # --- the player --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PlayerConfig:
+    """The player's settings: rate, goal, command limits, homing and input timeouts."""
     rate_hz: float = spec.ACTION_RATE_HZ
     goal_xy_m: tuple[float, float] = (0.685, 0.0)
     position_margin_rad: float = 0.02
@@ -329,6 +338,7 @@ def check_goal(goal_xy_m: Sequence[float]) -> None:
 
 @dataclass
 class StepResult:
+    """One player step: the command (None: none), the state, whether the actor ran, and why no command."""
     command: np.ndarray | None
     state: State
     policy: bool = False           # the actor ran
@@ -412,7 +422,8 @@ class PlayerCore:
         if not (np.isfinite(q).all() and np.isfinite(qd).all()):
             return self._reject('joint_not_finite', 'joint state has NaN or inf')
         if (q < self._urdf_lower).any() or (q > self._urdf_upper).any():
-            return self._reject('joint_out_of_limits', f'joint positions {np.round(q, 3).tolist()} outside the URDF limits')
+            return self._reject('joint_out_of_limits',
+                                f'joint positions {np.round(q, 3).tolist()} outside the URDF limits')
         if (np.abs(qd) > self._max_joint_speed).any():
             return self._reject('joint_speed', f'joint velocities {np.round(qd, 2).tolist()} beyond twice the limits')
         self._q, self._qd, self._joint_received_s = q, qd, now_s

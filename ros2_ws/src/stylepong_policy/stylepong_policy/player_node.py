@@ -76,6 +76,7 @@ PARAMETERS = (
 
 
 class PlayerNode(Node):
+    """The player node: the exported actor at 60 Hz on ball and joint states, commands to the arm."""
     def __init__(self, **node_kwargs):
         super().__init__('player', **node_kwargs)
         value = declare_parameters(self, PARAMETERS)
@@ -184,6 +185,7 @@ class PlayerNode(Node):
 
 
 def main(args=None) -> int:
+    """Entry point of the player executable."""
     return run_node('player', PlayerNode, args, config_errors=(ActorMismatchError,))
 
 

@@ -46,6 +46,7 @@ def load_clip(bag: pathlib.Path, speedup: float, rate_hz: float = spec.ACTION_RA
 
 
 class ReplayNode(Node):
+    """Moves the arm to a clip's first pose, then plays the clip at 60 Hz within the player's limits."""
     def __init__(self, clip: np.ndarray, use_sim_time: bool):
         super().__init__('replay_clip', parameter_overrides=[Parameter('use_sim_time', value=use_sim_time)])
         config = core.PlayerConfig()
@@ -83,14 +84,16 @@ class ReplayNode(Node):
     def _on_timer(self) -> None:
         if self.finished:
             return
-        if self.q is None or self._now_s() - self.joint_received_s > self.config.joint_timeout_periods * self.config.period_s:
+        if (self.q is None
+                or self._now_s() - self.joint_received_s > self.config.joint_timeout_periods * self.config.period_s):
             self._warnings.warn('stale', 'no fresh /joint_states: no command')
             self.limiter.stop()
             return
         if not self.limiter.active:
             self.limiter.start(self.q)
         if self.index < 0:
-            command = self.limiter.step(self.clip[0], self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2)
+            command = self.limiter.step(self.clip[0], self.config.home_speed_rad_s,
+                                        self.config.home_acceleration_rad_s2)
             if np.abs(command - self.clip[0]).max() < ARRIVED_RAD and np.abs(self.limiter.velocity_rad_s).max() < 1e-9:
                 self.index = 0
                 self.get_logger().info('at the first pose: playing the clip')
@@ -107,6 +110,7 @@ class ReplayNode(Node):
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of replay_clip: load the bag's clip and play it."""
     argv = sys.argv if argv is None else ['replay_clip', *argv]
     parser = argparse.ArgumentParser(prog='replay_clip', description=__doc__.split('\n\n')[0])
     parser.add_argument('bag', type=pathlib.Path, help='a recorded clip (rosbag2 directory)')

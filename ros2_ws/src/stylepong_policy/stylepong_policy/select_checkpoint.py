@@ -61,6 +61,7 @@ RULE = ('highest mean success rate over the validation seeds at the validation s
 
 @dataclass(frozen=True)
 class Setting:
+    """The validation setting: speed band, seeds and balls (and optionally a high-speed set)."""
     speed: str
     first_seed: int
     seeds: int
@@ -78,6 +79,7 @@ class Setting:
 
 
 def seed_range(first: int, count: int) -> str:
+    """A seed range as text, e.g. '900-909'."""
     return f'{first}-{first + count - 1}'
 
 
@@ -109,6 +111,7 @@ def training_info(checkpoint: dict) -> dict:
 
 
 def export_checkpoint(checkpoint: dict, path: pathlib.Path, onnx: bool, extra: dict | None = None) -> pathlib.Path:
+    """Export a checkpoint's actor to `path` (and ONNX if asked); returns the actor's path."""
     actor_path, _ = export_actor(actor_critic_of(checkpoint), path, current_spec_contract(),
                                  training={**training_info(checkpoint), **(extra or {})}, onnx=onnx)
     return actor_path
@@ -141,6 +144,7 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
 
 # --- validation.csv: append only ---------------------------------------------------------------------
 def read_rows(path: pathlib.Path) -> tuple[list[str], list[dict[str, str]]]:
+    """The header and rows of validation.csv (the expected columns and no rows if it is missing)."""
     if not path.is_file():
         return list(COLUMNS), []
     with path.open(newline='') as stream:
@@ -161,6 +165,7 @@ def append_row(path: pathlib.Path, header: list[str], row: dict[str, str]) -> No
 
 
 def same_setting(row: dict[str, str], setting: Setting) -> bool:
+    """Whether a validation.csv row was measured in this setting."""
     return all((row.get(k) or '') == v for k, v in setting.row().items())
 
 
@@ -175,6 +180,7 @@ def choose(rows: list[dict[str, str]]) -> dict[str, str]:
 
 
 def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Setting, path: pathlib.Path) -> None:
+    """Plot validation success against training samples, marking the chosen checkpoint."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -202,6 +208,7 @@ def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Sett
 
 # --- command line ------------------------------------------------------------------------------------
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of select_checkpoint."""
     parser = argparse.ArgumentParser(prog='select_checkpoint', description=__doc__.split('\n\n')[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--run', required=True, type=pathlib.Path, help='training run directory')
@@ -234,6 +241,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the select_checkpoint executable."""
     args = parse_args(argv)
     run_dir: pathlib.Path = args.run
     checkpoints = numbered_checkpoints(run_dir)
@@ -278,7 +286,8 @@ def main(argv: list[str] | None = None) -> int:
         'val_success_high': float(chosen['val_success_high']) if chosen['val_success_high'] else None,
         'val_hit_rate_all': float(chosen['val_hit_rate_all']),
         'rule': RULE,
-        'validation': {'speed': setting.speed, 'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
+        'validation': {'speed': setting.speed,
+                       'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
                        'balls_per_seed': setting.balls,
                        'high_seeds': (list(range(setting.high_first_seed, setting.high_first_seed + setting.high_seeds))
                                       if setting.high_first_seed is not None else None),
@@ -296,7 +305,8 @@ def main(argv: list[str] | None = None) -> int:
         in_run_dir = args.export.parent.resolve() == run_dir.resolve()
         extra = {'selected_iteration': selection['iteration']}
         if in_run_dir:
-            extra.update(selection=SELECTION_NAME, **({'config': CONFIG_NAME} if (run_dir / CONFIG_NAME).is_file() else {}))
+            extra.update(selection=SELECTION_NAME,
+                         **({'config': CONFIG_NAME} if (run_dir / CONFIG_NAME).is_file() else {}))
         actor = export_checkpoint(read_checkpoint(chosen_path), args.export, onnx=True, extra=extra)
         if in_run_dir:
             selection['exported_actor'] = actor.name

@@ -37,6 +37,7 @@ CAMERAS = (FIGURE_CAMERA, 'overview', 'robot_view')   # ours and the scene's
 
 @dataclass
 class FigureRow:
+    """One row of the figure: a label, and the joint positions, ball and time of its seven frames."""
     label: str
     joint_positions_rad: np.ndarray     # [7, 6]
     ball_position_m: np.ndarray | None  # [7, 3]; None: no ball (a demonstration has none)
@@ -63,6 +64,7 @@ def stroke_frames(stroke: st.Stroke, rate_hz: float, count: int = FRAMES_PER_ROW
 
 
 def policy_row(label: str, stroke: st.Stroke, rate_hz: float) -> FigureRow:
+    """The figure row of a policy stroke, timed relative to the paddle's first contact."""
     frames = stroke_frames(stroke, rate_hz)
     contact = stroke.hit_frame if stroke.hit_frame != st.NO_FRAME else frames[-1]
     return FigureRow(label=label, joint_positions_rad=stroke.joint_positions_rad[frames],
@@ -129,6 +131,7 @@ def render_rows(rows: Sequence[FigureRow], camera: str = FIGURE_CAMERA) -> list[
 
 def save_grid(path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequence[Sequence[np.ndarray]],
               title: str) -> pathlib.Path:
+    """Save the rendered frames as a grid, one row per FigureRow; returns the path."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

@@ -194,6 +194,7 @@ def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz:
 
 
 def load_strokes(path: str | os.PathLike) -> StrokeFile:
+    """Read a strokes file (.npz) written by save_strokes."""
     with np.load(path, allow_pickle=False) as data:
         strokes = []
         for s in range(len(data['stroke_start'])):

@@ -95,6 +95,7 @@ def reference_clips(dataset, label: str) -> list[tuple[int, np.ndarray]]:
 
 @dataclass(frozen=True)
 class Smoothness:
+    """Peak joint speed and acceleration and mean absolute jerk of a set of strokes."""
     peak_joint_speed_rad_s: float
     peak_joint_acceleration_rad_s2: float
     mean_abs_jerk_rad_s3: float

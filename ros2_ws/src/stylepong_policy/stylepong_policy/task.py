@@ -307,7 +307,8 @@ class TableTennisEnv:
         p = w.params
         physics = torch.stack((p.gravity_m_s2, p.drag_k_per_m / ws.DRAG_K_PER_M, p.table_restitution,
                                p.table_tangential_factor, p.paddle_restitution, p.paddle_tangential_factor,
-                               (p.kp_nm_per_rad / self._kp_nominal).mean(0), (p.kd_nms_per_rad / self._kd_nominal).mean(0)),
+                               (p.kp_nm_per_rad / self._kp_nominal).mean(0),
+                               (p.kd_nms_per_rad / self._kd_nominal).mean(0)),
                               dim=1)
         delays = torch.stack((ep.ball_delay_steps * self.policy_dt_s, ep.joint_delay_steps * self.policy_dt_s,
                               ep.action_delay_physics_steps.to(torch.float32) * w.physics_dt_s), dim=1)
@@ -387,7 +388,8 @@ class TableTennisEnv:
         hit = cfg.w_hit * events.paddle_hit.float()
         goal_point = torch.cat((self.episode.goal_xy_m, torch.full_like(ball[:, :1], self._goal_z_m)), dim=1)
         returning = w.hit & (w.open | events.decided)
-        goal = cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m) * returning
+        goal = (cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m)
+                * returning)
         aim = cfg.w_aim * self._aim_quality(events.paddle_hit)
         success = events.success
         landing = w.landing_xy_m.T
@@ -401,7 +403,8 @@ class TableTennisEnv:
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
         rate = cfg.w_rate * (torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate)
                              - 1.0)
-        return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land, 'success': cfg.w_success * success.float(),
+        return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land,
+                'success': cfg.w_success * success.float(),
                 'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
                 'action': -cfg.w_action * action.abs().amax(dim=1)}
 
@@ -423,7 +426,8 @@ class TableTennisEnv:
         z_net = p[2] + v[2] * t_net - 0.5 * g * t_net * t_net
         clearance = z_net - (ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M + ws.BALL_RADIUS_M)
         over_net = torch.sigmoid(clearance / 0.02) * ((v[0] > 0.0) & (t_net < t_land))
-        distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2 + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)
+        distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2
+                              + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)
         return torch.exp(-distance / self.cfg.sigma_aim_m) * over_net * just_hit
 
     def _episode_log(self, done_ids: torch.Tensor, outcome: dict[str, torch.Tensor]) -> dict[str, float]:

@@ -34,12 +34,17 @@ import time
 
 import torch
 
-from stylepong_policy.rl.config import (FIRST_EVALUATION_SEED, AMPConfig, TrainConfig, config_from_dict, load_config,
-                                        save_config)
+from stylepong_policy.rl.config import (
+    FIRST_EVALUATION_SEED,
+    AMPConfig,
+    TrainConfig,
+    config_from_dict,
+    load_config,
+    save_config,
+)
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.logger import CSV_NAME, plot_learning_curve
-from stylepong_policy.rl.runner import (CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint,
-                                        seed_everything)
+from stylepong_policy.rl.runner import CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint, seed_everything
 
 PACKAGE = 'stylepong_policy'
 METHODS = ('ppo', 'amp', 'amp-noaug')
@@ -75,6 +80,7 @@ def shipped_bags_dir() -> pathlib.Path:
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of train."""
     parser = argparse.ArgumentParser(prog='train', description=__doc__.split('\n\n')[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--out', required=True, type=pathlib.Path, help='run directory')
@@ -174,6 +180,7 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
 
 
 def resolve_device(name: str) -> torch.device:
+    """The torch device of a name; ValueError if it is invalid or CUDA is unavailable."""
     try:
         device = torch.device(name)
     except RuntimeError as err:
@@ -186,6 +193,7 @@ def resolve_device(name: str) -> torch.device:
 
 def write_summary(runner: OnPolicyRunner, run_dir: pathlib.Path, config_source: str, actor_path: pathlib.Path,
                   method: str, dataset_path: pathlib.Path | None) -> dict:
+    """Write the run's summary.json and return it."""
     stats = runner.last_stats
     summary = {
         'method': method, 'dataset': str(dataset_path) if dataset_path is not None else None,
@@ -206,6 +214,7 @@ def _raise_keyboard_interrupt(signum, frame):
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the train executable."""
     args = parse_args(argv)
     try:
         cfg, config_source, method = resolve_config(args)
@@ -223,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(cfg.runner.num_threads)
     seed_everything(cfg.runner.seed)
 
-    from stylepong_policy import task   # the batched world: imported late so config errors come fast
+    from stylepong_policy import task  # the batched world: imported late so config errors come fast
     try:
         task_cfg = task.TaskConfig(**cfg.task)
     except TypeError as err:
@@ -264,7 +273,8 @@ def main(argv: list[str] | None = None) -> int:
 
     actor_path, sidecar = export_actor(
         runner.actor_critic, run_dir / actor_name(method), current_spec_contract(),
-        training={'method': method, 'iterations': runner.iteration, 'samples': runner.env_steps, 'seed': cfg.runner.seed,
+        training={'method': method, 'iterations': runner.iteration, 'samples': runner.env_steps,
+                  'seed': cfg.runner.seed,
                   'wall_time_s': round(runner.wall_time_s, 1), 'config': CONFIG_NAME,
                   'devices': sorted({s['device'] for s in runner.sessions}),
                   'task': dataclasses.asdict(task_cfg)})

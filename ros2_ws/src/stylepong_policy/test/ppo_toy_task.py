@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import torch
 
+
 class ReachTask:
     num_obs = 4
     num_critic_obs = 7

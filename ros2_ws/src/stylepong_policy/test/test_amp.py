@@ -7,11 +7,11 @@ import pytest
 import torch
 
 from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.rl.amp import (MotionPrior, ReferenceMotion, ReplayBuffer, StyleHistory, style_reward)
+from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion, ReplayBuffer, StyleHistory, style_reward
 from stylepong_policy.rl.config import AMPConfig, config_from_dict
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 
-import ppo_toy_task as TOY  # noqa: N812  (beside this file: conftest.py)
+import ppo_toy_task as TOY  # beside this file: conftest.py
 
 BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
 

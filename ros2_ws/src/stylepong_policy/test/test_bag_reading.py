@@ -35,7 +35,8 @@ def random_message(rng):
     n_vel = int(rng.choice([0, n_pos, 1]))
     stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 999_999_999))
     frame_id = 'f' * int(rng.integers(0, 10))
-    return stamp, names, rng.normal(size=n_pos), rng.normal(size=n_vel), rng.normal(size=int(rng.integers(0, 4))), frame_id
+    return (stamp, names, rng.normal(size=n_pos), rng.normal(size=n_vel), rng.normal(size=int(rng.integers(0, 4))),
+            frame_id)
 
 
 def test_fast_reader_equals_rosbags_deserializer_on_random_messages():
@@ -228,7 +229,8 @@ def test_find_bags_searches_parents_and_reports_what_holds_none(tmp_path):
         write_recorder_bag(tmp_path / name, SWING, SWING.total_s, storage='sqlite3')
     (tmp_path / 'empty').mkdir()
     (tmp_path / 'notes.txt').write_text('x')
-    search = find_bags([tmp_path / 'a', tmp_path / 'b' / 'rightward_3', tmp_path / 'b' / 'rightward_3' / 'metadata.yaml',
+    search = find_bags([tmp_path / 'a', tmp_path / 'b' / 'rightward_3',
+                        tmp_path / 'b' / 'rightward_3' / 'metadata.yaml',
                         tmp_path / 'empty', tmp_path / 'nope', tmp_path / 'notes.txt'])
     assert [b.name for b in search.bags] == ['leftward_2', 'forward_1', 'rightward_3']
     assert {p.name: r for p, r in search.rejected}.keys() == {'empty', 'nope', 'notes.txt'}
@@ -241,6 +243,7 @@ def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_
     from rosbags.rosbag2 import Writer
     from rosbags.rosbag2.enums import StoragePlugin
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
     from tests.joint_state_bags import JOINT_STATE_MSGDEF
     msgdef = JOINT_STATE_MSGDEF.replace('float64[] velocity', 'float32[] velocity')
     custom = get_typestore(Stores.EMPTY)
@@ -255,7 +258,8 @@ def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_
                                                     frame_id=''),
                 name=list(URDF_JOINTS), position=np.full(6, 0.5 * i), velocity=np.full(6, i, dtype=np.float32),
                 effort=np.zeros(0))
-            writer.write(connection, (1000 + i) * 10**9, bytes(custom.serialize_cdr(message, 'sensor_msgs/msg/JointState')))
+            writer.write(connection, (1000 + i) * 10**9,
+                         bytes(custom.serialize_cdr(message, 'sensor_msgs/msg/JointState')))
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert not recording.problems and any('differs from the standard' in n for n in recording.notes)
     assert np.array_equal(recording.position_rad[:, 2], 0.5 * np.arange(10))

@@ -4,8 +4,7 @@ import json
 import pytest
 import torch
 
-from stylepong_policy.rl.export import (ActorMismatchError, current_spec_contract, export_actor, load_actor,
-                                        sidecar_path)
+from stylepong_policy.rl.export import ActorMismatchError, current_spec_contract, export_actor, load_actor, sidecar_path
 from stylepong_policy.rl.networks import ActorCritic
 
 CONTRACT = {'spec_version': 3, 'action_rate_hz': 60.0, 'joint_names': ['j1', 'j2'],

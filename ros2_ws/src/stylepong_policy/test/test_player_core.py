@@ -61,7 +61,8 @@ def test_numpy_observation_equals_the_spec_player_observation():
     order = rng.permutation(6)
     for _ in range(50):
         q, qd = HOME + rng.normal(0, 1, 6), rng.normal(0, 3, 6)
-        ball_p, ball_v, goal, last = rng.normal(0, 1, 3), rng.normal(0, 5, 3), rng.normal(0, 1, 2), rng.uniform(-1, 1, 6)
+        ball_p, ball_v = rng.normal(0, 1, 3), rng.normal(0, 5, 3)
+        goal, last = rng.normal(0, 1, 2), rng.uniform(-1, 1, 6)
         names = [NAMES[i] for i in order]
         expected = spec.player_observation(names, q[order], qd[order], ball_p, ball_v, goal, last).numpy()
         index = pc.JointOrder().index(names)

@@ -83,7 +83,8 @@ def test_gae_with_lambda_zero_is_one_step_td_error():
 
 def test_minibatches_cover_every_sample_once_per_epoch():
     T, N = 4, 6
-    storage = _storage_with(torch.arange(T * N, dtype=torch.float32).reshape(T, N), torch.zeros(T, N), torch.zeros(T, N))
+    storage = _storage_with(torch.arange(T * N, dtype=torch.float32).reshape(T, N), torch.zeros(T, N),
+                            torch.zeros(T, N))
     storage.compute_returns(torch.zeros(N), 0.0, 0.0, normalize_advantages=False)
     seen = sorted(v for mb in storage.minibatches(3, 1) for v in mb.returns.tolist())
     assert seen == list(range(T * N))

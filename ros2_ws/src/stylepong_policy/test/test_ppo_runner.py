@@ -8,7 +8,7 @@ from stylepong_policy.rl.config import config_from_dict
 from stylepong_policy.rl.logger import plot_learning_curve, read_progress
 from stylepong_policy.rl.runner import OnPolicyRunner, read_checkpoint, seed_everything
 
-import ppo_toy_task as TOY  # noqa: N812  (beside this file: conftest.py)
+import ppo_toy_task as TOY  # beside this file: conftest.py
 
 
 def small_config(**runner):

@@ -1,6 +1,5 @@
 """rally_eval serves, for seed S, exactly the balls `evaluate` plays for S (the task's first balls)."""
 import numpy as np
-import torch
 
 from stylepong_policy import task
 from stylepong_sim import rally_eval

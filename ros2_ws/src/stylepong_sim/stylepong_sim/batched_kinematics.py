@@ -58,6 +58,7 @@ def mat_mat(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def yaw_rotation(yaw_rad: float) -> np.ndarray:
+    """Rotation matrix about z by `yaw_rad`."""
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -292,6 +293,7 @@ class Spatial:
 
 
 def spatial(model: ArmModel, kin: Kinematics) -> Spatial:
+    """The links' Spatial quantities for the given kinematics, about the base origin."""
     origin = kin.origin_m - model.base_pos_m[:, None, None]   # small lever arms keep float32 exact
     return Spatial(axis=kin.axis, axis_moment=cross(origin, kin.axis), mass=model.mass_kg,
                    com=origin + mat_vec(kin.rot, model.com_m), principal=mat_mat(kin.rot, model.inertia_axes),

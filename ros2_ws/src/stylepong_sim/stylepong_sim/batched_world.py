@@ -138,7 +138,8 @@ class BatchedWorld:
             raise ValueError('num_envs must be positive')
         steps = physics_rate_hz / policy_rate_hz
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
-            raise ValueError(f'physics rate {physics_rate_hz} Hz must be a multiple of the policy rate {policy_rate_hz} Hz')
+            raise ValueError(f'physics rate {physics_rate_hz} Hz must be a multiple of the policy rate '
+                             f'{policy_rate_hz} Hz')
         if arm_substeps < 1:
             raise ValueError('arm_substeps must be at least 1')
         self.num_envs = int(num_envs)
@@ -401,7 +402,8 @@ class BatchedWorld:
         centre[2] = torch.where(is_table, torch.full_like(f, contact_z), centre[2])
         surface_velocity = torch.where(is_pad, u_pad, torch.zeros_like(u_pad))
         restitution = torch.where(is_table, self.params.table_restitution,
-                                  torch.where(is_net, torch.full_like(f, ws.NET_RESTITUTION), self.params.paddle_restitution))
+                                  torch.where(is_net, torch.full_like(f, ws.NET_RESTITUTION),
+                                              self.params.paddle_restitution))
         tangential = torch.where(is_table, self.params.table_tangential_factor,
                                  torch.where(is_net, torch.full_like(f, ws.NET_TANGENTIAL_FACTOR),
                                              self.params.paddle_tangential_factor))
@@ -439,7 +441,8 @@ class BatchedWorld:
         hit_after = self.hit | first_hit
         # After the step: dead, out and timeout.
         time_s = self.time_s + dt
-        dead = (p_new[2] <= r) | (p_new[0].abs() > ws.CELL_HALF_EXTENT_M[0]) | (p_new[1].abs() > ws.CELL_HALF_EXTENT_M[1])
+        dead = ((p_new[2] <= r) | (p_new[0].abs() > ws.CELL_HALF_EXTENT_M[0])
+                | (p_new[1].abs() > ws.CELL_HALF_EXTENT_M[1]))
         off_table = (p_new[0].abs() > ws.HALF_LENGTH_M) | (p_new[1].abs() > ws.HALF_WIDTH_M)
         out = hit_after & (dead | ((p_new[2] - r < ws.TABLE_HEIGHT_M) & off_table & (v_new[2] < 0.0)))
         newly_out = open_ & out & (verdict == NO_VERDICT)

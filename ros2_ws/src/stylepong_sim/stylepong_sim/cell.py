@@ -58,13 +58,14 @@ from dataclasses import dataclass
 
 from stylepong_sim import headless  # noqa: F401  (before mujoco: the cell's model can be rendered)
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+# isort: split
+import mujoco
+import numpy as np
 
-from stylepong_description import robot_model as rm  # noqa: E402
-from stylepong_sim import referee as rf  # noqa: E402
-from stylepong_sim import scene  # noqa: E402
-from stylepong_sim import world_spec as ws  # noqa: E402
+from stylepong_description import robot_model as rm
+from stylepong_sim import referee as rf
+from stylepong_sim import scene
+from stylepong_sim import world_spec as ws
 
 MAX_LAUNCH_SPEED_M_S = 30.0
 FRAME_WORLD = 'world'
@@ -117,6 +118,7 @@ class _HandWrench:
 
 
 class Cell:
+    """The simulated cell: UR5 with paddle, table, net and ball in MuJoCo, with the referee watching."""
     def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, ball_physics: BallPhysics = BallPhysics()):
         self.model = scene.build_model()
         self.data = mujoco.MjData(self.model)

@@ -57,6 +57,7 @@ BALL_GONE_S = 0.3                 # no /ball/state for this long (wall): the bal
 
 @dataclass
 class Rally:
+    """One served ball and its verdict."""
     seed: int
     index: int
     ball_id: int = -1
@@ -68,6 +69,7 @@ class Rally:
 
 @dataclass
 class SeedResult:
+    """The rallies of one seed."""
     seed: int
     rallies: list[Rally] = field(default_factory=list)
 
@@ -90,11 +92,13 @@ def goals_for_seed(seed: int, count: int) -> np.ndarray:
     """Goal centres [count, 2], uniform so that a GOAL_RADIUS_M region lies on the opponent's half."""
     rng = np.random.default_rng(seed)
     r = GOAL_RADIUS_M
-    return np.stack((rng.uniform(r, ws.HALF_LENGTH_M - r, count), rng.uniform(-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r, count)),
+    return np.stack((rng.uniform(r, ws.HALF_LENGTH_M - r, count),
+                     rng.uniform(-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r, count)),
                     axis=1)
 
 
 def summarise(results: list[SeedResult], args: argparse.Namespace) -> dict:
+    """The JSON summary of an evaluation: success and hit rates, failures and every rally."""
     rates = [r.success_rate for r in results]
     rallies = [rally for r in results for rally in r.rallies]
     failures: dict[str, int] = {}
@@ -113,6 +117,7 @@ def summarise(results: list[SeedResult], args: argparse.Namespace) -> dict:
 
 
 class RallyEvalNode(Node):
+    """rally_eval's node: watches rally events, player status and the ball; enables the player, serves balls."""
     def __init__(self):
         super().__init__('rally_eval')
         qos = QoSProfile(depth=10)
@@ -162,6 +167,7 @@ class RallyEvalNode(Node):
 
 
 class Evaluator:
+    """Serves balls through ur5_sim one at a time and waits for each verdict."""
     def __init__(self, node: RallyEvalNode, executor: SingleThreadedExecutor, args: argparse.Namespace):
         self.node, self.executor, self.args = node, executor, args
 
@@ -183,7 +189,8 @@ class Evaluator:
         node = self.node
         for client in (node.launch_client, node.reset_client):
             if not self.spin_until(client.service_is_ready, self.args.start_timeout_s):
-                raise RuntimeError(f'{client.srv_name} not available after {self.args.start_timeout_s} s: is ur5_sim running?')
+                raise RuntimeError(f'{client.srv_name} not available after {self.args.start_timeout_s} s: '
+                                   'is ur5_sim running?')
         if not self.spin_until(lambda: node.status is not None, self.args.player_timeout_s):
             print('rally_eval: no /player/status: judging home from /joint_states', file=sys.stderr, flush=True)
             node.watch_joint_states()
@@ -246,6 +253,7 @@ class Evaluator:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
+    """The command line of rally_eval."""
     parser = argparse.ArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
     parser.add_argument('--balls', type=int, default=20, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
@@ -269,6 +277,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of the rally_eval executable."""
     argv = sys.argv if argv is None else ['rally_eval', *argv]
     args = parse_args(remove_ros_args(argv)[1:])
     if args.first_seed < FIRST_EVALUATION_SEED:

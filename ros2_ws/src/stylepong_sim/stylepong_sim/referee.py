@@ -79,6 +79,7 @@ REASON_ABORTED = 'aborted'
 
 @dataclass(frozen=True)
 class RallyEvent:
+    """An event of a rally (launch, bounce, hit, end); an end carries the verdict and its reason."""
     ball_id: int
     type: int
     time_s: float

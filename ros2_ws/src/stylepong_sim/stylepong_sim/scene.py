@@ -18,11 +18,12 @@ import math
 
 from stylepong_sim import headless  # noqa: F401  (before mujoco)
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+# isort: split
+import mujoco
+import numpy as np
 
-from stylepong_description import robot_model as rm  # noqa: E402
-from stylepong_sim import world_spec as ws  # noqa: E402
+from stylepong_description import robot_model as rm
+from stylepong_sim import world_spec as ws
 
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2
 ENV_CONTYPE, ENV_CONAFFINITY = 2, 1
@@ -144,6 +145,7 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
 
 
 def build_spec() -> mujoco.MjSpec:
+    """The cell's MuJoCo spec: the robot from the URDF, with table, net, pedestal, ball and cameras."""
     spec = mujoco.MjSpec.from_string(rm.urdf_xml())
     spec.modelname = 'stylepong_cell'
     # The URDF's <mujoco> block discards visual geoms (the .dae meshes MuJoCo cannot read) while
@@ -163,4 +165,5 @@ def build_spec() -> mujoco.MjSpec:
 
 
 def build_model() -> mujoco.MjModel:
+    """The cell's compiled MuJoCo model."""
     return build_spec().compile()

@@ -19,6 +19,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class SensingConfig:
+    """Sensor imperfections: ball camera noise, latency and dropout; F/T noise and bias; the seed."""
     ball_position_noise_std_m: float = 0.0
     ball_velocity_noise_std_m_s: float = 0.0
     ball_latency_s: float = 0.0
@@ -45,12 +46,14 @@ class SensingConfig:
 
 @dataclass(frozen=True)
 class BallObservation:
+    """A ball camera sample: when it was observed, position and velocity."""
     stamp_s: float               # the instant the observation shows
     position_m: np.ndarray
     velocity_m_s: np.ndarray
 
 
 class BallCamera:
+    """The ball camera: noisy samples, some dropped, delivered after the latency."""
     def __init__(self, config: SensingConfig, rng: np.random.Generator):
         self._config = config
         self._rng = rng
@@ -78,6 +81,7 @@ class BallCamera:
 
 
 class ForceTorqueSensor:
+    """The wrist F/T sensor: the true wrench plus bias and noise."""
     def __init__(self, config: SensingConfig, rng: np.random.Generator):
         self._config = config
         self._rng = rng

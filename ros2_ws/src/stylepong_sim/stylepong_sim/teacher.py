@@ -188,7 +188,8 @@ def varied_shape(shape: StrokeShape, variation: SwingVariation) -> StrokeShape:
     yaw_back, yaw_hit, yaw_follow = variation.yaw_delta_rad
     return StrokeShape(back_offset_m=moved(shape.back_offset_m, variation.back_delta_m),
                        hit_offset_m=moved(shape.hit_offset_m, variation.hit_delta_m, variation.amplitude_scale),
-                       follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m, variation.amplitude_scale),
+                       follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m,
+                                             variation.amplitude_scale),
                        back_yaw_rad=shape.back_yaw_rad + yaw_back, hit_yaw_rad=shape.hit_yaw_rad + yaw_hit,
                        follow_yaw_rad=shape.follow_yaw_rad + yaw_follow)
 
@@ -260,6 +261,7 @@ class TeacherConfig:
 # Kinematics of the cell
 # ---------------------------------------------------------------------------------------------------
 def robot_base_in_world() -> pin.SE3:
+    """The robot base's pose in the world frame."""
     return pin.SE3(yaw_rotation(ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
 
 
@@ -301,6 +303,7 @@ def minimum_jerk(tau: float) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class ViaPoint:
+    """A via point of the paddle's path: position, velocity, yaw and yaw rate (world frame)."""
     position_m: np.ndarray       # paddle centre, world
     velocity_m_s: np.ndarray
     yaw_rad: float               # blade turned about world z from its home orientation
@@ -371,6 +374,7 @@ class StrokePath:
 # The hand
 # ---------------------------------------------------------------------------------------------------
 def clamp_norm(vector: np.ndarray, limit: float) -> np.ndarray:
+    """The vector scaled down to norm `limit` if it is longer."""
     norm = float(np.linalg.norm(vector))
     return vector if norm <= limit else vector * (limit / norm)
 
@@ -393,6 +397,7 @@ def hand_wrench(config: TeacherConfig, position_m: np.ndarray, rotation: np.ndar
 
 
 def yaw_rotation(yaw_rad: float) -> np.ndarray:
+    """Rotation matrix about z by `yaw_rad`."""
     return pin.utils.rpyToMatrix(0.0, 0.0, yaw_rad)
 
 

@@ -37,34 +37,35 @@ from __future__ import annotations
 
 from stylepong_sim import headless  # noqa: F401  (before mujoco: headless video)
 
-import math  # noqa: E402
-import signal  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
+# isort: split
+import math
+import signal
+import sys
+import time
 
-import numpy as np  # noqa: E402
-import rclpy  # noqa: E402
-from builtin_interfaces.msg import Time  # noqa: E402
-from geometry_msgs.msg import WrenchStamped  # noqa: E402
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult  # noqa: E402
-from rclpy._rclpy_pybind11 import RCLError  # noqa: E402
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException  # noqa: E402
-from rclpy.executors import ExternalShutdownException  # noqa: E402
-from rclpy.experimental import EventsExecutor  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.qos import QoSProfile  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
 
-from stylepong_description import robot_model as rm  # noqa: E402
-from stylepong_msgs.msg import BallState, RallyEvent  # noqa: E402
-from stylepong_msgs.srv import LaunchBall  # noqa: E402
-from stylepong_sim import world_spec as ws  # noqa: E402
-from stylepong_sim.cell import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, Cell, InputError  # noqa: E402
-from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig  # noqa: E402
+from stylepong_description import robot_model as rm
+from stylepong_msgs.msg import BallState, RallyEvent
+from stylepong_msgs.srv import LaunchBall
+from stylepong_sim import world_spec as ws
+from stylepong_sim.cell import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, Cell, InputError
+from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
 
 WARN_PERIOD_S = 2.0
 TIMER_PERIOD_S = 0.002
@@ -75,6 +76,7 @@ _SENSING_FLOATS = ('ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', '
 
 
 class ConfigError(ValueError):
+    """An invalid ur5_sim parameter."""
     pass
 
 
@@ -95,6 +97,7 @@ def _stamp(time_s: float) -> Time:
 
 
 class Ur5SimNode(Node):
+    """The ur5_sim node: the cell behind the UR driver's and ros2_control's topics, with ball and sim services."""
     def __init__(self, **node_kwargs):
         super().__init__('ur5_sim', **node_kwargs)
         max_rate_hz = 1.0 / ws.PHYSICS_DT_S
@@ -112,11 +115,13 @@ class Ur5SimNode(Node):
         declare('clock_rate_hz', max_rate_hz, _descriptor('/clock rate', low=1.0, high=max_rate_hz))
         declare('hand_wrench_timeout_s', 0.1, _descriptor('A hand wrench is dropped this long after it arrived',
                                                           low=0.001, high=10.0))
-        declare('ball_position_noise_std_m', 0.0, _descriptor('Camera: position noise (std, per axis)', low=0.0, high=1.0))
+        declare('ball_position_noise_std_m', 0.0, _descriptor('Camera: position noise (std, per axis)',
+                                                              low=0.0, high=1.0))
         declare('ball_velocity_noise_std_m_s', 0.0, _descriptor('Camera: velocity noise (std, per axis)',
                                                                 low=0.0, high=10.0))
         declare('ball_latency_s', 0.0, _descriptor('Camera: delay from observation to publication', low=0.0, high=1.0))
-        declare('ball_dropout_probability', 0.0, _descriptor('Camera: probability a sample is lost', low=0.0, high=0.99))
+        declare('ball_dropout_probability', 0.0, _descriptor('Camera: probability a sample is lost',
+                                                             low=0.0, high=0.99))
         declare('ft_force_noise_std_n', 0.0, _descriptor('F/T: force noise (std, per axis)', low=0.0, high=100.0))
         declare('ft_torque_noise_std_nm', 0.0, _descriptor('F/T: torque noise (std, per axis)', low=0.0, high=10.0))
         declare('ft_force_bias_n', [0.0, 0.0, 0.0], _descriptor('F/T: constant force bias, tool0 axes'))
@@ -126,7 +131,8 @@ class Ur5SimNode(Node):
         declare('sensing_seed', 0, _descriptor('Seed of the sensor noise', low=0, high=2**31 - 1, integer=True))
         declare('record_video', '', _descriptor("'' = off; a path ending in .mp4, or a folder for PNG frames"))
         declare('video_fps', 30.0, _descriptor('Video frames per simulated second', low=1.0, high=240.0))
-        declare('video_width', 640, _descriptor('Video width (pixels, multiple of 16)', low=16, high=1920, integer=True))
+        declare('video_width', 640, _descriptor('Video width (pixels, multiple of 16)', low=16, high=1920,
+                                                integer=True))
         declare('video_height', 480, _descriptor('Video height (pixels, multiple of 16)', low=16, high=1072,
                                                  integer=True))
         declare('video_camera', 'overview', _descriptor('overview (side view) or robot_view (from the opponent)'))
@@ -361,6 +367,7 @@ class Ur5SimNode(Node):
 
 
 def main(args=None) -> int:
+    """Entry point of the ur5_sim executable; Ctrl-C and SIGTERM stop it between steps."""
     # Ctrl-C and SIGTERM only ask the loop below to stop: rclpy's own handlers would raise inside a
     # physics/publishing callback half-way through (a FATAL log from the executor on every exit).
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)

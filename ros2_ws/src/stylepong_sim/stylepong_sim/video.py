@@ -1,7 +1,8 @@
 """Headless video of the cell: MuJoCo's offscreen renderer to an MP4 file or a folder of PNG frames.
 
 Free of ROS. Rendering needs MUJOCO_GL=egl (or osmesa) before mujoco is first imported when there is no
-display; stylepong_sim.headless (imported by cell, scene and this module first) sets egl in that case. A 640x480 frame costs about 15-20 ms of CPU.
+display; stylepong_sim.headless (imported by cell, scene and this module first) sets egl in that case.
+A 640x480 frame costs about 15-20 ms of CPU.
     recorder = VideoRecorder(cell.model, 'rally.mp4', fps=30)   # or a folder path: frame_000000.png, ...
     if recorder.clock.due(cell.time_s): recorder.capture(cell.data)
     recorder.close()                                            # finishes the MP4 (needed to play it)
@@ -12,14 +13,16 @@ import pathlib
 
 from stylepong_sim import headless  # noqa: F401  (before mujoco)
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+# isort: split
+import mujoco
+import numpy as np
 
-from stylepong_sim import scene  # noqa: E402
-from stylepong_sim.sensing import SampleClock  # noqa: E402
+from stylepong_sim import scene
+from stylepong_sim.sensing import SampleClock
 
 
 class VideoRecorder:
+    """Renders the cell from one camera at a fixed frame rate to an MP4 file or a folder of PNGs."""
     def __init__(self, model: mujoco.MjModel, path: str, fps: float = 30.0, width: int = 640, height: int = 480,
                  camera: str = 'overview'):
         if camera not in scene.CAMERAS:

@@ -37,7 +37,8 @@ PARAMETERS = {
     'swing': ('forward', f'the stroke to teach: {", ".join(SWINGS)}'),
     'label': ('', 'clip label sent to /recorder/start (empty: the swing)'),
     'seed': (0, 'which take of the stroke (non-negative; the same seed gives the same take)'),
-    'variation': (1.0, "how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES (0: nominal)"),
+    'variation': (1.0, 'how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES '
+                       '(0: nominal)'),
     'rate_hz': (500.0, 'rate of the hand wrench'),
     'use_recorder': (True, 'bracket the stroke with /recorder/start and /recorder/stop'),
     'wait_timeout_s': (30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
@@ -57,6 +58,7 @@ PARAMETERS = {
 
 
 class VirtualTeacherNode(Node):
+    """The virtual teacher: pushes the paddle through one stroke on /sim/hand_wrench, recording it as a clip."""
     def __init__(self, **kwargs):
         super().__init__('virtual_teacher', **kwargs)
         for name, (default, description) in PARAMETERS.items():
@@ -101,7 +103,8 @@ class VirtualTeacherNode(Node):
         self.stop_client = self.create_client(Trigger, '/recorder/stop')
         self.create_timer(1.0 / p['rate_hz'], self._on_tick)
         path = self.teacher.path
-        self.get_logger().info(f'teaching a {p["swing"]} stroke ({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
+        self.get_logger().info(f'teaching a {p["swing"]} stroke '
+                               f'({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
                                f'label {self.label!r}, seed {p["seed"]}, variation {p["variation"]}: '
                                f'amplitude x{variation.amplitude_scale:.3f}, hit at {variation.hit_fraction:.3f} '
                                f'of the forward swing')
@@ -232,6 +235,7 @@ class VirtualTeacherNode(Node):
 
 
 def main(args=None) -> int:
+    """Entry point of the virtual_teacher executable."""
     # Our own Ctrl-C handling: a flag, not an exception inside a callback, and the context outlives it
     # so that the node can still let go of the paddle and close the clip.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)

@@ -91,6 +91,7 @@ CELL_HALF_EXTENT_M = (5.0, 4.0)
 
 
 def on_table(x_m: float, y_m: float) -> bool:
+    """Whether a point (x, y) lies over the table."""
     return abs(x_m) <= HALF_LENGTH_M and abs(y_m) <= HALF_WIDTH_M
 
 
@@ -129,6 +130,7 @@ SPEED_RANGES_M_S = {'all': INCOMING.speed_m_s, 'low': (4.0, 4.8), 'high': (5.8, 
 
 @dataclass
 class BallLaunch:
+    """A drawn serve: launch position and velocity, and the point where it bounces."""
     position_m: np.ndarray
     velocity_m_s: np.ndarray
     bounce_point_m: np.ndarray = field(default_factory=lambda: np.zeros(2))

@@ -1,7 +1,7 @@
 """The referee's rules (docs/DESIGN.md, "Evaluation protocol"), one rally at a time."""
 import pytest
-from stylepong_msgs.msg import RallyEvent as RallyEventMsg
 
+from stylepong_msgs.msg import RallyEvent as RallyEventMsg
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
 
@@ -35,7 +35,8 @@ def _verdict(events) -> tuple[bool, str]:
 
 def test_a_return_to_the_opponents_half_succeeds():
     ref = rf.Referee()
-    events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR) + ref.table_contact(1.3, OPPONENT)
+    events = (_launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR)
+              + ref.table_contact(1.3, OPPONENT))
     assert _types(events) == [rf.LAUNCHED, rf.BOUNCE_OWN_SIDE, rf.PADDLE_HIT, rf.BOUNCE_OPPONENT_SIDE, rf.RALLY_END]
     assert _verdict(events) == (True, 'returned')
     assert not ref.rally_open
@@ -48,7 +49,8 @@ def test_a_net_touching_return_fails_even_if_it_would_drop_over():
 
 
 @pytest.mark.parametrize('second, reason', [
-    ('own_side', 'own_side'), ('paddle', 'double_hit'), ('robot', 'robot_contact'), ('table_by_robot', 'table_contact_by_robot'),
+    ('own_side', 'own_side'), ('paddle', 'double_hit'), ('robot', 'robot_contact'),
+    ('table_by_robot', 'table_contact_by_robot'),
 ])
 def test_failures_after_the_hit(second, reason):
     ref = rf.Referee()

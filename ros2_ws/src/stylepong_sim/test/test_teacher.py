@@ -5,8 +5,15 @@ import pytest
 
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
-from stylepong_sim.teacher import (STROKES, SWINGS, CellKinematics, StrokePath, TeacherConfig, VirtualTeacher,
-                                   hand_wrench)
+from stylepong_sim.teacher import (
+    STROKES,
+    SWINGS,
+    CellKinematics,
+    StrokePath,
+    TeacherConfig,
+    VirtualTeacher,
+    hand_wrench,
+)
 
 HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()

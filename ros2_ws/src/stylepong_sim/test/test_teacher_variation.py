@@ -12,8 +12,17 @@ import pytest
 
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
-from stylepong_sim.teacher import (STROKES, SWINGS, VARIATION_RANGES, CellKinematics, StrokePath, SwingVariation,
-                                   TeacherConfig, sample_variation, yaw_rotation)
+from stylepong_sim.teacher import (
+    STROKES,
+    SWINGS,
+    VARIATION_RANGES,
+    CellKinematics,
+    StrokePath,
+    SwingVariation,
+    TeacherConfig,
+    sample_variation,
+    yaw_rotation,
+)
 
 HOME_Q = np.array(ws.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()

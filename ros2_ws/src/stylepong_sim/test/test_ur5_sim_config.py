@@ -32,7 +32,8 @@ def _close(node, context) -> None:
 def test_the_yaml_holds_every_parameter_with_its_default():
     node, context = _node()
     try:
-        declared = {name: p.value for name, p in node._parameters.items() if name not in ('use_sim_time', 'start_type_description_service')}
+        declared = {name: p.value for name, p in node._parameters.items()
+                    if name not in ('use_sim_time', 'start_type_description_service')}
     finally:
         _close(node, context)
     in_yaml = _yaml_parameters('ur5_sim.yaml')

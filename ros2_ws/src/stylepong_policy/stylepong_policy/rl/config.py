@@ -23,6 +23,7 @@ FIRST_EVALUATION_SEED = 1000
 
 @dataclass
 class PolicyConfig:
+    """The actor-critic networks: hidden layers, activation, initial and minimum std, normalisation."""
     actor_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])
     critic_hidden_dims: list[int] = field(default_factory=lambda: [512, 256, 128])
     activation: str = 'elu'
@@ -33,6 +34,7 @@ class PolicyConfig:
 
 @dataclass
 class PPOConfig:
+    """PPO's hyperparameters: rollout length, epochs, minibatches, losses and learning-rate schedule."""
     num_steps_per_env: int = 24          # rollout length T per iteration; batch = T x num_envs samples
     num_learning_epochs: int = 5
     num_mini_batches: int = 4
@@ -53,6 +55,7 @@ class PPOConfig:
 
 @dataclass
 class RunnerConfig:
+    """The run: iterations, seed, device, threads and checkpointing."""
     iterations: int = 1500               # total iterations of the run (a resumed run continues to this)
     seed: int = 1                        # below FIRST_EVALUATION_SEED
     device: str = 'cpu'                  # 'cpu' or 'cuda' (or 'cuda:N')
@@ -101,6 +104,7 @@ class AMPConfig:
 
 @dataclass
 class TrainConfig:
+    """A whole training configuration: policy, PPO, runner, task and (for AMP) the motion prior."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
     runner: RunnerConfig = field(default_factory=RunnerConfig)
@@ -138,6 +142,7 @@ _OPTIONAL_SECTIONS = {'amp': AMPConfig}
 
 
 def config_from_dict(data: dict[str, Any] | None) -> TrainConfig:
+    """A validated TrainConfig from a mapping; ValueError for unknown sections or keys."""
     data = dict(data or {})
     known = set(_SECTIONS) | set(_OPTIONAL_SECTIONS) | {'task'}
     unknown = set(data) - known
@@ -159,10 +164,12 @@ def config_from_dict(data: dict[str, Any] | None) -> TrainConfig:
 
 
 def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:
+    """The configuration as plain dicts (what save_config writes)."""
     return dataclasses.asdict(cfg)
 
 
 def load_config(path: str | pathlib.Path) -> TrainConfig:
+    """Read a YAML configuration; ValueError naming the file for anything wrong with it."""
     path = pathlib.Path(path)
     try:
         data = yaml.safe_load(path.read_text())
@@ -179,4 +186,5 @@ def load_config(path: str | pathlib.Path) -> TrainConfig:
 
 
 def save_config(cfg: TrainConfig, path: str | pathlib.Path) -> None:
+    """Write the configuration as YAML."""
     pathlib.Path(path).write_text(yaml.safe_dump(config_to_dict(cfg), sort_keys=False))

@@ -37,6 +37,7 @@ EXTRAS_STYLE_STATE = 'style_state'
 
 
 class VecEnv(Protocol):
+    """The batched environment the runner trains on."""
     num_envs: int
     num_obs: int
     num_critic_obs: int

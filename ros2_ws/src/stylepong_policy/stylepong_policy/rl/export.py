@@ -30,8 +30,20 @@ import torch
 from torch import nn
 
 from stylepong_policy.actor_contract import (  # noqa: F401  (re-exported: the names callers import from here)
-    CONTRACT_KEYS, ONNX_INPUT, ONNX_OUTPUT, SIDECAR_FORMAT, SIDECAR_VERSION, ActorMismatchError,
-    current_spec_contract, file_sha256, jsonable, onnx_metadata_props, onnx_path, read_sidecar, sidecar_path)
+    CONTRACT_KEYS,
+    ONNX_INPUT,
+    ONNX_OUTPUT,
+    SIDECAR_FORMAT,
+    SIDECAR_VERSION,
+    ActorMismatchError,
+    current_spec_contract,
+    file_sha256,
+    jsonable,
+    onnx_metadata_props,
+    onnx_path,
+    read_sidecar,
+    sidecar_path,
+)
 
 from .networks import ActorCritic
 
@@ -61,7 +73,8 @@ def _quiet_torchscript():
     warnings are silenced, only here."""
     with warnings.catch_warnings():
         warnings.filterwarnings('ignore', message=r'`torch\.jit\.', category=DeprecationWarning)
-        warnings.filterwarnings('ignore', message=r'.*legacy TorchScript-based ONNX export', category=DeprecationWarning)
+        warnings.filterwarnings('ignore', message=r'.*legacy TorchScript-based ONNX export',
+                                category=DeprecationWarning)
         warnings.filterwarnings('ignore', message=r'The feature will be removed', category=DeprecationWarning)
         warnings.filterwarnings('ignore', message=r'no signature found for', category=UserWarning)
         yield
@@ -69,6 +82,7 @@ def _quiet_torchscript():
 
 @dataclass
 class LoadedActor:
+    """An exported TorchScript actor with its contract metadata; call it on observations."""
     module: torch.jit.ScriptModule
     metadata: dict[str, Any]
     path: pathlib.Path
@@ -197,6 +211,7 @@ def write_onnx_for(actor_path: str | pathlib.Path) -> pathlib.Path:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Write the ONNX file beside each exported actor given."""
     parser = argparse.ArgumentParser(prog='python3 -m stylepong_policy.rl.export',
                                      description='Write the ONNX file of exported TorchScript actors.')
     parser.add_argument('--onnx', nargs='+', type=pathlib.Path, required=True, metavar='ACTOR.pt',

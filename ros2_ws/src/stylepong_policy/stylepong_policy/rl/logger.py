@@ -15,6 +15,7 @@ TENSORBOARD_DIR = 'tensorboard'
 
 
 class TrainingLog:
+    """The training log of a run: a CSV row per iteration and, optionally, TensorBoard events."""
     def __init__(self, run_dir: str | pathlib.Path, start_iteration: int, tensorboard: bool = True):
         self.run_dir = pathlib.Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)

@@ -44,6 +44,7 @@ def make_adam(params, lr: float) -> torch.optim.Adam:
 
 
 class PPO:
+    """Proximal policy optimisation of an actor-critic: acting in rollouts and the clipped update."""
     def __init__(self, actor_critic: ActorCritic, cfg: PPOConfig):
         self.actor_critic = actor_critic
         self.cfg = cfg
@@ -75,7 +76,8 @@ class PPO:
         """Per-iteration learning-rate schedules (the adaptive one acts per minibatch in update())."""
         if self.cfg.schedule == 'linear' and total_iterations > 0:
             frac = min(iteration / total_iterations, 1.0)
-            self._set_learning_rate(self.cfg.learning_rate + frac * (self.cfg.min_learning_rate - self.cfg.learning_rate))
+            self._set_learning_rate(self.cfg.learning_rate
+                                    + frac * (self.cfg.min_learning_rate - self.cfg.learning_rate))
         elif self.cfg.schedule == 'fixed':
             self._set_learning_rate(self.cfg.learning_rate)
 

@@ -34,12 +34,14 @@ LAST_CHECKPOINT = 'last.pt'
 
 
 def seed_everything(seed: int) -> None:
+    """Seed Python's, numpy's and torch's random generators."""
     random.seed(seed)
     np.random.seed(seed % 2 ** 32)
     torch.manual_seed(seed)
 
 
 def capture_rng_state(shuffle: torch.Generator) -> dict[str, Any]:
+    """Every random generator's state (for a checkpoint), loadable with weights_only=True."""
     np_state = np.random.get_state()
     state = {'torch': torch.get_rng_state(), 'python': random.getstate(), 'shuffle': shuffle.get_state(),
              # numpy's MT19937 state as tensors and ints, so checkpoints load with weights_only=True.
@@ -51,6 +53,7 @@ def capture_rng_state(shuffle: torch.Generator) -> dict[str, Any]:
 
 
 def restore_rng_state(state: dict[str, Any], shuffle: torch.Generator) -> None:
+    """Restore the random generators from capture_rng_state's dict."""
     torch.set_rng_state(state['torch'].cpu())
     random.setstate(_as_python_random_state(state['python']))
     shuffle.set_state(state['shuffle'].cpu())
@@ -88,13 +91,15 @@ def find_checkpoint(path: str | pathlib.Path) -> pathlib.Path:
         for candidate in (path / CHECKPOINT_DIR / LAST_CHECKPOINT, path / LAST_CHECKPOINT):
             if candidate.is_file():
                 return candidate
-        raise FileNotFoundError(f'no checkpoint in run directory {path} (looked for {CHECKPOINT_DIR}/{LAST_CHECKPOINT})')
+        raise FileNotFoundError(f'no checkpoint in run directory {path} '
+                                f'(looked for {CHECKPOINT_DIR}/{LAST_CHECKPOINT})')
     if not path.is_file():
         raise FileNotFoundError(f'checkpoint {path} does not exist')
     return path
 
 
 def read_checkpoint(path: str | pathlib.Path) -> dict[str, Any]:
+    """Load a checkpoint (a file or a run directory); ValueError if it is not a readable one of this version."""
     path = find_checkpoint(path)
     try:
         data = torch.load(path, map_location='cpu', weights_only=True)
@@ -157,6 +162,7 @@ class EpisodeStatistics:
 
 
 class OnPolicyRunner:
+    """Runs PPO (and the motion prior, for AMP) on a batched env: rollouts, updates, logs, checkpoints."""
     def __init__(self, env: env_contract.VecEnv, cfg: TrainConfig, run_dir: str | pathlib.Path,
                  tensorboard: bool = True, motion_prior: MotionPrior | None = None):
         self.env = env
@@ -257,7 +263,8 @@ class OnPolicyRunner:
                 self._sync()
                 t2 = time.perf_counter()
                 rewards = rewards.to(torch.float32)
-                if not (torch.isfinite(obs).all() and torch.isfinite(critic_obs).all() and torch.isfinite(rewards).all()):
+                if not (torch.isfinite(obs).all() and torch.isfinite(critic_obs).all()
+                        and torch.isfinite(rewards).all()):
                     raise FloatingPointError('the env returned non-finite observations or rewards; '
                                              'stopping before they poison the normalisers')
                 parts = None

@@ -9,6 +9,7 @@ import torch
 
 @dataclass
 class Minibatch:
+    """One minibatch of rollout samples for a PPO update."""
     obs: torch.Tensor            # normalised actor observations [B, num_obs]
     critic_obs: torch.Tensor     # normalised critic observations [B, num_critic_obs]
     actions: torch.Tensor        # [B, num_actions]
