@@ -68,7 +68,7 @@ echo "[demo] dataset in $DEMO_DIR/dataset.npz, its clips plotted in $DEMO_DIR/da
 
 # The shipped actor playing through ROS: ur5_sim (recording an MP4) + player (ONNX, on the cell's clock) +
 # rally_eval serving 20 evaluation balls. ACTOR is the exported actor (<name>.pt; the .onnx beside it is run).
-ACTOR=${ACTOR:-ros2_ws/src/stylepong_policy/models/ppo_actor.pt}
+ACTOR=${ACTOR:-ros2_ws/src/stylepong_policy/models/amp_actor.pt}   # the shipped style actor
 BALLS=${BALLS:-20}
 LOGS="$DEMO_DIR/logs"
 mkdir -p "$LOGS"

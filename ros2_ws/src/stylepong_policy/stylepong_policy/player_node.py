@@ -39,17 +39,17 @@ WARN_PERIOD_S = 2.0
 
 
 def _default_actor() -> str:
-    """The shipped actor, installed with the package (models/ppo_actor.pt; the .onnx beside it)."""
+    """The shipped actor, installed with the package (models/amp_actor.pt; the .onnx beside it)."""
     try:
         from ament_index_python.packages import get_package_share_directory
-        return str(pathlib.Path(get_package_share_directory('stylepong_policy')) / 'models' / 'ppo_actor.pt')
+        return str(pathlib.Path(get_package_share_directory('stylepong_policy')) / 'models' / 'amp_actor.pt')
     except (ImportError, LookupError):
-        return 'ppo_actor.pt'
+        return 'amp_actor.pt'
 
 
 _D = core.PlayerConfig()
 PARAMETERS = (
-    Param('actor', '', "exported actor, <name>.pt or <name>.onnx ('' = the shipped models/ppo_actor.pt)"),
+    Param('actor', '', "exported actor, <name>.pt or <name>.onnx ('' = the shipped models/amp_actor.pt)"),
     Param('backend', 'onnx', 'onnx (onnxruntime, no torch) or torchscript', choices=core.BACKENDS),
     Param('start_enabled', False, 'enabled at start-up (else wait for /player/enable true)'),
     Param('goal_xy_m', list(_D.goal_xy_m), "goal on the opponent's half until /player/goal says otherwise", length=2,

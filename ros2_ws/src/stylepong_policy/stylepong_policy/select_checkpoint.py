@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import torch
 
-from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
+from stylepong_policy.rl.config import FIRST_EVALUATION_SEED, config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.networks import ActorCritic
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
@@ -103,7 +103,7 @@ def actor_critic_of(checkpoint: dict) -> ActorCritic:
 def training_info(checkpoint: dict) -> dict:
     """What train writes into an actor's sidecar about its training, from the checkpoint."""
     config = checkpoint.get('config') or {}
-    return {'method': 'amp' if config.get('amp') else 'ppo', 'iterations': int(checkpoint['iteration']),
+    return {'method': method_of(config_from_dict(config)), 'iterations': int(checkpoint['iteration']),
             'samples': int(checkpoint['env_steps']), 'seed': (config.get('runner') or {}).get('seed'),
             'wall_time_s': round(float(checkpoint['wall_time_s']), 1),
             'devices': sorted({s.get('device') for s in checkpoint.get('sessions') or [] if s.get('device')}),

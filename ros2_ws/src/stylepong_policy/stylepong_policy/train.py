@@ -36,10 +36,13 @@ import torch
 
 from stylepong_policy.rl.config import (
     FIRST_EVALUATION_SEED,
+    METHODS,
+    ORIGINAL_CLIPS_ONLY,
     AMPConfig,
     TrainConfig,
     config_from_dict,
     load_config,
+    method_of,
     save_config,
 )
 from stylepong_policy.rl.export import current_spec_contract, export_actor
@@ -47,12 +50,10 @@ from stylepong_policy.rl.logger import CSV_NAME, plot_learning_curve
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint, seed_everything
 
 PACKAGE = 'stylepong_policy'
-METHODS = ('ppo', 'amp', 'amp-noaug')
 SUMMARY_NAME = 'summary.json'
 CURVE_NAME = 'learning_curve.png'
 CONFIG_NAME = 'config.yaml'
 DATASET_NAME = 'dataset.npz'
-ORIGINAL_CLIPS_ONLY = [1]     # amp-noaug's speed factors
 
 
 def actor_name(method: str) -> str:
@@ -113,7 +114,7 @@ def resolve_config(args: argparse.Namespace) -> tuple[TrainConfig, str, str]:
     else:
         path = default_config_path(args.method or 'ppo')
         cfg, source = load_config(path), str(path)
-    method = args.method or _method_of(cfg)
+    method = args.method or method_of(cfg)
     if method == 'ppo':
         if args.dataset is not None:
             raise ValueError('--dataset is for --method amp or amp-noaug')
@@ -141,12 +142,6 @@ def resolve_config(args: argparse.Namespace) -> tuple[TrainConfig, str, str]:
     if 'num_envs' in cfg.task and int(cfg.task['num_envs']) < 1:
         raise ValueError(f'num_envs must be at least 1, got {cfg.task["num_envs"]}')
     return cfg, source, method
-
-
-def _method_of(cfg: TrainConfig) -> str:
-    if cfg.amp is None:
-        return 'ppo'
-    return 'amp-noaug' if cfg.amp.speed_factors == ORIGINAL_CLIPS_ONLY else 'amp'
 
 
 def reference_dataset_path(cfg: AMPConfig, run_dir: pathlib.Path) -> pathlib.Path:

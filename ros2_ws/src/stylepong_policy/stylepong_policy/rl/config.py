@@ -137,6 +137,17 @@ class TrainConfig:
         return self
 
 
+METHODS = ('ppo', 'amp', 'amp-noaug')
+ORIGINAL_CLIPS_ONLY = [1]     # amp-noaug's speed factors: the demonstrations as recorded, no speed-ups
+
+
+def method_of(cfg: 'TrainConfig') -> str:
+    """ppo (no motion prior), amp (all clips) or amp-noaug (the original clips only)."""
+    if cfg.amp is None:
+        return 'ppo'
+    return 'amp-noaug' if cfg.amp.speed_factors == ORIGINAL_CLIPS_ONLY else 'amp'
+
+
 _SECTIONS = {'policy': PolicyConfig, 'ppo': PPOConfig, 'runner': RunnerConfig}
 _OPTIONAL_SECTIONS = {'amp': AMPConfig}
 
