@@ -54,6 +54,9 @@ from stylepong_sim.referee import REASON_RETURNED
 
 SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
+# The setting of a figure, said in every result (Table IV of paper_tables labels its rows with it).
+WORLDS = {False: 'batched world, nominal (no randomisation, no sensing noise)',
+          True: 'batched world, training randomisation (physics, sensing noise, latencies; --randomize)'}
 VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
 SPEEDS = ('all', 'low', 'high')
 DTW_CALL = "dtaidistance.dtw_ndim.distance_fast(stroke, clip, inner_dist='euclidean')"
@@ -274,7 +277,7 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'hit_rate': sum(r.hits for r in results) / balls,
         'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
         'seeds': [r.seed for r in results], 'balls_per_seed': evaluation.balls_per_seed, 'speed': evaluation.speed,
-        'randomize': evaluation.randomize, 'actor': evaluation.actor,
+        'randomize': evaluation.randomize, 'world': WORLDS[evaluation.randomize], 'actor': evaluation.actor,
         'actor_spec_version': evaluation.actor_spec_version,
         'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
         'direction_rule': {'plane_x_m': round(plane_x, 4), 'paddle_home_y_m': round(home_y, 4),

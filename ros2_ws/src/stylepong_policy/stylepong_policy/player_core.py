@@ -55,8 +55,11 @@ FRAME_WORLD = 'world'
 # after the previous step's ball: a 120 Hz camera's frames are half a period apart, so exactly every
 # second one qualifies, and jitter of a quarter period in the stamps changes nothing.
 PHASE_TOLERANCE = 0.25
-# No qualifying ball message this many periods after the last step: step on the latest ball anyway.
-FALLBACK_PERIODS = 1.25
+# No qualifying ball message this many periods after the last step: step on the latest ball anyway. Just
+# over one period: a late or lost camera frame costs one step on a ball one frame older (within the
+# observation delays the actor was trained with) rather than a late step; at 1.25 periods these steps
+# set the period jitter's p99 (4.2 ms against 0.5 ms, benchmarks/50_player.py, rally ends in ur5_sim).
+FALLBACK_PERIODS = 1.05
 # Steps closer together than this (in arrival time) are refused, whatever the stamps say (a burst).
 MIN_STEP_SPACING_PERIODS = 0.5
 # Measured joints may lie a little outside the URDF limits (encoder noise, a controller's overshoot).

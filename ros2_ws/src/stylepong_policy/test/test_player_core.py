@@ -295,7 +295,7 @@ def test_fallback_steps_on_the_latest_ball_when_frames_stop():
     core.on_joint_state(NAMES, HOME, np.zeros(6), 1.0)
     core.on_ball('world', 1.0, BALL_P, BALL_V, 1.0)
     core.step(1.0)
-    t = 1.0 + 1.1 * PERIOD_S
+    t = 1.0 + (pc.FALLBACK_PERIODS - 0.01) * PERIOD_S
     assert not core.fallback_step_due(t)
     t = 1.0 + (pc.FALLBACK_PERIODS + 0.01) * PERIOD_S
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
