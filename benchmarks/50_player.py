@@ -187,7 +187,7 @@ def main() -> int:
     nodes = {backend: node_alone(backend) for backend in ('onnx', 'torchscript')}
     sim_status, sim_cpu, rally = with_ur5_sim()
     print('## player: period jitter, ball-to-command latency, inference time, CPU share\n')
-    print('`python3 benchmarks/50_player.py`, the shipped actor (`models/ppo_actor.pt` / `.onnx`). (1) The actor '
+    print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). (1) The actor '
           f'alone: {CALLS} calls with one observation, and {CALLS} whole PlayerCore policy steps (observation, '
           'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_policy player` (enabled, wall clock) fed by '
           f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '
