@@ -187,8 +187,9 @@ def main() -> int:
     nodes = {backend: node_alone(backend) for backend in ('onnx', 'torchscript')}
     sim_status, sim_cpu, rally = with_ur5_sim()
     print('## player: period jitter, ball-to-command latency, inference time, CPU share\n')
-    print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). (1) The actor '
-          f'alone: {CALLS} calls with one observation, and {CALLS} whole PlayerCore policy steps (observation, '
+    print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). '
+          f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole PlayerCore policy steps '
+          '(observation, '
           'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_policy player` (enabled, wall clock) fed by '
           f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '
           'per backend; the figures are the node\'s own (/player/status): period between policy steps, jitter '
