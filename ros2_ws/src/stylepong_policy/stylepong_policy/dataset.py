@@ -280,6 +280,17 @@ def parse_speedups(text: str) -> tuple[int, ...]:
 # The dataset
 
 
+def window_start_indices(clip_start: Sequence[int] | np.ndarray, clip_length: Sequence[int] | np.ndarray,
+                         length: int) -> np.ndarray:
+    """First frame index of every window of `length` consecutive frames lying inside one clip, for clips
+    that start at clip_start and hold clip_length frames (a shorter clip has none)."""
+    if length < 1:
+        raise ValueError(f'window length must be >= 1, got {length}')
+    starts = [np.arange(start, start + count - length + 1)
+              for start, count in zip(clip_start, clip_length) if count >= length]
+    return np.concatenate(starts).astype(np.int64) if starts else np.zeros(0, dtype=np.int64)
+
+
 @dataclass
 class SourceClip:
     """An original clip with where it came from."""
@@ -328,13 +339,9 @@ class ReferenceDataset:
         return np.flatnonzero(chosen)
 
     def window_starts(self, length: int, clips: np.ndarray | None = None) -> np.ndarray:
-        """First frame index of every window of `length` frames lying inside one clip."""
-        if length < 1:
-            raise ValueError(f'window length must be >= 1, got {length}')
+        """First frame index of every window of `length` frames lying inside one of these clips (all)."""
         clips = np.arange(self.num_clips) if clips is None else np.asarray(clips)
-        starts = [np.arange(self.clip_start[c], self.clip_start[c] + self.clip_length[c] - length + 1)
-                  for c in clips if self.clip_length[c] >= length]
-        return np.concatenate(starts).astype(np.int64) if starts else np.zeros(0, dtype=np.int64)
+        return window_start_indices(self.clip_start[clips], self.clip_length[clips], length)
 
     def windows(self, length: int, *, labels: Sequence[str] | None = None,
                 speed_factors: Sequence[int] | None = None) -> np.ndarray:
@@ -344,14 +351,6 @@ class ReferenceDataset:
         if not len(starts):
             return np.zeros((0, length, states.shape[1]))
         return states[starts[:, None] + np.arange(length)[None, :]]
-
-    def sample_windows(self, rng: np.random.Generator, count: int, length: int) -> np.ndarray:
-        """`count` windows drawn uniformly (with replacement) from all windows: (count, length, 2J)."""
-        starts = self.window_starts(length)
-        if not len(starts):
-            raise ValueError(f'no clip has {length} frames')
-        chosen = rng.choice(starts, size=count)
-        return self.states()[chosen[:, None] + np.arange(length)[None, :]]
 
     def save(self, path: str | os.PathLike) -> pathlib.Path:
         """Write the .npz atomically (a half-written dataset never replaces a good one)."""

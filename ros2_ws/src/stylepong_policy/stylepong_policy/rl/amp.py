@@ -29,6 +29,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from stylepong_policy.dataset import window_start_indices
+
 from .config import AMPConfig
 from .networks import make_mlp
 from .normalizer import RunningNormalizer
@@ -47,14 +49,12 @@ class ReferenceMotion:
 
     def __init__(self, frames: np.ndarray | torch.Tensor, clip_starts: Sequence[int], clip_lengths: Sequence[int],
                  length: int, device: torch.device | str = 'cpu'):
-        if length < 1:
-            raise ValueError(f'window length must be at least 1, got {length}')
         self.device = torch.device(device)
         self.frames = torch.as_tensor(np.asarray(frames), dtype=torch.float32, device=self.device)
-        starts = [np.arange(s, s + n - length + 1) for s, n in zip(clip_starts, clip_lengths) if n >= length]
-        if not starts:
+        starts = window_start_indices(clip_starts, clip_lengths, length)
+        if not len(starts):
             raise ValueError(f'no reference clip has {length} frames')
-        self.starts = torch.as_tensor(np.concatenate(starts), dtype=torch.long, device=self.device)
+        self.starts = torch.as_tensor(starts, dtype=torch.long, device=self.device)
         self.offsets = torch.arange(length, device=self.device)
         self.length = int(length)
 
