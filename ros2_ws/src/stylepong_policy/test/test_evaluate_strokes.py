@@ -5,6 +5,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from json_text import json_strings  # beside this file: conftest.py
 
 from stylepong_policy import evaluate, strokes
 from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
@@ -29,17 +30,6 @@ def write_reference(path: pathlib.Path) -> pathlib.Path:
         sources.append(SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), label, f'synthetic:{label}'))
     assemble_dataset(sources, (2,), JOINT_NAMES, 60.0).save(path)
     return path
-
-
-def json_strings(value):
-    if isinstance(value, dict):
-        for item in value.values():
-            yield from json_strings(item)
-    elif isinstance(value, list):
-        for item in value:
-            yield from json_strings(item)
-    elif isinstance(value, str):
-        yield value
 
 
 @pytest.fixture(scope='module')

@@ -3,6 +3,7 @@ import json
 import pathlib
 
 import pytest
+from json_text import json_strings  # beside this file: conftest.py
 
 from stylepong_policy import paper_tables
 
@@ -13,18 +14,6 @@ REPOSITORY = PACKAGE.parents[2]
 
 def stand_ins() -> str:
     return ','.join(f'{name}={PPO_ACTOR}' for name in paper_tables.ACTOR_NAMES)
-
-
-def json_strings(value):
-    if isinstance(value, dict):
-        for key, item in value.items():
-            yield str(key)
-            yield from json_strings(item)
-    elif isinstance(value, list):
-        for item in value:
-            yield from json_strings(item)
-    elif isinstance(value, str):
-        yield value
 
 
 @pytest.fixture(scope='module')
