@@ -77,26 +77,15 @@ if [ ! -f "${ACTOR%.pt}.onnx" ]; then
   python3 -m stylepong_policy.rl.export --onnx "$ACTOR" | sed 's/^/[demo] /'
 fi
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
-PIDS=()
-stop_nodes() {
-  for (( i=${#PIDS[@]}-1; i>=0; i-- )); do
-    kill -INT "${PIDS[i]}" 2>/dev/null || true
-    # ur5_sim finishes the MP4 on Ctrl-C: give it time.
-    for _ in $(seq 150); do kill -0 "${PIDS[i]}" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "${PIDS[i]}" 2>/dev/null || true
-  done
-  PIDS=()
-}
-trap stop_nodes EXIT
-trap 'exit 130' INT TERM
+# ur5_sim finishes the MP4 on Ctrl-C: give it time.
+NODE_GRACE_S=15
+source tools/node_group.sh
 echo "[demo] playing $ACTOR through ROS: ur5_sim + player + rally_eval, $BALLS balls of seed 1000 (about $((BALLS * 5 / 60 + 1)) min)"
 # max_lag_s: when rendering or a busy machine holds the cell back, it runs slower than real time rather
 # than catching up in bursts that the player's commands could not reach in time.
-ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
-  -p video_width:=480 -p video_height:=352 -p video_fps:=25.0 >"$LOGS/ur5_sim.log" 2>&1 &
-PIDS+=($!)
-ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true >"$LOGS/player.log" 2>&1 &
-PIDS+=($!)
+start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
+  -p video_width:=480 -p video_height:=352 -p video_fps:=25.0
+start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed 1000 --seeds 1 --speed all \
   --json "$DEMO_DIR/rally.json" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[demo]   /'
 stop_nodes

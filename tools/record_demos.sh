@@ -39,26 +39,13 @@ mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
 say() { printf '[record] %s\n' "$*"; }
 
-PIDS=()
-stop_all() {
-  # Newest first: the recorder closes its bag before the arm's nodes go away.
-  for (( i=${#PIDS[@]}-1; i>=0; i-- )); do kill -INT "${PIDS[i]}" 2>/dev/null || true; done
-  for pid in "${PIDS[@]}"; do
-    for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$pid" 2>/dev/null || true
-  done
-  PIDS=()
-}
-trap stop_all EXIT
-trap 'exit 130' INT TERM
+NODE_GRACE_S=5
+source "$(dirname "$0")/node_group.sh"
 
 say "ROS_DOMAIN_ID=$ROS_DOMAIN_ID, node logs in $LOGS"
-ros2 run stylepong_sim ur5_sim --ros-args -p real_time_factor:="$REAL_TIME_FACTOR" >"$LOGS/ur5_sim.log" 2>&1 &
-PIDS+=($!)
-ros2 run stylepong_fdcc drag_teach --ros-args -p use_sim_time:=true >"$LOGS/drag_teach.log" 2>&1 &
-PIDS+=($!)
-ros2 run stylepong_fdcc recorder --ros-args -p output_dir:="$OUT" >"$LOGS/recorder.log" 2>&1 &
-PIDS+=($!)
+start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p real_time_factor:="$REAL_TIME_FACTOR"
+start_node "$LOGS/drag_teach.log" ros2 run stylepong_fdcc drag_teach --ros-args -p use_sim_time:=true
+start_node "$LOGS/recorder.log" ros2 run stylepong_fdcc recorder --ros-args -p output_dir:="$OUT"
 say "started ur5_sim (real_time_factor $REAL_TIME_FACTOR), drag_teach and the recorder (clips into $OUT)"
 
 recorded=()
@@ -78,6 +65,6 @@ for swing in "${SWINGS[@]}"; do
   say "recorded $bag (seed $seed)"
   recorded+=("$bag")
 done
-stop_all
+stop_nodes
 say "${#recorded[@]} clip(s) in $OUT"
 printf '%s\n' "${recorded[@]}" >"$LOGS/recorded.txt"

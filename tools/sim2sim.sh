@@ -29,22 +29,10 @@ done
 SENSING="$(ros2 pkg prefix stylepong_sim)/share/stylepong_sim/config/realistic_sensing.yaml"
 LOGS=$(mktemp -d /tmp/sim2sim.XXXXXX)
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
-PIDS=()
-stop_nodes() {
-  for (( i=${#PIDS[@]}-1; i>=0; i-- )); do
-    kill -INT "${PIDS[i]}" 2>/dev/null || true
-    for _ in $(seq 100); do kill -0 "${PIDS[i]}" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "${PIDS[i]}" 2>/dev/null || true
-  done
-  PIDS=()
-}
-trap stop_nodes EXIT
-trap 'exit 130' INT TERM
+source tools/node_group.sh
 echo "[sim2sim] $ACTOR through ROS: ur5_sim (realistic sensing) + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
-ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING" >"$LOGS/ur5_sim.log" 2>&1 &
-PIDS+=($!)
-ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true >"$LOGS/player.log" 2>&1 &
-PIDS+=($!)
+start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING"
+start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 mkdir -p "$(dirname "$JSON")"
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed "$FIRST_SEED" --seeds "$SEEDS" --speed all \
   --json "$JSON.part" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[sim2sim]   /'
