@@ -127,7 +127,7 @@ class EpisodeStatistics:
         self.episodes = 0
         self.log_sums: dict[str, float] = {}
         self.log_weights: dict[str, int] = {}
-        self.reward_sums: dict[str, float] = {}
+        self.reward_sums: dict[str, torch.Tensor | float] = {}
         self.steps = 0
 
     def record(self, rewards: torch.Tensor, dones: torch.Tensor, extras: dict[str, Any],
@@ -148,7 +148,9 @@ class EpisodeStatistics:
                 self.log_sums[key] = self.log_sums.get(key, 0.0) + float(value) * weight
                 self.log_weights[key] = self.log_weights.get(key, 0) + weight
         for key, value in (reward_parts or {}).items():
-            self.reward_sums[key] = self.reward_sums.get(key, 0.0) + float(value.mean())
+            # Summed on the device and read once per iteration: a float() here would wait for the GPU
+            # at every rollout step.
+            self.reward_sums[key] = self.reward_sums.get(key, 0.0) + value.mean(dtype=torch.float64)
 
     def summary(self) -> dict[str, float]:
         out = {'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
@@ -157,7 +159,7 @@ class EpisodeStatistics:
         for key, total in self.log_sums.items():
             out[key] = total / self.log_weights[key]
         for key, total in self.reward_sums.items():
-            out[f'step_reward/{key}'] = total / max(self.steps, 1)
+            out[f'step_reward/{key}'] = float(total) / max(self.steps, 1)
         return out
 
 
