@@ -8,8 +8,10 @@ and `select_checkpoint --run RUN --export RUN/selected/<name>_actor.pt` to have 
 actor (RUN/selection.json, validation.csv, validation_curve.png). Writes <name>_actor.pt/.json/.onnx,
 <name>_config.yaml, <name>_progress.csv, <name>_learning_curve.png, <name>_validation.csv,
 <name>_validation_curve.png and <name>_summary.json: train's summary with select_checkpoint's choice
-under `selection`, and the names of the files beside it. Nothing is typed by hand; run it again after
-either tool and the shipped files follow.
+under `selection`, and the names of the files beside it. Then it evaluates the shipped actor on the
+evaluation protocol's seeds (EVALUATIONS: `evaluate`, nominal batched world) into <name>_eval_all.json and
+<name>_eval_high.json (`--no-evaluate` skips this). Nothing is typed by hand; run it again after either
+tool and the shipped files follow.
 """
 from __future__ import annotations
 
@@ -17,12 +19,19 @@ import argparse
 import json
 import pathlib
 import shutil
+import subprocess
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 COPIED = {'config.yaml': 'config.yaml', 'progress.csv': 'progress.csv', 'learning_curve.png': 'learning_curve.png',
           'validation.csv': 'validation.csv', 'validation_curve.png': 'validation_curve.png'}
 ACTOR_SUFFIXES = ('.pt', '.json', '.onnx')
+# The evaluation protocol of the shipped actors (docs/DESIGN.md, "Evaluation protocol"): file suffix ->
+# evaluate's flags. Evaluation seeds are 1000 and up; a run is only shipped once its recipe is final.
+EVALUATIONS = {
+    'eval_all': ['--seeds', '10', '--first-seed', '1000', '--balls', '200', '--speed', 'all'],
+    'eval_high': ['--seeds', '10', '--first-seed', '2000', '--balls', '200', '--speed', 'high'],
+}
 
 
 def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Path]:
@@ -47,16 +56,34 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
     return written
 
 
+def evaluate_shipped(name: str, models: pathlib.Path) -> list[pathlib.Path]:
+    """Run `evaluate` on the shipped actor for every entry of EVALUATIONS; returns the JSON files written.
+
+    The actor is named relative to the repository when it lies inside it, as the eval files record it."""
+    actor = (models / f'{name}_actor.pt').resolve()
+    shown = actor.relative_to(ROOT) if actor.is_relative_to(ROOT) else actor
+    written = []
+    for suffix, flags in EVALUATIONS.items():
+        path = (models / f'{name}_{suffix}.json').resolve()
+        subprocess.run(['ros2', 'run', 'stylepong_policy', 'evaluate', '--actor', str(shown), *flags,
+                        '--json', str(path)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        written.append(path)
+    return written
+
+
 def main() -> int:
     """Command line of ship_run."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path)
     parser.add_argument('--name', required=True, help='amp, amp_noaug, ppo: the shipped files\' prefix')
     parser.add_argument('--models-dir', type=pathlib.Path, default=ROOT / 'ros2_ws/src/stylepong_policy/models')
+    parser.add_argument('--no-evaluate', action='store_true', help='copy only; skip the evaluations')
     args = parser.parse_args()
     try:
         written = ship(args.run, args.name, args.models_dir)
-    except (OSError, ValueError, KeyError) as err:
+        if not args.no_evaluate:
+            written += evaluate_shipped(args.name, args.models_dir)
+    except (OSError, ValueError, KeyError, subprocess.CalledProcessError) as err:
         print(f'ship_run: {err}', file=sys.stderr)
         return 2
     for path in written:

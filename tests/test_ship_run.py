@@ -1,0 +1,56 @@
+"""tools/ship_run.py: what it copies into models/ and the summary it writes (no training, no evaluation)."""
+import importlib.util
+import json
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def _ship_run_module():
+    spec = importlib.util.spec_from_file_location('ship_run', ROOT / 'tools' / 'ship_run.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def run_dir(tmp_path) -> pathlib.Path:
+    """A run as train + select_checkpoint leave it, with placeholder contents."""
+    run = tmp_path / 'run'
+    (run / 'selected').mkdir(parents=True)
+    (run / 'summary.json').write_text(json.dumps({'method': 'ppo', 'iterations': 1700, 'seed': 1}))
+    (run / 'selection.json').write_text(json.dumps({'iteration': 1650, 'val_success_all': 0.95}))
+    for name in ('config.yaml', 'progress.csv', 'learning_curve.png', 'validation.csv', 'validation_curve.png'):
+        (run / name).write_text(f'contents of {name}')
+    for suffix in ('.pt', '.json', '.onnx'):
+        (run / 'selected' / f'ppo_actor{suffix}').write_text(f'actor {suffix}')
+    return run
+
+
+def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, tmp_path):
+    models = tmp_path / 'models'
+    models.mkdir()
+    written = _ship_run_module().ship(run_dir, 'ppo', models)
+    assert {p.name for p in written} == {
+        'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv',
+        'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
+    assert (models / 'ppo_validation.csv').read_text() == 'contents of validation.csv'
+    assert (models / 'ppo_actor.onnx').read_text() == 'actor .onnx'
+    summary = json.loads((models / 'ppo_summary.json').read_text())
+    assert summary['iterations'] == 1700 and summary['seed'] == 1
+    assert summary['selection'] == {'iteration': 1650, 'val_success_all': 0.95}
+    # Every file the summary names lies beside it.
+    named = [summary[key] for key in ('actor', 'config', 'progress', 'learning_curve', 'validation',
+                                      'validation_curve')]
+    assert all((models / name).is_file() for name in named)
+
+
+def test_ship_refuses_a_run_without_a_selected_actor(run_dir, tmp_path):
+    (run_dir / 'selected' / 'ppo_actor.onnx').unlink()
+    models = tmp_path / 'models'
+    models.mkdir()
+    with pytest.raises(FileNotFoundError, match='ppo_actor.onnx'):
+        _ship_run_module().ship(run_dir, 'ppo', models)
+    assert not any(models.iterdir())
