@@ -231,19 +231,29 @@ def smoothness_table(strokes: Sequence[st.Stroke], rate_hz: float = ACTION_RATE_
     return table
 
 
-def dtw_table(strokes: Sequence[st.Stroke], dataset) -> dict[str, dict]:
-    """Per direction: every stroke against every reference clip of that label, the mean of the smallest."""
+def dtw_table(strokes: Sequence[st.Stroke], dataset, rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
+    """Per direction: every stroke against every reference clip of that label, the mean of the smallest,
+    and the summed distance split by joint and by phase of the stroke (style_metrics.cost_breakdown)."""
+    from stylepong_description.robot_model import JOINT_NAMES
+
     table = {}
     for direction in st.DIRECTIONS:
         references = sm.reference_clips(dataset, direction)
+        clips = dict(references)
         chosen = [s for s in strokes if s.direction == direction]
         entry = {'strokes': len(chosen), 'reference_clips': len(references), 'mean_rad': None, 'std_rad': None,
-                 'mean_per_path_step_rad': None}
+                 'mean_per_path_step_rad': None, 'sum_by_joint_rad': None, 'sum_by_phase_rad': None}
         if chosen and references:
             matches = [sm.nearest_reference(s.joint_positions_rad, references) for s in chosen]
             distances = np.array([m.distance for m in matches])
+            parts = [sm.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
+                     for s, m in zip(chosen, matches)]
+            by_joint = np.sum([p.by_joint_rad for p in parts], axis=0)
             entry.update(mean_rad=float(distances.mean()), std_rad=float(distances.std()),
-                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for m in matches])))
+                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for m in matches])),
+                         sum_by_joint_rad=dict(zip(JOINT_NAMES, by_joint.tolist())),
+                         sum_by_phase_rad={phase: float(sum(p.by_phase_rad[phase] for p in parts))
+                                           for phase in sm.PHASES})
         table[direction] = entry
     return table
 

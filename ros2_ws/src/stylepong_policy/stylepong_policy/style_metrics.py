@@ -22,6 +22,12 @@ A stroke is compared with every reference clip of its direction (all speed facto
 learns from all of them) and its distance is the smallest; a direction's figure is the mean over its
 strokes.
 
+Where the distance lies (beyond the paper; `cost_breakdown`). Each frame pair (i, j) on the optimal
+path adds c = |d|, d = stroke[i] - clip[j]; joint k's part of it is c d_k^2 / |d|^2, so the parts add
+up to the distance exactly. The pair's phase is that of the stroke's frame i: `waiting` until
+SWING_S before the paddle's hit, `swing` from there to the hit, `follow_through` after it (a stroke
+without a hit has no follow-through; its last SWING_S counts as its swing).
+
 Smoothness (beyond the paper): from the 60 Hz joint positions by backward finite differences,
   qdot[k] = (q[k] - q[k-1]) / dt, qddot = the same of qdot, jerk = the same of qddot;
   peak joint speed         max over frames and joints of |qdot|    (rad/s)
@@ -42,12 +48,17 @@ from dtaidistance import dtw_ndim
 INNER_DISTANCE = 'euclidean'
 
 
+PHASES = ('waiting', 'swing', 'follow_through')
+SWING_S = 0.25               # the forward swing before the hit: about the policies' (0.2-0.3 s at 60 Hz)
+
+
 @dataclass(frozen=True)
 class DtwMatch:
     """A stroke's nearest reference clip."""
     distance: float          # summed Euclidean cost along the optimal path (rad)
     path_length: int         # frame pairs on that path
     clip: int                # index of the clip in the reference dataset
+    path: tuple[tuple[int, int], ...] = ()   # the optimal path's (stroke frame, clip frame) pairs
 
     @property
     def distance_per_step(self) -> float:
@@ -85,7 +96,36 @@ def nearest_reference(stroke_rad: np.ndarray, references: Sequence[tuple[int, np
     best = int(np.argmin(distances))
     index, clip = references[best]
     _, path = dtw_path(stroke_rad, clip)
-    return DtwMatch(distance=distances[best], path_length=len(path), clip=int(index))
+    return DtwMatch(distance=distances[best], path_length=len(path), clip=int(index), path=tuple(path))
+
+
+@dataclass(frozen=True)
+class CostBreakdown:
+    """A DTW distance split by joint and by phase of the stroke (both sum to the distance, rad)."""
+    by_joint_rad: np.ndarray                 # [joints]
+    by_phase_rad: dict[str, float]           # PHASES
+
+
+def stroke_phases(frames: int, hit_frame: int, rate_hz: float) -> np.ndarray:
+    """Index into PHASES of each of a stroke's frames (hit_frame < 0: no hit)."""
+    hit = hit_frame if hit_frame >= 0 else frames
+    swing_start = hit - int(round(SWING_S * rate_hz))
+    index = np.arange(frames)
+    return np.where(index < swing_start, 0, np.where(index < hit, 1, 2))
+
+
+def cost_breakdown(stroke_rad: np.ndarray, clip_rad: np.ndarray, path: Sequence[tuple[int, int]],
+                   hit_frame: int, rate_hz: float) -> CostBreakdown:
+    """Split the cost of a warping path (module docstring, "Where the distance lies")."""
+    pairs = np.asarray(path, dtype=np.int64)
+    difference = _series(stroke_rad)[pairs[:, 0]] - _series(clip_rad)[pairs[:, 1]]
+    squared = difference ** 2
+    cost = np.sqrt(squared.sum(axis=1))
+    # c d_k^2 / |d|^2 = d_k^2 / c; a pair of identical frames adds nothing to any joint.
+    by_joint = (squared / np.where(cost > 0.0, cost, 1.0)[:, None]).sum(axis=0)
+    phase = stroke_phases(len(stroke_rad), hit_frame, rate_hz)[pairs[:, 0]]
+    by_phase = {name: float(cost[phase == k].sum()) for k, name in enumerate(PHASES)}
+    return CostBreakdown(by_joint_rad=by_joint, by_phase_rad=by_phase)
 
 
 def reference_clips(dataset, label: str) -> list[tuple[int, np.ndarray]]:

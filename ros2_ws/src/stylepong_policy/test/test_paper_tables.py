@@ -30,7 +30,8 @@ def written(tmp_path_factory):
 
 def test_markdown_has_every_table_with_the_papers_figures_beside_ours(written):
     text = (written / 'README.md').read_text()
-    for heading in ('## Table I', '## Table II', '## Table III', '## Smoothness', '## Table IV', '## Fig. 2'):
+    for heading in ('## Table I', '## Table II', '## Where the DTW distance lies', '## Table III', '## Smoothness',
+                    '## Table IV', '## Fig. 2'):
         assert heading in text, heading
     for figure in ('96.27 %', '90.32 %', '148.23', '62.73', '0.423', '85.91 %', '71.39 %'):
         assert figure in text, figure                   # the paper's, beside ours

@@ -104,3 +104,32 @@ def test_smoothness_needs_four_frames():
     with pytest.raises(ValueError):
         sm.smoothness(np.zeros((3, 6)), 60.0)
     assert sm.mean_smoothness([]) is None
+
+
+def test_cost_breakdown_adds_up_to_the_distance_by_joint_and_by_phase():
+    generator = np.random.default_rng(3)
+    stroke = np.cumsum(generator.normal(0.0, 0.05, (40, 6)), axis=0)
+    clip = np.cumsum(generator.normal(0.0, 0.05, (25, 6)), axis=0)
+    distance, path = sm.dtw_path(stroke, clip)
+    parts = sm.cost_breakdown(stroke, clip, path, hit_frame=30, rate_hz=60.0)
+    assert parts.by_joint_rad.sum() == pytest.approx(distance, rel=1e-12)
+    assert sum(parts.by_phase_rad.values()) == pytest.approx(distance, rel=1e-12)
+    assert all(value > 0.0 for value in parts.by_phase_rad.values())
+
+
+def test_cost_breakdown_puts_a_one_joint_difference_on_that_joint_and_phase():
+    # The stroke leaves the clip's pose on joint 4 only, and only after its hit at frame 20.
+    clip = np.zeros((30, 6))
+    stroke = np.zeros((30, 6))
+    stroke[20:, 4] = 0.3
+    distance, path = sm.dtw_path(stroke, clip)
+    parts = sm.cost_breakdown(stroke, clip, path, hit_frame=20, rate_hz=60.0)
+    assert distance == pytest.approx(10 * 0.3)
+    assert parts.by_joint_rad[4] == pytest.approx(distance) and np.delete(parts.by_joint_rad, 4).sum() == 0.0
+    assert parts.by_phase_rad == pytest.approx({'waiting': 0.0, 'swing': 0.0, 'follow_through': distance})
+
+
+def test_stroke_phases_without_a_hit_end_in_the_swing():
+    # 60 Hz: the swing is the last 15 frames before the hit (or before the end without one).
+    assert sm.stroke_phases(40, hit_frame=30, rate_hz=60.0).tolist() == [0] * 15 + [1] * 15 + [2] * 10
+    assert sm.stroke_phases(40, hit_frame=-1, rate_hz=60.0).tolist() == [0] * 25 + [1] * 15
