@@ -118,7 +118,16 @@ def _check_bounds(param: Param, numbers: list[float], bad: Callable[[str], Param
         if not math.isfinite(number):
             raise bad('must be finite')
         if not low <= number <= high:
-            raise bad(f'must be within [{param.low}, {param.high}]')
+            raise bad(_bounds_text(param))
+
+
+def _bounds_text(param: Param) -> str:
+    """What a value outside the row's bounds must be, in words (a one-sided bound has no `None` in it)."""
+    if param.high is None:
+        return f'must be at least {param.low}'
+    if param.low is None:
+        return f'must be at most {param.high}'
+    return f'must be within [{param.low}, {param.high}]'
 
 
 def declare_parameters(node: Node, table: Iterable[Param]) -> dict[str, ParameterValue]:
@@ -185,7 +194,10 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
     A ParameterError, rclpy's parameter exceptions or any of `config_errors` raised while building the
     node print `<program>: <reason>` (one line) on stderr and return EXIT_CONFIG_ERROR. The node's
     `close()`, if it has one, runs on the way out (statistics, files); a node that sets `finished` ends the
-    loop, with its `exit_code` (default 0).
+    loop, with its `exit_code` (default 0). A node with `wind_down(executor, interrupted)` gets that call
+    when the loop ends (interrupted: by Ctrl-C or SIGTERM), while the executor still serves it: the last
+    messages and service answers it needs to leave things tidy (let go of the paddle, close a clip), and
+    the exit code it then sets.
     """
     # Ctrl-C and SIGTERM only ask the loop below to stop: rclpy's own handler would raise inside a
     # callback half-way through it.
@@ -204,6 +216,9 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
         # A node that ends by itself (a replay) sets `finished` and, optionally, `exit_code`.
         while rclpy.ok() and not stop_requested and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
+        wind_down = getattr(node, 'wind_down', None)
+        if wind_down is not None:
+            wind_down(executor, bool(stop_requested))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except errors as error:

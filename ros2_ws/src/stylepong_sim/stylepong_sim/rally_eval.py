@@ -22,6 +22,8 @@ closed loop judged that way measured 5 % instead of 95 % success).
 Prints one line per ball and the summary, and writes the summary as JSON: success_rate (mean over
 seeds), success_rate_std, per_seed, hit_rate, failures (reason -> count), balls, seeds, as evaluate does,
 plus balls_per_seed, speed, the rallies' outcomes and the player's last status (timing figures).
+Exit codes: 0 done; 2 a bad flag (one line on stderr naming it, as the nodes do for a bad parameter,
+stylepong_common.node_support); 1 ur5_sim or the player failed it; 130 Ctrl-C.
 """
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ import pathlib
 import sys
 import time
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 import rclpy
@@ -43,6 +46,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from stylepong_common.node_support import EXIT_CONFIG_ERROR
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import world_spec as ws
@@ -252,9 +256,19 @@ class Evaluator:
         return rally
 
 
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """argparse that refuses a bad flag the way the nodes refuse a bad parameter: `<prog>: <reason>`, one
+    line on stderr (no usage block: a launch script's log shows the reason, not the whole synopsis), and
+    EXIT_CONFIG_ERROR (argparse's own code for a usage error, too)."""
+
+    def error(self, message: str) -> NoReturn:
+        print(f'{self.prog}: {" ".join(message.split())}', file=sys.stderr)
+        sys.exit(EXIT_CONFIG_ERROR)
+
+
 def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
-    parser = argparse.ArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
+    parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
     parser.add_argument('--balls', type=int, default=20, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
                         help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')

@@ -7,83 +7,87 @@ the swing) and /recorder/stop (std_srvs/Trigger). Steps: wait for joint states (
 commanding the arm, i.e. drag_teach), bring the paddle to the ready pose, start the recorder, play the
 stroke, stop the recorder, let go, exit (exit code 0 when a clip was recorded). Each take varies like a
 person's (teacher.sample_variation): `seed` picks the take (the same seed, the same stroke), `variation`
-scales how far it departs from the nominal stroke (0: the nominal stroke). Defaults:
-config/virtual_teacher.yaml.
+scales how far it departs from the nominal stroke (0: the nominal stroke).
+Parameters: PARAMETERS below, defaults in config/virtual_teacher.yaml (read at start-up). A bad one stops the
+node with one line on stderr and exit code 2 (stylepong_common.node_support).
+Exit codes: 0 a clip was recorded (or, without the recorder, the stroke played); 2 a bad parameter, or joint
+states, drag_teach or the recorder missing after wait_timeout_s; 3 the recorder refused; 130 Ctrl-C or
+SIGTERM; 1 the ROS context shut down under the node.
 Subscribes /joint_states, /forward_position_controller/commands (only to see that the arm is driven).
 """
 from __future__ import annotations
 
-import signal
 import sys
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model as rm
 from stylepong_msgs.srv import StartClip
 from stylepong_sim.teacher import SWINGS, TeacherConfig, VirtualTeacher, sample_variation
 
+PROGRAM = 'virtual_teacher'
+WARN_PERIOD_S = 1.0
+EXIT_INTERRUPTED = 130      # the shell's code for a program ended by Ctrl-C
+EXIT_STOPPED = 1            # the ROS context was shut down under the node before it was done
+RELEASE_REPEATS = 5         # on the way out, the zero wrench is sent this many times, 10 ms apart
+
 _DEFAULTS = TeacherConfig()
-PARAMETERS = {
-    'swing': ('forward', f'the stroke to teach: {", ".join(SWINGS)}'),
-    'label': ('', 'clip label sent to /recorder/start (empty: the swing)'),
-    'seed': (0, 'which take of the stroke (non-negative; the same seed gives the same take)'),
-    'variation': (1.0, 'how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES '
-                       '(0: nominal)'),
-    'rate_hz': (500.0, 'rate of the hand wrench'),
-    'use_recorder': (True, 'bracket the stroke with /recorder/start and /recorder/stop'),
-    'wait_timeout_s': (30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
-    'wait_for_commands': (True, 'push only once someone (drag_teach) commands the arm'),
-    'exit_when_done': (True, 'exit after the stroke (else stay, hand released, until Ctrl-C)'),
-    'grip_frame': (rm.TOOL_FRAME, 'robot frame whose origin the simulator applies /sim/hand_wrench at'),
-    'wrench_frame_id': ('world', 'header frame of the hand wrench (its axes)'),
-    'joint_state_timeout_s': (0.1, 'older joint states: the hand lets go until fresh ones arrive'),
-    'lead_in_s': (_DEFAULTS.lead_in_s, 'recorded at rest at the ready pose before the back-swing'),
-    'backswing_s': (_DEFAULTS.backswing_s, 'duration of the back-swing'),
-    'forward_swing_s': (_DEFAULTS.forward_swing_s, 'back-swing to follow-through, through the hitting point'),
-    'end_hold_s': (_DEFAULTS.end_hold_s, 'recorded at rest after the follow-through'),
-    'hand_stiffness_n_per_m': (_DEFAULTS.hand_stiffness_n_per_m, "the hand's grip stiffness"),
-    'expected_damping_ns_per_m': (_DEFAULTS.expected_damping_ns_per_m, 'how heavy the person expects the arm to feel'),
-    'max_force_n': (_DEFAULTS.max_force_n, 'the hardest the hand pushes'),
-}
+PARAMETERS = (
+    Param('swing', 'forward', 'the stroke to teach', choices=SWINGS),
+    Param('label', '', 'clip label sent to /recorder/start (empty: the swing)'),
+    Param('seed', 0, 'which take of the stroke (the same seed gives the same take)', low=0),
+    Param('variation', 1.0, 'how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES '
+          '(0: nominal)', low=0.0, high=1.0),
+    Param('rate_hz', 500.0, 'rate of the hand wrench', low=10.0, high=2000.0),
+    Param('use_recorder', True, 'bracket the stroke with /recorder/start and /recorder/stop'),
+    Param('wait_timeout_s', 30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
+    Param('wait_for_commands', True, 'push only once someone (drag_teach) commands the arm'),
+    Param('exit_when_done', True, 'exit after the stroke (else stay, hand released, until Ctrl-C)'),
+    Param('grip_frame', rm.TOOL_FRAME, 'robot frame whose origin the simulator applies /sim/hand_wrench at'),
+    Param('wrench_frame_id', 'world', 'header frame of the hand wrench (its axes)'),
+    Param('joint_state_timeout_s', 0.1, 'older joint states: the hand lets go until fresh ones arrive'),
+    Param('lead_in_s', _DEFAULTS.lead_in_s, 'recorded at rest at the ready pose before the back-swing'),
+    Param('backswing_s', _DEFAULTS.backswing_s, 'duration of the back-swing'),
+    Param('forward_swing_s', _DEFAULTS.forward_swing_s, 'back-swing to follow-through, through the hitting point'),
+    Param('end_hold_s', _DEFAULTS.end_hold_s, 'recorded at rest after the follow-through'),
+    Param('hand_stiffness_n_per_m', _DEFAULTS.hand_stiffness_n_per_m, "the hand's grip stiffness"),
+    Param('expected_damping_ns_per_m', _DEFAULTS.expected_damping_ns_per_m,
+          'how heavy the person expects the arm to feel'),
+    Param('max_force_n', _DEFAULTS.max_force_n, 'the hardest the hand pushes'),
+)
+
+
+def teacher_from(p: dict) -> VirtualTeacher:
+    """The stroke the checked parameter values describe; ParameterError names a bad combination."""
+    try:
+        config = TeacherConfig(**{k: p[k] for k in TeacherConfig.__dataclass_fields__ if k in p})
+        config.validate()
+    except ValueError as error:   # its messages name the field, and the fields are the parameters
+        raise ParameterError(str(error)) from error
+    variation = sample_variation(p['swing'], p['seed'], p['variation'])
+    try:
+        return VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation)
+    except ValueError as error:   # swing, seed, variation and config are checked: what is left is the frame
+        raise ParameterError(f'parameter grip_frame: {error}') from error
 
 
 class VirtualTeacherNode(Node):
     """The virtual teacher: pushes the paddle through one stroke on /sim/hand_wrench, recording it as a clip."""
     def __init__(self, **kwargs):
-        super().__init__('virtual_teacher', **kwargs)
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description, read_only=True,
-                                                                       dynamic_typing=True))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
-        for name, (default, _) in PARAMETERS.items():
-            if isinstance(default, float) and isinstance(p[name], int) and not isinstance(p[name], bool):
-                p[name] = float(p[name])
-            if type(p[name]) is not type(default):
-                raise ValueError(f'parameter {name} must be {type(default).__name__}, got {p[name]!r}')
-        if p['swing'] not in SWINGS:
-            raise ValueError(f'swing must be one of {SWINGS}, got {p["swing"]!r}')
-        if not 10.0 <= p['rate_hz'] <= 2000.0:
-            raise ValueError(f'rate_hz must be within 10-2000, got {p["rate_hz"]}')
-        if p['seed'] < 0:
-            raise ValueError(f'seed must be non-negative, got {p["seed"]}')
-        if not 0.0 <= p['variation'] <= 1.0:
-            raise ValueError(f'variation must be within 0-1, got {p["variation"]}')
-        config = TeacherConfig(**{k: p[k] for k in TeacherConfig.__dataclass_fields__ if k in p})
-        variation = sample_variation(p['swing'], p['seed'], p['variation'])
-        self.teacher = VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation)
+        super().__init__(PROGRAM, **kwargs)
+        p = declare_parameters(self, PARAMETERS)
+        self.teacher = teacher_from(p)
+        variation = self.teacher.path.variation
         self.p = p
         self.label = p['label'] or p['swing']
-        self.exit_code: int | None = None   # set when the node is done
+        self.exit_code: int | None = None   # set when the node is done (run_node's loop then ends)
         self._q: np.ndarray | None = None
         self._qdot = np.zeros(rm.NUM_JOINTS)
         self._joint_time_s: float | None = None
@@ -91,6 +95,7 @@ class VirtualTeacherNode(Node):
         self._started_s = self._now_s()
         self._bracket = 'idle'              # idle -> starting -> recording -> stopping -> done
         self._announced = ''
+        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
 
         self.wrench_pub = self.create_publisher(WrenchStamped, '/sim/hand_wrench', 10)
         # Reused at every tick (publishing copies it): filling fields is cheaper than a new message.
@@ -126,10 +131,10 @@ class VirtualTeacherNode(Node):
             qdot = np.array([msg.velocity[i] for i in index], dtype=float) if len(msg.velocity) == len(msg.name) \
                 else np.zeros(rm.NUM_JOINTS)
         except (ValueError, IndexError):
-            self.get_logger().warn('joint state without all UR5 joints ignored', throttle_duration_sec=1.0)
+            self._warnings.warn('joint names', 'joint state without all UR5 joints ignored')
             return
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
-            self.get_logger().warn('non-finite joint state ignored', throttle_duration_sec=1.0)
+            self._warnings.warn('joint values', 'non-finite joint state ignored')
             return
         self._q, self._qdot, self._joint_time_s = q, qdot, self._now_s()
 
@@ -225,6 +230,11 @@ class VirtualTeacherNode(Node):
         else:
             self._finish(0, f'clip {self.label!r} recorded: {response.message}')
 
+    @property
+    def finished(self) -> bool:
+        """Done (run_node ends its loop): `exit_code` says how."""
+        return self.exit_code is not None
+
     def stop_recording_now(self, executor, timeout_s: float = 2.0) -> None:
         """On Ctrl-C mid-stroke: close the clip rather than leave the recorder writing."""
         if self._bracket not in ('starting', 'recording') or not self.stop_client.service_is_ready():
@@ -233,41 +243,25 @@ class VirtualTeacherNode(Node):
         executor.spin_until_future_complete(future, timeout_sec=timeout_s)
         self._bracket = 'done'
 
-
-def main(args=None) -> int:
-    """Entry point of the virtual_teacher executable."""
-    # Our own Ctrl-C handling: a flag, not an exception inside a callback, and the context outlives it
-    # so that the node can still let go of the paddle and close the clip.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = VirtualTeacherNode()
-    except (ValueError, RuntimeError) as error:
-        print(f'virtual_teacher: {error}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
-    interrupted = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda number, frame: interrupted.append(number))
-    # The events executor costs a fraction of the standard one's CPU time per callback (1000+ a second).
-    executor = EventsExecutor()
-    executor.add_node(node)
-    try:
-        while rclpy.ok() and node.exit_code is None and not interrupted:
-            executor.spin_once(timeout_sec=0.1)
+    def wind_down(self, executor, interrupted: bool) -> None:
+        """After the loop (run_node), while the executor still serves the node: let go and close the clip."""
         if interrupted:
-            node.get_logger().info('interrupted: letting go of the paddle')
-            node.release_hand()
-            node.stop_recording_now(executor)
-            code = 130
-        else:
-            code = node.exit_code if node.exit_code is not None else 1
-        for _ in range(5):                   # make sure the zero wrench gets out
-            node.release_hand()
+            self.get_logger().info('interrupted: letting go of the paddle')
+            self.release_hand()
+            self.stop_recording_now(executor)
+            self.exit_code = EXIT_INTERRUPTED
+        elif self.exit_code is None:
+            self.exit_code = EXIT_STOPPED
+        for _ in range(RELEASE_REPEATS):   # make sure the zero wrench gets out
+            self.release_hand()
             executor.spin_once(timeout_sec=0.01)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the virtual_teacher executable."""
+    # run_node's Ctrl-C handling sets a flag rather than raising inside a callback, and the context
+    # outlives it, so that wind_down can still let go of the paddle and close the clip.
+    return run_node(PROGRAM, VirtualTeacherNode, args)
 
 
 if __name__ == '__main__':

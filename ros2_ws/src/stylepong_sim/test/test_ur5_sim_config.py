@@ -1,14 +1,16 @@
-"""config/ur5_sim.yaml lists every ur5_sim parameter with the node's default; realistic_sensing.yaml is valid."""
+"""config/ur5_sim.yaml lists every ur5_sim parameter with the node's default; realistic_sensing.yaml is valid;
+bad values are refused in one line naming the parameter, at start-up and (real_time_factor) at run time."""
 import math
 import pathlib
 
 import pytest
 import rclpy
 import yaml
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.parameter import Parameter
 
+from stylepong_common.node_support import ParameterError
 from stylepong_sim import world_spec as ws
-from stylepong_sim.ur5_sim_node import ConfigError, Ur5SimNode
+from stylepong_sim.ur5_sim_node import PARAMETERS, Ur5SimNode
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config'
 
@@ -61,18 +63,40 @@ def test_realistic_sensing_is_valid_and_not_perfect():
     assert any(v != 0.0 for v in realistic['ft_force_bias_n'])
 
 
-@pytest.mark.parametrize('args', [('-p', 'real_time_factor:=-1.0'), ('-p', 'ball_latency_s:=-0.5'),
-                                  ('-p', 'home_joint_positions_rad:=[0.0,0.0]'),
-                                  ('-p', 'ft_force_bias_n:=[1.0]')])
-def test_bad_parameters_stop_the_node_with_a_clear_error(args):
+def test_the_table_names_every_parameter_in_the_yaml_order():
+    assert [row.name for row in PARAMETERS] == list(_yaml_parameters('ur5_sim.yaml'))
+
+
+@pytest.mark.parametrize('args, name', [(('-p', 'real_time_factor:=-1.0'), 'real_time_factor'),
+                                        (('-p', 'ball_latency_s:=-0.5'), 'ball_latency_s'),
+                                        (('-p', 'home_joint_positions_rad:=[0.0,0.0]'), 'home_joint_positions_rad'),
+                                        (('-p', 'home_joint_positions_rad:=[9.0,0.0,0.0,0.0,0.0,0.0]'),
+                                         'home_joint_positions_rad'),
+                                        (('-p', 'ft_force_bias_n:=[1.0]'), 'ft_force_bias_n'),
+                                        (('-p', 'sensing_seed:=-3'), 'sensing_seed'),
+                                        (('-p', 'video_width:=8.0'), 'video_width')])
+def test_bad_parameters_stop_the_node_with_one_line_naming_them(args, name):
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', *args], context=context)
     try:
-        with pytest.raises((ConfigError, InvalidParameterValueException, InvalidParameterTypeException)) as error:
+        with pytest.raises(ParameterError) as error:
             Ur5SimNode(context=context)
-        assert str(error.value)
+        assert name in str(error.value) and '\n' not in str(error.value)
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_real_time_factor_changes_at_run_time_within_its_bounds_only():
+    node, context = _node()
+    try:
+        assert node.set_parameters([Parameter('real_time_factor', value=2)])[0].successful
+        assert node._real_time_factor == 2.0
+        refused = node.set_parameters([Parameter('real_time_factor', value=101.0)])[0]
+        assert not refused.successful and 'real_time_factor' in refused.reason
+        assert node._real_time_factor == 2.0
+        assert not node.set_parameters([Parameter('max_lag_s', value=1.0)])[0].successful   # read-only
+    finally:
+        _close(node, context)
 
 
 def test_an_integer_real_time_factor_is_accepted():

@@ -5,6 +5,7 @@ import pytest
 import rclpy
 import yaml
 
+from stylepong_common.node_support import ParameterError
 from stylepong_sim.teacher import SwingVariation, sample_variation
 from stylepong_sim.virtual_teacher_node import PARAMETERS, VirtualTeacherNode
 
@@ -24,12 +25,12 @@ def _close(node, context) -> None:
 
 def test_the_yaml_holds_every_parameter_with_the_nodes_default():
     in_yaml = yaml.safe_load(CONFIG.read_text())['virtual_teacher']['ros__parameters']
-    assert set(in_yaml) == set(PARAMETERS)
-    for name, (default, _) in PARAMETERS.items():
-        assert in_yaml[name] == default and type(in_yaml[name]) is type(default), name
+    assert list(in_yaml) == [row.name for row in PARAMETERS]
+    for row in PARAMETERS:
+        assert in_yaml[row.name] == row.default and type(in_yaml[row.name]) is type(row.default), row.name
     node, context = _node('--params-file', str(CONFIG))
     try:
-        assert node.p == {name: default for name, (default, _) in PARAMETERS.items()}
+        assert node.p == {row.name: row.default for row in PARAMETERS}
     finally:
         _close(node, context)
 
@@ -48,12 +49,14 @@ def test_the_seed_parameter_picks_the_take_and_variation_zero_is_the_nominal_str
         _close(node, context)
 
 
-@pytest.mark.parametrize('override', ['seed:=-1', 'variation:=1.5', 'seed:=2.0'])
-def test_a_bad_seed_or_variation_is_refused(override):
+@pytest.mark.parametrize('override', ['seed:=-1', 'variation:=1.5', 'seed:=2.0', 'swing:=sideways', 'rate_hz:=5.0',
+                                      'lead_in_s:=-1.0', 'grip_frame:=nowhere'])
+def test_a_bad_parameter_is_refused_in_one_line_naming_it(override):
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', '-p', override], context=context)
     try:
-        with pytest.raises(ValueError):
+        with pytest.raises(ParameterError) as error:
             VirtualTeacherNode(context=context)
+        assert override.split(':=')[0] in str(error.value) and '\n' not in str(error.value)
     finally:
         rclpy.try_shutdown(context=context)
