@@ -23,10 +23,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from stylepong_fdcc.clip_writer import ClipWriter, TopicSpec  # noqa: E402
-from stylepong_fdcc.msg_definitions import MessageDefinitions  # noqa: E402
-from stylepong_fdcc.recover_bag import recover_bag  # noqa: E402
 from stylepong_msgs.srv import StartClip  # noqa: E402
+from stylepong_recording.clip_writer import ClipWriter, TopicSpec  # noqa: E402
+from stylepong_recording.msg_definitions import MessageDefinitions  # noqa: E402
+from stylepong_recording.recover_bag import recover_bag  # noqa: E402
 from tests.bag_check import JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_rosbags  # noqa: E402
 from tests.node_process import NodeProcess, wait_until  # noqa: E402
 
@@ -98,7 +98,7 @@ def record(out, storage, clip_s, kill_at_s=None):
 
 
 def _record(node, out, storage, clip_s, kill_at_s, env):
-    recorder = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-p', f'topics:=[{WRENCH}]',
+    recorder = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-p', f'topics:=[{WRENCH}]',
                            params={'output_dir': str(out), 'storage': storage}, env=env).start()
     start = node.create_client(StartClip, '/recorder/start')
     stop = node.create_client(Trigger, '/recorder/stop')
@@ -190,7 +190,7 @@ def main():
         shutil.rmtree(tmp, ignore_errors=True)
 
     print('## Recorder: kept fraction at 500 Hz, cost, SIGKILL loss, bag I/O\n')
-    print('`ros2 run stylepong_fdcc recorder` (defaults: flush every 0.1 s, queue depth 1000, reliable QoS) '
+    print('`ros2 run stylepong_recording recorder` (defaults: flush every 0.1 s, queue depth 1000, reliable QoS) '
           f'recording `/joint_states` and `{WRENCH}`, both published at 500 Hz (reliable, depth 10) by '
           'a Python thread in the benchmark process; clips started and stopped through the services. '
           'Kept = share of the messages published between the start answer and the stop call found in '

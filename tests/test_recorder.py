@@ -1,4 +1,4 @@
-"""System tests of `ros2 run stylepong_fdcc recorder` and `recover_bag` through real topics and services.
+"""System tests of `ros2 run stylepong_recording recorder` and `recover_bag` through real topics and services.
 
 The test publishes JointState at 500 Hz itself (reliable, depth 10: what the UR driver's
 joint_state_broadcaster and ur5_sim offer), each message named by a unique header stamp, and keeps
@@ -143,7 +143,7 @@ def assert_published_payloads(joint_states) -> None:
 
 
 def start_recorder(output_dir: Path, **params) -> NodeProcess:
-    return NodeProcess('stylepong_fdcc', 'recorder', params={'output_dir': str(output_dir), **params}).start()
+    return NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(output_dir), **params}).start()
 
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
@@ -204,7 +204,7 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_th
     bag_dir = Path(response.bag_path)
     assert not (bag_dir / 'metadata.yaml').exists()     # the kill really left an unfinished bag
 
-    result = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(bag_dir)],
+    result = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
     assert 'recovered' in result.stdout
@@ -229,7 +229,7 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_th
         assert sql.custom_data == {'label': 'leftward'}
         assert_published_payloads(joint_states)
 
-    again = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(bag_dir)],
+    again = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)],
                            capture_output=True, text=True, timeout=120)
     assert again.returncode == 0 and 'healthy, left unchanged' in again.stdout, again.stdout + again.stderr
 
@@ -260,9 +260,9 @@ def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(h
     a_file.write_text('not a directory')
     recorder = start_recorder(tmp_path / 'bags')
     # Two more recorders in their own namespaces: one whose output_dir cannot exist, one on a "full" disk.
-    unwritable = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-r', '__ns:=/unwritable',
+    unwritable = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-r', '__ns:=/unwritable',
                              params={'output_dir': str(a_file / 'bags')}).start()
-    full = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-r', '__ns:=/full',
+    full = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-r', '__ns:=/full',
                        params={'output_dir': str(tmp_path / 'full'), 'min_free_space_mb': 1e9}).start()
     try:
         harness.wait_for_subscriber(recorder)
@@ -296,7 +296,7 @@ def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(h
 def test_best_effort_publishers_and_extra_topics_of_project_types_are_recorded(harness, tmp_path):
     """A sensor-QoS /joint_states (a reliable reader would never match it) and a /ball/state of the
     project's own message type, listed in `topics` and published only after the recorder started."""
-    recorder = NodeProcess('stylepong_fdcc', 'recorder', '--ros-args', '-p', 'topics:=[/ball/state]',
+    recorder = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-p', 'topics:=[/ball/state]',
                            params={'output_dir': str(tmp_path / 'bags')}).start()
     node = harness.node
     try:
@@ -379,7 +379,7 @@ def test_a_full_disk_stops_the_clip_with_the_reason_and_the_node_keeps_running(h
         recorder.stop()
     # What reached the disk is kept; recovering needs room for a copy, so move the bag off the tiny disk.
     rescued = shutil.copytree(bag_dir, tiny_disk.parent / bag_dir.name)
-    result = subprocess.run(['ros2', 'run', 'stylepong_fdcc', 'recover_bag', str(rescued)],
+    result = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(rescued)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
     content = read_with_rosbags(rescued)

@@ -44,7 +44,7 @@ def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> n
 def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
-    recorder = NodeProcess('stylepong_fdcc', 'recorder', params={'output_dir': str(tmp_path)}).start()
+    recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
     limits = rm.joint_limits()
     hits = {}
     try:

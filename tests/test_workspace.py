@@ -13,7 +13,8 @@ import time
 
 import pytest
 
-PACKAGES = ('stylepong_msgs', 'stylepong_description', 'stylepong_sim', 'stylepong_fdcc', 'stylepong_policy')
+PACKAGES = ('stylepong_msgs', 'stylepong_description', 'stylepong_sim', 'stylepong_fdcc', 'stylepong_recording',
+            'stylepong_policy')
 
 
 def test_python3_is_the_project_interpreter_with_rclpy():

@@ -45,7 +45,7 @@ source "$(dirname "$0")/node_group.sh"
 say "ROS_DOMAIN_ID=$ROS_DOMAIN_ID, node logs in $LOGS"
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p real_time_factor:="$REAL_TIME_FACTOR"
 start_node "$LOGS/drag_teach.log" ros2 run stylepong_fdcc drag_teach --ros-args -p use_sim_time:=true
-start_node "$LOGS/recorder.log" ros2 run stylepong_fdcc recorder --ros-args -p output_dir:="$OUT"
+start_node "$LOGS/recorder.log" ros2 run stylepong_recording recorder --ros-args -p output_dir:="$OUT"
 say "started ur5_sim (real_time_factor $REAL_TIME_FACTOR), drag_teach and the recorder (clips into $OUT)"
 
 recorded=()

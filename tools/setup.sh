@@ -79,6 +79,9 @@ say "colcon build"
 # One build at a time: parallel `make setup` calls would write the same install tree.
 exec 9>"$ROOT/ros2_ws/.build.lock"
 flock 9
+# A source file moved or deleted since the last build leaves a dangling link in the --symlink-install
+# trees, which a package's setup.py then fails to copy (glob('config/*.yaml') still lists it): drop them.
+find "$ROOT/ros2_ws/build" "$ROOT/ros2_ws/install" -xtype l -delete 2>/dev/null || true
 colcon --log-base log build --symlink-install --event-handlers console_cohesion- status- summary+ \
   --cmake-args -DPython3_EXECUTABLE="$PYTHON" -DBUILD_TESTING=OFF
 say "done: source ros2_ws/install/setup.bash"

@@ -17,13 +17,15 @@ setup(
     zip_safe=True,
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
-    description='Forward Dynamics Compliance Control drag teaching, crash-safe clip recorder and bag recovery.',
+    description='Forward Dynamics Compliance Control drag teaching.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
             'drag_teach = stylepong_fdcc.drag_teach_node:main',
-            'recorder = stylepong_fdcc.recorder_node:main',
-            'recover_bag = stylepong_fdcc.recover_bag:main',
+            # Recording moved to stylepong_recording; these two keep `ros2 run stylepong_fdcc recorder` and
+            # `... recover_bag` working for existing scripts.
+            'recorder = stylepong_recording.recorder_node:main',
+            'recover_bag = stylepong_recording.recover_bag:main',
         ],
     },
 )

@@ -25,7 +25,7 @@ import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -188,7 +188,8 @@ def one_line(error: BaseException) -> str:
 
 
 def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None = None,
-             config_errors: tuple[type[BaseException], ...] = ()) -> int:
+             config_errors: tuple[type[BaseException], ...] = (),
+             make_executor: Callable[[], Executor] = EventsExecutor) -> int:
     """Build the node and spin it until Ctrl-C or SIGTERM; returns the process exit code.
 
     A ParameterError, rclpy's parameter exceptions or any of `config_errors` raised while building the
@@ -198,6 +199,10 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
     when the loop ends (interrupted: by Ctrl-C or SIGTERM), while the executor still serves it: the last
     messages and service answers it needs to leave things tidy (let go of the paddle, close a clip), and
     the exit code it then sets.
+
+    `make_executor` builds the executor (the events executor unless a node needs another: rclpy 7.1's
+    events executor fails on subscription callbacks that take the message info, which the recorder reads
+    its receive times from).
     """
     # Ctrl-C and SIGTERM only ask the loop below to stop: rclpy's own handler would raise inside a
     # callback half-way through it.
@@ -208,7 +213,7 @@ def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None
     node = None
     # The C++ events executor costs a fraction of the Python one per wake-up. Its spin() never returns
     # to Python (no Ctrl-C), hence spin_once in a loop.
-    executor = EventsExecutor()
+    executor = make_executor()
     errors = (ParameterError, InvalidParameterValueException, InvalidParameterTypeException, *config_errors)
     try:
         node = make_node()

@@ -1,1 +1,1 @@
-"""Forward Dynamics Compliance Control drag teaching, crash-safe clip recorder and bag recovery."""
+"""Forward Dynamics Compliance Control drag teaching."""

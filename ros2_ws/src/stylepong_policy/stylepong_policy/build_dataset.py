@@ -17,8 +17,9 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from stylepong_fdcc.clip_writer import label_from_bag_dir_name
-from stylepong_policy.bag_reading import BagError, find_bags, median_rate_hz, one_line, read_joint_states
+from stylepong_policy.bag_errors import BagError, one_line
+from stylepong_policy.bag_reading import median_rate_hz, read_joint_states
+from stylepong_policy.bag_search import find_bags
 from stylepong_policy.dataset import (
     DEFAULT_RATE_HZ,
     DEFAULT_SPEEDUPS,
@@ -29,6 +30,7 @@ from stylepong_policy.dataset import (
     make_clips,
     parse_speedups,
 )
+from stylepong_recording.clip_writer import label_from_bag_dir_name
 
 UNLABELLED = 'unlabelled'
 # Bags from elsewhere named <label>_<time> (forward_2025-11-21...): letters, '_', then a digit. rosbag2's

@@ -4,12 +4,13 @@ import shutil
 import numpy as np
 import pytest
 
-from stylepong_policy.bag_reading import (
-    BagError,
-    JointStateCdrReader,
-    find_bags,
-    read_joint_states,
-)
+from stylepong_policy.bag_errors import BagError
+from stylepong_policy.bag_reading import read_joint_states
+from stylepong_policy.bag_search import find_bags
+from stylepong_policy.joint_state_cdr import JointStateCdrReader
+from stylepong_recording.clip_writer import TopicSpec, open_clip
+from stylepong_recording.msg_definitions import MessageDefinitions
+from stylepong_recording.recover_bag import recover_bag
 from tests.joint_state_bags import (
     DRIVER_JOINTS,
     EPOCH_NS,
@@ -208,7 +209,6 @@ def test_a_recording_killed_before_closing_is_named_with_the_way_out(tmp_path):
     truncate_file(mcap)
     with pytest.raises(BagError, match='truncated mcap.*recover_bag'):
         read_joint_states(bag, joints=URDF_JOINTS)
-    pytest.importorskip('stylepong_fdcc.clip_writer')
     (bag / 'recording_in_progress.yaml').write_text('label: forward\n')
     with pytest.raises(BagError, match='in progress.*recover_bag'):
         read_joint_states(bag, joints=URDF_JOINTS)
@@ -264,3 +264,36 @@ def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_
     assert not recording.problems and any('differs from the standard' in n for n in recording.notes)
     assert np.array_equal(recording.position_rad[:, 2], 0.5 * np.arange(10))
     assert np.array_equal(recording.velocity_rad_s[:, 2], np.arange(10.0))
+
+
+
+def write_clip(output_dir, storage, killed=False):
+    """50 joint states through the recorder's ClipWriter, closed, or left as a killed recorder leaves them."""
+    definitions = MessageDefinitions(find_msg_file=lambda msgtype: None)
+    msgtype = 'sensor_msgs/msg/JointState'
+    spec = TopicSpec('/joint_states', msgtype, *definitions.definition(msgtype))
+    clip = open_clip(output_dir, 'leftward', storage, [spec])
+    for i in range(1, 51):
+        clip.write('/joint_states', EPOCH_NS + i, joint_state_cdr(STORE, EPOCH_NS + i, URDF_JOINTS, [i * 1e-3] * 6))
+    if killed:
+        clip.flush()
+        clip.abort()
+    else:
+        clip.close()
+    return clip.bag_dir
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+@pytest.mark.parametrize('killed', [False, True])
+def test_a_clip_the_recorder_writes_or_recover_bag_rebuilds_reads_back_with_its_label(tmp_path, storage, killed):
+    """The writer, recover_bag and this reader share stylepong_recording.bag_layout: the label one writes
+    is the label the other finds, in a closed clip and in one rebuilt after its recorder died."""
+    bag = write_clip(tmp_path / 'bags', storage, killed)
+    if killed:
+        with pytest.raises(BagError, match='in progress.*stylepong_recording recover_bag'):
+            read_joint_states(bag, joints=URDF_JOINTS)
+        # force: the recording note names this test's own process, which is still alive.
+        assert recover_bag(bag, force=True).outcome == 'recovered'
+    recording = read_joint_states(bag, joints=URDF_JOINTS)
+    assert recording.label == 'leftward' and recording.storage == storage and not recording.problems
+    assert np.array_equal(recording.position_rad[:, 0], np.arange(1, 51) * 1e-3)

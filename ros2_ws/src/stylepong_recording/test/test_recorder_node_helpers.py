@@ -6,12 +6,12 @@ from rclpy.duration import Infinite
 from rclpy.qos import QoSPresetProfiles, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import QosDurability, QosReliability, QosTime
 
-from stylepong_fdcc.recorder_node import resolve_output_dir, rosbags_qos, subscription_reliability
+from stylepong_recording.recorder_node import resolve_output_dir, rosbags_qos, subscription_reliability
 
 
 def test_a_relative_output_dir_is_taken_from_the_project_root_not_the_current_directory():
     cwd = Path('/srv/someone/somewhere')
-    isolated = Path('/srv/project/ros2_ws/install/stylepong_fdcc')
+    isolated = Path('/srv/project/ros2_ws/install/stylepong_recording')
     merged = Path('/srv/project/ros2_ws/install')
     assert resolve_output_dir('ros2_ws/bags', isolated, cwd) == Path('/srv/project/ros2_ws/bags')
     assert resolve_output_dir('ros2_ws/bags', merged, cwd) == Path('/srv/project/ros2_ws/bags')

@@ -4,8 +4,8 @@ import errno
 
 import pytest
 
-from stylepong_fdcc.clip_writer import (
-    IN_PROGRESS_NAME,
+from stylepong_recording.bag_layout import IN_PROGRESS_NAME
+from stylepong_recording.clip_writer import (
     ClipError,
     ClipWriter,
     TopicSpec,
@@ -14,7 +14,7 @@ from stylepong_fdcc.clip_writer import (
     label_problem,
     open_clip,
 )
-from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
+from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessageType
 from tests.bag_check import (
     JOINT_NAMES,
     JOINT_STATE_TYPE,

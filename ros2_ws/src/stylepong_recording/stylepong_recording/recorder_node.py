@@ -1,41 +1,62 @@
-"""`ros2 run stylepong_fdcc recorder`: records labelled demonstration clips into rosbag2 bags.
+"""`ros2 run stylepong_recording recorder`: records labelled demonstration clips into rosbag2 bags.
 
 Services: `/recorder/start` (stylepong_msgs/srv/StartClip: label -> success, bag_path, message) opens
 `<output_dir>/<label>_<time>/`; `/recorder/stop` (std_srvs/Trigger) closes it. Recorded: /joint_states
 plus the `topics` parameter (types found in the graph; a topic not published yet is picked up when it
 appears). Each message is stored as received (serialized, header stamps untouched) with its receive
-time (the middleware's reception timestamp, system clock) as the bag's log time.
+time (the middleware's reception timestamp, system clock) as the bag's log time. Any joint-state source
+will do: ur5_sim under drag_teach, or a real robot's driver while a person moves the arm with its
+teach pendant.
 
 The subscriptions stay up while the node runs, so a clip starts with the very next message received;
 messages received between clips (or before a clip started and only taken from the queue after) are
 dropped. Subscriptions are reliable with a deep queue (`queue_depth`), best effort only for a topic
-whose publishers offer nothing better. Writing and crash safety are in clip_writer; this module is
-wiring.
+whose publishers offer nothing better. Parameters: PARAMETERS below, defaults in config/recorder.yaml;
+a bad one stops the node with one line on stderr and exit code 2 (stylepong_common.node_support).
+Writing and crash safety are in clip_writer; this module is wiring.
 """
 from __future__ import annotations
 
 import importlib
+import sys
 import time
 from pathlib import Path
+from typing import Any
 
-import rclpy
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.duration import Duration
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from std_srvs.srv import Trigger
 
-from stylepong_fdcc.clip_writer import STORAGES, ClipError, ClipWriter, TopicSpec, open_clip
-from stylepong_fdcc.msg_definitions import MessageDefinitions, UnknownMessageType
+from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_msgs.srv import StartClip
+from stylepong_recording.bag_layout import MCAP_STORAGE, STORAGES
+from stylepong_recording.clip_writer import DEFAULT_FLUSH_PERIOD_S, ClipError, ClipWriter, TopicSpec, open_clip
+from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessageType
 
+PROGRAM = 'recorder'
 JOINT_STATES_TOPIC = '/joint_states'
 JOINT_STATES_TYPE = 'sensor_msgs/msg/JointState'
 MAX_FLUSH_PERIOD_S = 0.2   # the recorder's promise: a SIGKILL loses at most this much
+DISCOVERY_PERIOD_S = 1.0
+# A topic published with several types is named at most this often while it stays so.
+SEVERAL_TYPES_WARN_PERIOD_S = 30.0
+
+PARAMETERS = (
+    Param('output_dir', 'ros2_ws/bags', 'where clips go; a relative path is taken from the directory holding the '
+          'colcon workspace (the project root)'),
+    Param('storage', MCAP_STORAGE, 'bag storage format', choices=STORAGES),
+    Param('flush_period_s', DEFAULT_FLUSH_PERIOD_S, 'seconds between hand-overs of written data to the OS; a '
+          'SIGKILL loses at most about this much', low=0.01, high=MAX_FLUSH_PERIOD_S),
+    Param('queue_depth', 1000, 'subscription queue depth per topic (messages kept while the node is busy)',
+          low=10, high=100000),
+    Param('min_free_space_mb', 100.0, 'a clip does not start with less free disk space than this (MB)',
+          low=0.0, high=1e9),
+    # An empty default: rcl cannot parse an empty list from a parameters file, so the YAML leaves it out.
+    Param('topics', [], 'topics recorded besides /joint_states (types found in the graph)'),
+)
 
 
 def resolve_output_dir(output_dir: str, install_prefix: Path | None, cwd: Path) -> Path:
@@ -72,6 +93,25 @@ def subscription_reliability(offered: list[ReliabilityPolicy]) -> ReliabilityPol
             else ReliabilityPolicy.RELIABLE)
 
 
+def extra_topics(value: list[Any]) -> list[str]:
+    """The `topics` parameter as topic names; ParameterError unless it is a list of strings."""
+    if not all(isinstance(topic, str) for topic in value):
+        raise ParameterError(f'parameter topics must be a list of topic names, got {value!r}')
+    return list(value)
+
+
+def output_dir_path(output_dir: str) -> Path:
+    """Where clips go: resolve_output_dir against this package's install prefix and the current directory."""
+    if not output_dir:
+        raise ParameterError(f'parameter output_dir must not be empty, got {output_dir!r}')
+    try:
+        from ament_index_python.packages import get_package_prefix
+        prefix = Path(get_package_prefix('stylepong_recording'))
+    except Exception:  # noqa: BLE001 - not installed through an ament index: fall back to cwd
+        prefix = None
+    return resolve_output_dir(output_dir, prefix, Path.cwd())
+
+
 def message_class(msgtype: str):
     """The Python message class of a type name such as 'sensor_msgs/msg/JointState'."""
     package, kind, name = msgtype.split('/')
@@ -80,25 +120,16 @@ def message_class(msgtype: str):
 
 class RecorderNode(Node):
     """The recorder node: writes /joint_states (and any extra topics) of each clip to a rosbag2 bag."""
-    def __init__(self):
-        super().__init__('recorder')
-        self.output_dir = self._declare_output_dir()
-        self.storage = self._param('storage', 'mcap', f'bag storage: {" or ".join(STORAGES)}')
-        if self.storage not in STORAGES:
-            raise ValueError(f'storage must be one of {", ".join(STORAGES)}, got {self.storage!r}')
-        self.flush_period_s = self._param(
-            'flush_period_s', 0.1, 'seconds between hand-overs of written data to the OS; a SIGKILL '
-            f'loses at most about this much (at most {MAX_FLUSH_PERIOD_S})',
-            FloatingPointRange(from_value=0.01, to_value=MAX_FLUSH_PERIOD_S))
-        self.queue_depth = self._param(
-            'queue_depth', 1000, 'subscription queue depth per topic (messages kept while the node is busy)',
-            IntegerRange(from_value=10, to_value=100000))
-        self.min_free_space_mb = self._param(
-            'min_free_space_mb', 100.0, 'a clip does not start with less free disk space than this (MB)',
-            FloatingPointRange(from_value=0.0, to_value=1e9))
-        extra = self.declare_parameter('topics', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-            description='topics recorded besides /joint_states (types found in the graph)',
-            read_only=True)).value or []
+    def __init__(self, **kwargs):
+        super().__init__(PROGRAM, **kwargs)
+        values = declare_parameters(self, PARAMETERS)
+        self.output_dir = output_dir_path(values['output_dir'])
+        self.storage = values['storage']
+        self.flush_period_s = values['flush_period_s']
+        self.queue_depth = values['queue_depth']
+        self.min_free_space_mb = values['min_free_space_mb']
+        extra = extra_topics(values['topics'])
+        self.warnings = ThrottledLog(self.get_logger(), period_s=SEVERAL_TYPES_WARN_PERIOD_S)
         # Resolved (namespace, remapping) names: what the graph and the bag call them.
         self.joint_states_topic = self.resolve_topic_name(JOINT_STATES_TOPIC)
         self.topics = list(dict.fromkeys([self.joint_states_topic, *map(self.resolve_topic_name, extra)]))
@@ -112,7 +143,7 @@ class RecorderNode(Node):
 
         self._subscribe(self.joint_states_topic, JOINT_STATES_TYPE)
         self._discover()
-        self.create_timer(1.0, self._discover)
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover)
         # Flushes also happen on writes; the timer covers a clip whose topics fall silent.
         self.create_timer(self.flush_period_s / 2.0, self._flush_if_due)
         self.create_service(StartClip, '~/start', self._on_start)
@@ -121,27 +152,6 @@ class RecorderNode(Node):
         self.get_logger().info(
             f'ready: {name}/start and {name}/stop record {", ".join(self.topics)} into '
             f'{self.output_dir} ({self.storage}, flushed every {self.flush_period_s:g} s)')
-
-    # --- parameters ---------------------------------------------------------------------------------
-    def _param(self, name, default, description, value_range=None):
-        descriptor = ParameterDescriptor(description=description, read_only=True)
-        if isinstance(value_range, FloatingPointRange):
-            descriptor.floating_point_range = [value_range]
-        elif isinstance(value_range, IntegerRange):
-            descriptor.integer_range = [value_range]
-        return self.declare_parameter(name, default, descriptor).value
-
-    def _declare_output_dir(self) -> Path:
-        value = self._param('output_dir', 'ros2_ws/bags', 'where clips go; a relative path is taken from '
-                            'the directory holding the colcon workspace (the project root)')
-        if not value:
-            raise ValueError('output_dir is empty')
-        try:
-            from ament_index_python.packages import get_package_prefix
-            prefix = Path(get_package_prefix('stylepong_fdcc'))
-        except Exception:  # noqa: BLE001 - not installed through an ament index: fall back to cwd
-            prefix = None
-        return resolve_output_dir(value, prefix, Path.cwd())
 
     # --- subscriptions ------------------------------------------------------------------------------
     def _publisher_qos(self, topic: str) -> list[QoSProfile]:
@@ -175,8 +185,7 @@ class RecorderNode(Node):
             elif topic in graph:
                 types = graph[topic]
                 if len(types) != 1:
-                    self.get_logger().warn(f'{topic} has several types {types}; not recorded',
-                                           throttle_duration_sec=30.0)
+                    self.warnings.warn(f'several types {topic}', f'{topic} has several types {types}; not recorded')
                     continue
                 self._subscribe(topic, types[0])
                 if topic in self._recorded:
@@ -257,6 +266,7 @@ class RecorderNode(Node):
         return response
 
     def close_clip(self) -> tuple[bool, str]:
+        """Close the open clip, if any: (whether it was saved, what happened)."""
         clip, self._clip = self._clip, None
         if clip is None:
             return True, 'not recording'
@@ -269,27 +279,18 @@ class RecorderNode(Node):
         self.get_logger().info(message)
         return True, message
 
+    def close(self) -> None:
+        """On the way out (Ctrl-C, SIGTERM; stylepong_common.node_support.run_node): a clip still open is
+        closed properly, with its summary, footer and metadata.yaml."""
+        self.close_clip()
 
-def main(args=None):
-    """Entry point of the recorder executable; Ctrl-C closes the open clip properly."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = RecorderNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, ParameterException) as err:
-        print(f'recorder: invalid parameter: {err}', flush=True)
-        return 2
-    finally:
-        if node is not None:
-            # Ctrl-C closes the clip properly: summary, footer, metadata.yaml.
-            node.close_clip()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of the recorder executable."""
+    # The single-threaded executor, the one rclpy.spin uses: the receive times come with the message info,
+    # which rclpy 7.1's events executor cannot hand to a callback.
+    return run_node(PROGRAM, RecorderNode, args, make_executor=SingleThreadedExecutor)
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

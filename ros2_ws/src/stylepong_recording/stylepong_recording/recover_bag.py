@@ -1,4 +1,4 @@
-"""`ros2 run stylepong_fdcc recover_bag <bag_dir>`: make a killed recording readable (no ROS imports).
+"""`ros2 run stylepong_recording recover_bag <bag_dir>`: make a killed recording readable (no ROS imports).
 
 A recorder killed mid-clip leaves a bag directory without metadata.yaml, holding either an mcap file
 with no summary, index or footer (possibly ending in a cut record), or an sqlite3 file with a hot
@@ -35,17 +35,26 @@ from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
-from stylepong_fdcc.clip_writer import (
+from stylepong_recording.bag_layout import (
+    COMPRESSED_STORAGE_SUFFIXES,
+    CUSTOM_DATA_KEY,
     IN_PROGRESS_NAME,
     LABEL_KEY,
+    MCAP_STORAGE,
+    MESSAGE_COUNT_KEY,
+    METADATA_NAME,
+    METADATA_ROOT_KEY,
+    RELATIVE_FILE_PATHS_KEY,
     ROSBAG2_VERSION,
+    SQLITE3_STORAGE,
+    STORAGE_IDENTIFIER_KEY,
     STORAGE_SUFFIX,
-    label_from_bag_dir_name,
-    recording_process_alive,
-    storage_plugin,
+    TOPIC_METADATA_KEY,
+    TOPIC_NAME_KEY,
+    TOPICS_WITH_MESSAGE_COUNT_KEY,
 )
+from stylepong_recording.clip_writer import label_from_bag_dir_name, recording_process_alive, storage_plugin
 
-METADATA_NAME = 'metadata.yaml'
 _WORK_DIR_NAME = '.recover_bag_work'
 _SQLITE_SIDE_FILES = ('-journal', '-wal', '-shm')
 
@@ -179,7 +188,7 @@ def _scan_mcap(path: Path) -> StorageScan:
             orphans += 1
     if orphans:
         problems.append(f'{orphans} messages of unknown channels were dropped')
-    return StorageScan('mcap', path, connections, counts, state.get('intact', False), problems)
+    return StorageScan(MCAP_STORAGE, path, connections, counts, state.get('intact', False), problems)
 
 
 def _mcap_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
@@ -224,7 +233,7 @@ def _scan_sqlite3(path: Path) -> StorageScan:
             counts = dict(db.execute('SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id'))
     except sqlite3.DatabaseError as err:
         raise RecoveryError(f'{path} is not a readable sqlite3 bag ({err})') from err
-    return StorageScan('sqlite3', path, connections, counts, not side_files and not problems, problems)
+    return StorageScan(SQLITE3_STORAGE, path, connections, counts, not side_files and not problems, problems)
 
 
 def _sqlite3_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
@@ -244,20 +253,20 @@ def _load_yaml(path: Path) -> dict | None:
 
 def _read_metadata(bag_dir: Path) -> dict | None:
     data = _load_yaml(bag_dir / METADATA_NAME)
-    info = data.get('rosbag2_bagfile_information') if data else None
+    info = data.get(METADATA_ROOT_KEY) if data else None
     return info if isinstance(info, dict) else None
 
 
 def _find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
     by_suffix = {suffix: storage for storage, suffix in STORAGE_SUFFIX.items()}
-    listed = metadata.get('relative_file_paths') if metadata else None
+    listed = metadata.get(RELATIVE_FILE_PATHS_KEY) if metadata else None
     if isinstance(listed, list) and len(listed) == 1 and isinstance(listed[0], str):
         path = bag_dir / Path(listed[0]).name
         if path.suffix in by_suffix and path.is_file():
             return by_suffix[path.suffix], path
     files = sorted(p for p in bag_dir.iterdir() if p.is_file() and p.suffix in by_suffix)
     if not files:
-        compressed = sorted(p.name for p in bag_dir.iterdir() if p.name.endswith(('.mcap.zstd', '.db3.zstd')))
+        compressed = sorted(p.name for p in bag_dir.iterdir() if p.name.endswith(COMPRESSED_STORAGE_SUFFIXES))
         if compressed:
             raise RecoveryError(f'{bag_dir}: file-compressed bags ({", ".join(compressed)}) are not supported')
         raise RecoveryError(f'{bag_dir} holds no .mcap or .db3 file: nothing to recover')
@@ -270,7 +279,7 @@ def _find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
 def _custom_data(bag_dir: Path, metadata: dict | None, note: dict | None, problems: list[str]) -> dict[str, str]:
     """The clip's custom data from metadata.yaml, else the recording note, else the directory name."""
     for source in (metadata, note):
-        custom = source.get('custom_data') if source else None
+        custom = source.get(CUSTOM_DATA_KEY) if source else None
         if isinstance(custom, dict) and custom:
             return {str(k): str(v) for k, v in custom.items()}
     label = label_from_bag_dir_name(bag_dir.name)
@@ -282,13 +291,13 @@ def _custom_data(bag_dir: Path, metadata: dict | None, note: dict | None, proble
 
 
 def _metadata_matches(bag_dir: Path, metadata: dict | None, scan: StorageScan) -> bool:
-    if metadata is None or metadata.get('storage_identifier') != scan.storage:
+    if metadata is None or metadata.get(STORAGE_IDENTIFIER_KEY) != scan.storage:
         return False
     try:
         counts: dict[str, int] = {}
-        for entry in metadata['topics_with_message_count']:
-            name = entry['topic_metadata']['name']
-            counts[name] = counts.get(name, 0) + int(entry['message_count'])
+        for entry in metadata[TOPICS_WITH_MESSAGE_COUNT_KEY]:
+            name = entry[TOPIC_METADATA_KEY][TOPIC_NAME_KEY]
+            counts[name] = counts.get(name, 0) + int(entry[MESSAGE_COUNT_KEY])
         if counts != scan.counts_by_topic():
             return False
         with Reader(bag_dir):
@@ -337,7 +346,7 @@ def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -
     writer = Writer(new_bag, version=ROSBAG2_VERSION, storage_plugin=storage_plugin(scan.storage))
     for key, value in custom_data.items():
         writer.set_custom_data(key, value)
-    messages = _mcap_messages(scan) if scan.storage == 'mcap' else _sqlite3_messages(scan)
+    messages = _mcap_messages(scan) if scan.storage == MCAP_STORAGE else _sqlite3_messages(scan)
     with writer:
         connections = {
             cid: writer.add_connection(conn.topic, conn.msgtype, msgdef=conn.msgdef, rihs01=conn.digest,
@@ -386,19 +395,19 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
                             'first (or pass --force if that process is not the recorder)')
     metadata = _read_metadata(bag_dir)
     storage, path = _find_storage(bag_dir, metadata)
-    scan = _scan_mcap(path) if storage == 'mcap' else _scan_sqlite3(path)
+    scan = _scan_mcap(path) if storage == MCAP_STORAGE else _scan_sqlite3(path)
     problems = list(scan.problems)
     in_progress = (bag_dir / IN_PROGRESS_NAME).exists()
     healthy = scan.intact and not in_progress and _metadata_matches(bag_dir, metadata, scan)
     if healthy:
-        custom = metadata.get('custom_data') or {}
+        custom = metadata.get(CUSTOM_DATA_KEY) or {}
         return RecoveryReport(bag_dir, storage, 'healthy', scan.counts_by_topic(), dict(custom), problems)
     if in_progress:
-        problems.insert(0, 'the recording was not closed (recording_in_progress.yaml)')
+        problems.insert(0, f'the recording was not closed ({IN_PROGRESS_NAME})')
     if metadata is None:
-        problems.insert(0, 'no readable metadata.yaml')
+        problems.insert(0, f'no readable {METADATA_NAME}')
     elif scan.intact:
-        problems.append('metadata.yaml disagrees with the storage file')
+        problems.append(f'{METADATA_NAME} disagrees with the storage file')
     custom_data = _custom_data(bag_dir, metadata, note, problems)
     if not check_only:
         _complete_definitions(scan)

@@ -12,9 +12,10 @@ import yaml
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from stylepong_fdcc.clip_writer import IN_PROGRESS_NAME, ClipWriter, TopicSpec
-from stylepong_fdcc.msg_definitions import MessageDefinitions
-from stylepong_fdcc.recover_bag import RecoveryError, main, recover_bag
+from stylepong_recording.bag_layout import IN_PROGRESS_NAME
+from stylepong_recording.clip_writer import ClipWriter, TopicSpec
+from stylepong_recording.msg_definitions import MessageDefinitions
+from stylepong_recording.recover_bag import RecoveryError, main, recover_bag
 from tests.bag_check import (
     JOINT_STATE_TYPE,
     JOINT_STATES,

@@ -39,11 +39,17 @@ from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
-STORAGES = ('mcap', 'sqlite3')
-STORAGE_SUFFIX = {'mcap': '.mcap', 'sqlite3': '.db3'}
-ROSBAG2_VERSION = 9
-LABEL_KEY = 'label'
-IN_PROGRESS_NAME = 'recording_in_progress.yaml'
+from stylepong_recording.bag_layout import (
+    CUSTOM_DATA_KEY,
+    IN_PROGRESS_NAME,
+    LABEL_KEY,
+    MCAP_STORAGE,
+    ROSBAG2_VERSION,
+    STORAGE_IDENTIFIER_KEY,
+    STORAGE_SUFFIX,
+    STORAGES,
+)
+
 DEFAULT_FLUSH_PERIOD_S = 0.1
 
 _LABEL_MAX_LEN = 64
@@ -191,7 +197,7 @@ def storage_plugin(storage: str) -> StoragePlugin:
     """The rosbags storage plugin of a storage name ('mcap' or 'sqlite3'); ClipError for any other."""
     if storage not in STORAGES:
         raise ClipError(f'unknown storage {storage!r}: use one of {", ".join(STORAGES)}')
-    return StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    return StoragePlugin.MCAP if storage == MCAP_STORAGE else StoragePlugin.SQLITE3
 
 
 class ClipWriter:
@@ -201,7 +207,7 @@ class ClipWriter:
     the file system raises ClipError after closing the file; what was flushed before stays recoverable.
     """
 
-    def __init__(self, bag_dir: Path, storage: str = 'mcap', custom_data: dict[str, str] | None = None,
+    def __init__(self, bag_dir: Path, storage: str = MCAP_STORAGE, custom_data: dict[str, str] | None = None,
                  flush_period_s: float = DEFAULT_FLUSH_PERIOD_S,
                  monotonic_s: Callable[[], float] = time.monotonic):
         if not flush_period_s > 0.0:
@@ -332,17 +338,17 @@ class ClipWriter:
         self.abort()
         reason = describe_os_error(err) if isinstance(err, OSError) else str(err)
         raise ClipError(f'{action} {self.bag_dir} failed: {reason}; what was flushed before is kept '
-                        f'(make it readable with `ros2 run stylepong_fdcc recover_bag {self.bag_dir}`)') from err
+                        f'(make it readable with `ros2 run stylepong_recording recover_bag {self.bag_dir}`)') from err
 
     def _write_in_progress_note(self) -> None:
         note = {
-            'custom_data': self.custom_data,
-            'storage_identifier': self.storage,
+            CUSTOM_DATA_KEY: self.custom_data,
+            STORAGE_IDENTIFIER_KEY: self.storage,
             'started': datetime.datetime.now().astimezone().isoformat(timespec='milliseconds'),
             'host': socket.gethostname(),
             'pid': os.getpid(),
             'note': 'This clip was not closed. If its recorder is gone, make the bag readable with '
-                    f'`ros2 run stylepong_fdcc recover_bag {self.bag_dir}`.',
+                    f'`ros2 run stylepong_recording recover_bag {self.bag_dir}`.',
         }
         (self.bag_dir / IN_PROGRESS_NAME).write_text(yaml.safe_dump(note, sort_keys=False))
 
