@@ -84,7 +84,6 @@ class VirtualTeacherNode(Node):
         super().__init__(PROGRAM, **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self.teacher = teacher_from(p)
-        variation = self.teacher.path.variation
         self.p = p
         self.label = p['label'] or p['swing']
         self.exit_code: int | None = None   # set when the node is done (run_node's loop then ends)
@@ -107,7 +106,7 @@ class VirtualTeacherNode(Node):
         self.start_client = self.create_client(StartClip, '/recorder/start')
         self.stop_client = self.create_client(Trigger, '/recorder/stop')
         self.create_timer(1.0 / p['rate_hz'], self._on_tick)
-        path = self.teacher.path
+        path, variation = self.teacher.path, self.teacher.path.variation
         self.get_logger().info(f'teaching a {p["swing"]} stroke '
                                f'({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
                                f'label {self.label!r}, seed {p["seed"]}, variation {p["variation"]}: '
