@@ -59,12 +59,12 @@ REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc'
 @dataclass
 class TaskConfig:
     """Every parameter of the environment, its randomisation and its reward (YAML: the `task` section)."""
-    num_envs: int = 4096
+    num_envs: int = 1024                            # config/ppo.yaml's (the source; see rl.config)
     speed_range_m_s: tuple[float, float] = tuple(ws.SPEED_RANGES_M_S['all'])
     randomize: bool = True
     # World
-    physics_rate_hz: float = 120.0
-    arm_substeps: int = 4
+    physics_rate_hz: float = bw.PHYSICS_RATE_HZ
+    arm_substeps: int = bw.ARM_SUBSTEPS
     cpu_threads: int = 1                            # torch threads while the env steps (0: leave as set)
     compile_world: bool = False                     # torch.compile the world's stages (3x faster, ~1 min start)
     episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
@@ -190,7 +190,7 @@ class TableTennisEnv:
                                             cfg.noise_ball_position_m, cfg.noise_ball_velocity_m_s], **kw)
         self._kp_nominal = torch.tensor(ws.ARM_KP_NM_PER_RAD, **kw)[:, None]
         self._kd_nominal = torch.tensor(ws.ARM_KD_NMS_PER_RAD, **kw)[:, None]
-        self._goal_z_m = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+        self._goal_z_m = ws.TABLE_CONTACT_HEIGHT_M
         self._bat_axes = torch.tensor(['xyz'.index(a) for a in cfg.bat_axes], device=self.device)
         self.last_action = torch.zeros(n, spec.NUM_ACTIONS, **kw)
         self._qd_prev = torch.zeros(n, spec.NUM_ACTIONS, **kw)
@@ -424,7 +424,7 @@ class TableTennisEnv:
         land_y = p[1] + v[1] * t_land
         t_net = (-p[0] / v[0].clamp_min(1e-3)).clamp(min=0.0)
         z_net = p[2] + v[2] * t_net - 0.5 * g * t_net * t_net
-        clearance = z_net - (ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M + ws.BALL_RADIUS_M)
+        clearance = z_net - (ws.NET_TOP_HEIGHT_M + ws.BALL_RADIUS_M)
         over_net = torch.sigmoid(clearance / 0.02) * ((v[0] > 0.0) & (t_net < t_land))
         distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2
                               + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)

@@ -148,7 +148,8 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     frames = np.concatenate([positions, velocities], axis=2).reshape(-1, 4)
     cfg = config_from_dict({
         'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 0.5},
-        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3},
+        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3,
+                'entropy_coef': 0.005},
         'runner': {'seed': 0, 'save_interval': 1000},
         'amp': {'sequence_length': 3, 'hidden_dims': [32, 32], 'batch_size': 512, 'updates_per_iteration': 4,
                 'learning_rate': 1e-3, 'grad_penalty': 1.0, 'w_task': 0.0, 'w_style': 1.0, 'replay_size': 20000}})

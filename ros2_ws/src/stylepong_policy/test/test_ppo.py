@@ -13,6 +13,7 @@ from stylepong_policy.rl.normalizer import RunningNormalizer
 from stylepong_policy.rl.ppo import PPO, gaussian_kl
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 from stylepong_policy.rl.storage import RolloutStorage
+from stylepong_policy.task import TaskConfig
 
 import ppo_toy_task  # beside this file: conftest.py
 
@@ -23,7 +24,7 @@ def toy_config(**ppo) -> TrainConfig:
     return config_from_dict({
         'policy': {'actor_hidden_dims': [64, 64], 'critic_hidden_dims': [64, 64], 'init_noise_std': 0.5},
         'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3,
-                **ppo},
+                'entropy_coef': 0.005, **ppo},
         'runner': {'seed': 0, 'save_interval': 1000}})
 
 
@@ -169,6 +170,15 @@ def test_config_yaml_round_trip_and_shipped_default(tmp_path):
     shipped = load_config(HERE.parent / 'config' / 'ppo.yaml')
     assert shipped.policy.activation == 'elu'
     assert shipped.runner.seed < 1000
+
+
+def test_defaults_are_the_shipped_ppo_yaml():
+    # config/ppo.yaml is the source of the dataclass defaults (rl.config's docstring): a section or key a
+    # YAML leaves out means what the baseline ran with.
+    shipped = load_config(HERE.parent / 'config' / 'ppo.yaml')
+    defaults = TrainConfig()
+    assert (shipped.policy, shipped.ppo, shipped.runner) == (defaults.policy, defaults.ppo, defaults.runner)
+    assert shipped.task['num_envs'] == TaskConfig().num_envs
 
 
 def toy_success_rate(actor_critic: ActorCritic, toy, episodes_steps: int = 30) -> float:

@@ -12,8 +12,10 @@ import ppo_toy_task as TOY  # beside this file: conftest.py
 
 
 def small_config(**runner):
-    return config_from_dict({'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32]},
-                             'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2},
+    return config_from_dict({'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32],
+                                        'init_noise_std': 1.0},
+                             'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2,
+                                     'entropy_coef': 0.005},
                              'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2, **runner}})
 
 

@@ -11,8 +11,8 @@ from stylepong_policy import select_checkpoint as sc
 from stylepong_policy.rl.export import load_actor
 
 TOY_CONFIG = """
-policy: {actor_hidden_dims: [32, 32], critic_hidden_dims: [32, 32]}
-ppo: {num_steps_per_env: 8, num_learning_epochs: 1, num_mini_batches: 2}
+policy: {actor_hidden_dims: [32, 32], critic_hidden_dims: [32, 32], init_noise_std: 1.0}
+ppo: {num_steps_per_env: 8, num_learning_epochs: 1, num_mini_batches: 2, entropy_coef: 0.005}
 runner: {iterations: 2, num_threads: 1, save_interval: 1, keep_checkpoints: 0, progress_bar: false}
 task: {num_envs: 64}
 """

@@ -21,7 +21,7 @@ def served_track(target_y_m: float, speed_xy_m_s: float = 5.0, vz_m_s: float = 1
     p = start.copy()
     v = np.array([heading[0] * speed_xy_m_s, heading[1] * speed_xy_m_s, vz_m_s])
     gravity = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
-    contact_z = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+    contact_z = ws.TABLE_CONTACT_HEIGHT_M
     fine_p, fine_v = [p.copy()], [v.copy()]
     while p[0] > plane_x - 0.5:
         v = v + (gravity + ws.drag_acceleration(v)) * PHYSICS_DT_S

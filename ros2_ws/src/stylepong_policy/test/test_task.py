@@ -244,7 +244,7 @@ def test_aim_credits_a_stroke_towards_the_goal_only_over_the_net():
     w.ball_pos_m[:] = torch.tensor([[-1.3, 0.0, 1.0]] * 3).T
     # Drag-free: 4 m/s forward for 0.525 s lands on the goal; vz from z(T) = table + radius.
     t = 2.1 / 4.0
-    vz = (ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M - 1.0 + 0.5 * ws.GRAVITY_M_S2 * t * t) / t
+    vz = (ws.TABLE_CONTACT_HEIGHT_M - 1.0 + 0.5 * ws.GRAVITY_M_S2 * t * t) / t
     w.ball_vel_m_s[:] = torch.tensor([[4.0, 0.0, vz], [-4.0, 0.0, vz], [6.0, 0.0, -1.0]]).T
     quality = env._aim_quality(torch.ones(3, dtype=torch.bool))
     assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0   # over, away, into the net

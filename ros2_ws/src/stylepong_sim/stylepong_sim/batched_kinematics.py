@@ -57,12 +57,6 @@ def mat_mat(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return a[:, 0, None] * b[None, 0] + a[:, 1, None] * b[None, 1] + a[:, 2, None] * b[None, 2]
 
 
-def yaw_rotation(yaw_rad: float) -> np.ndarray:
-    """Rotation matrix about z by `yaw_rad`."""
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 # --- The model as tensors ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Capsule:
@@ -209,6 +203,7 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
         raise RuntimeError('the paddle centre must hang on the last joint')
     capsules = link_capsules()
     limits = rm.joint_limits()
+    base_rot, base_pos_m = ws.robot_base_pose()
 
     def t(x) -> torch.Tensor:
         return torch.as_tensor(np.asarray(x, dtype=float), dtype=dtype, device=device)
@@ -219,7 +214,7 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
     return ArmModel(
         rot_a=per_joint_matrices(rot_a), rot_b=per_joint_matrices(rot_b), rot_c=per_joint_matrices(rot_c),
         joint_origin_m=t(np.stack(origins, axis=-1)), axis=t(np.stack(axes, axis=-1)),
-        base_rot=t(yaw_rotation(ws.ROBOT_BASE_YAW_RAD)), base_pos_m=t(ws.ROBOT_BASE_POSITION_M),
+        base_rot=t(base_rot), base_pos_m=t(base_pos_m),
         mass_kg=t(masses)[:, None], com_m=t(np.stack(coms, axis=-1))[..., None],
         inertia_axes=per_joint_matrices(inertia_axes), inertia_moments=t(np.stack(moments, axis=-1))[..., None],
         paddle_rot=t(paddle.placement.rotation)[..., None], paddle_pos_m=t(paddle.placement.translation)[:, None],

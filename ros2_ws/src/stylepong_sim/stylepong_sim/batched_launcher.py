@@ -25,10 +25,8 @@ import torch
 
 from stylepong_sim import world_spec as ws
 
-MIN_ELEVATION_RAD = math.radians(-30.0)
-MAX_ELEVATION_RAD = math.radians(45.0)
+MIN_ELEVATION_RAD, MAX_ELEVATION_RAD = ws.AIM_ELEVATION_RANGE_RAD
 FLIGHT_DT_S = 0.04             # RK4 + Hermite crossings: within 1 um of a 1 ms flight
-MAX_FLIGHT_S = 2.0
 ILLINOIS_ITERATIONS = 16           # at most; stops once all land within 1 um
 
 
@@ -83,7 +81,7 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
     net_distance_m: horizontal distance to the net plane along the heading.
     Returns (horizontal distance at the table contact, clearance of the ball's bottom over the net's top
     where it crosses the net plane (+inf if it lands before the net), horizontal and vertical velocity
-    at the contact). Balls that never land within MAX_FLIGHT_S get +inf distance.
+    at the contact). Balls that never land within world_spec.MAX_FLIGHT_S get +inf distance.
     """
     s = torch.zeros_like(height_m)
     z = height_m.clone()
@@ -98,7 +96,7 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
     net_top = ws.NET_HEIGHT_M
     dt = FLIGHT_DT_S
 
-    for step in range(int(MAX_FLIGHT_S / dt)):
+    for step in range(int(ws.MAX_FLIGHT_S / dt)):
         s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, drag_k_per_m, gravity_m_s2)
         crosses_net = active & (s < net_distance_m) & (s1 >= net_distance_m)
         if bool(crosses_net.any()):
@@ -134,7 +132,7 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
     # Offsets from the reach centre at the bounce (the ball centre sits at table + radius).
     dx0 = bounce_xy_m[0] - centre[0]
     dy0 = bounce_xy_m[1] - centre[1]
-    z_contact = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
+    z_contact = ws.TABLE_CONTACT_HEIGHT_M
     dt = 0.02
     s = torch.zeros_like(vs_m_s)
     z = torch.full_like(vs_m_s, z_contact)
@@ -142,7 +140,7 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
     reached = torch.zeros_like(s, dtype=torch.bool)
     active = torch.ones_like(reached)
 
-    for step in range(int(1.5 / dt)):
+    for step in range(int(ws.REBOUND_HORIZON_S / dt)):
         s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, ws.DRAG_K_PER_M, ws.GRAVITY_M_S2)
         for tau in (0.25, 0.5, 0.75, 1.0):
             zi = _hermite(z, z1, vz, vz1, tau, dt)
@@ -197,7 +195,7 @@ class IncomingBallSampler:
         offset = bounce - start[:2]
         distance = torch.linalg.vector_norm(offset, dim=0)
         heading = offset / distance
-        height = start[2] - (ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M)
+        height = start[2] - ws.TABLE_CONTACT_HEIGHT_M
         # The net plane x = 0 along the heading (launches are on the far side, bounces on the near one).
         net_distance = -start[0] / heading[0]
 

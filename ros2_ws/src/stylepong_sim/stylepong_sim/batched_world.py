@@ -47,6 +47,11 @@ REASONS: tuple[str, ...] = (
 REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
 NO_VERDICT = -1
 
+# The world's default step rates (the task's TaskConfig takes them from here): physics at 120 Hz, two
+# steps per 60 Hz policy step, and the arm at 4 sub-steps per physics step (480 Hz); see the docstring.
+PHYSICS_RATE_HZ = 120.0
+ARM_SUBSTEPS = 4
+
 # Contact kinds of one physics step.
 _NONE, _TABLE, _NET, _PADDLE = 0, 1, 2, 3
 # Contact fraction of a surface not touched in a step: past the step's end (1), so any real contact is earlier.
@@ -131,7 +136,8 @@ class BatchedWorld:
     """
 
     def __init__(self, num_envs: int, device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
-                 policy_rate_hz: float = ws.POLICY_RATE_HZ, physics_rate_hz: float = 120.0, arm_substeps: int = 4,
+                 policy_rate_hz: float = ws.POLICY_RATE_HZ, physics_rate_hz: float = PHYSICS_RATE_HZ,
+                 arm_substeps: int = ARM_SUBSTEPS,
                  timeout_s: float = ws.BALL_TIMEOUT_S, dynamics_every: int | None = None,
                  cpu_threads: int | None = 1, compile: bool = False):
         if num_envs < 1:
@@ -192,9 +198,8 @@ class BatchedWorld:
         kw = dict(device=self.device, dtype=self.dtype)
         self._up = torch.tensor([0.0, 0.0, 1.0], **kw)[:, None]
         r = ws.BALL_RADIUS_M
-        self._net_lo = torch.tensor([-ws.NET_THICKNESS_M / 2, -ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M], **kw)[:, None]
-        self._net_hi = torch.tensor([ws.NET_THICKNESS_M / 2, ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M],
-                                    **kw)[:, None]
+        self._net_lo = torch.tensor(ws.NET_BOX_LOW_M, **kw)[:, None]
+        self._net_hi = torch.tensor(ws.NET_BOX_HIGH_M, **kw)[:, None]
         self._link_reach_sq_m2 = (self.model.capsule_radius_m + r) ** 2       # [L, 1]
         # Both end spheres of every capsule, in the order capsule_segments' a, b are concatenated.
         radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))   # [2L, 1]
@@ -334,7 +339,7 @@ class BatchedWorld:
         p1 = p0 + displacement
 
         # Table top: the ball's bottom crosses the plane on the table.
-        contact_z = ws.TABLE_HEIGHT_M + r
+        contact_z = ws.TABLE_CONTACT_HEIGHT_M
         f_table = (p0[2] - contact_z) / (p0[2] - p1[2])
         at = p0 + f_table * (p1 - p0)
         table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & (at[0].abs() <= ws.HALF_LENGTH_M) \
@@ -342,13 +347,13 @@ class BatchedWorld:
         f_table = torch.where(table_ok, f_table, _NO_CONTACT)
 
         # Net: its two faces swept exactly; its top and ends by the end position against its box.
-        face_x = ws.NET_THICKNESS_M / 2.0 + r
+        face_x = ws.NET_FACE_CONTACT_X_M
         side_net = torch.where(p0[0] >= 0.0, 1.0, -1.0).to(self.dtype)
         s0, s1 = side_net * p0[0], side_net * p1[0]
         f_net = (s0 - face_x) / (s0 - s1)
         at = p0 + f_net * (p1 - p0)
         net_face = (s0 >= face_x) & (s1 < face_x) & (at[1].abs() <= ws.NET_LENGTH_M / 2) \
-            & (at[2] > ws.TABLE_HEIGHT_M) & (at[2] <= ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M)
+            & (at[2] > ws.TABLE_HEIGHT_M) & (at[2] <= ws.NET_TOP_HEIGHT_M)
         closest_net = torch.maximum(torch.minimum(p1, self._net_hi), self._net_lo)
         offset_net = p1 - closest_net
         dist_net = torch.sqrt(bk.dot(offset_net, offset_net))

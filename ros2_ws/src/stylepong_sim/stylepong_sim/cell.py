@@ -73,9 +73,6 @@ FRAME_TOOL = rm.TOOL_FRAME
 _GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
-# Ball-centre planes of the table top and the net's faces: fixed by the world spec, so not redone every step.
-_TABLE_CONTACT_Z_M = ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M
-_NET_FACE_X_M = ws.NET_THICKNESS_M / 2.0 + ws.BALL_RADIUS_M
 
 
 class InputError(ValueError):
@@ -161,8 +158,8 @@ class Cell:
         self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
         self._blade_radius_m = rm.PADDLE.blade_radius_m
         self._blade_bound_m = math.hypot(self._blade_radius_m, self._blade_half_thickness_m)
-        self._net_low = np.array([-ws.NET_THICKNESS_M / 2, -ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M])
-        self._net_high = np.array([ws.NET_THICKNESS_M / 2, ws.NET_LENGTH_M / 2, ws.TABLE_HEIGHT_M + ws.NET_HEIGHT_M])
+        self._net_low = np.array(ws.NET_BOX_LOW_M)
+        self._net_high = np.array(ws.NET_BOX_HIGH_M)
         self._jac = np.zeros((3, m.nv))
         self._abs_qvel = np.zeros(6)
         self._distance_fromto = np.zeros(6)
@@ -454,17 +451,17 @@ class Cell:
         return self._robot_link_contact(p1, v1)
 
     def _table_contact(self, p0, p1) -> _Contact | None:
-        if not (p0[2] >= _TABLE_CONTACT_Z_M > p1[2]):
+        if not (p0[2] >= ws.TABLE_CONTACT_HEIGHT_M > p1[2]):
             return None
-        fraction = (p0[2] - _TABLE_CONTACT_Z_M) / (p0[2] - p1[2])
+        fraction = (p0[2] - ws.TABLE_CONTACT_HEIGHT_M) / (p0[2] - p1[2])
         centre = p0 + fraction * (p1 - p0)
         if not ws.on_table(centre[0], centre[1]):
             return None
-        centre[2] = _TABLE_CONTACT_Z_M
+        centre[2] = ws.TABLE_CONTACT_HEIGHT_M
         return _Contact('table', fraction, centre, _UP, _ZERO3)
 
     def _net_contact(self, p0, p1, v1) -> _Contact | None:
-        r, face_x = ws.BALL_RADIUS_M, _NET_FACE_X_M
+        r, face_x = ws.BALL_RADIUS_M, ws.NET_FACE_CONTACT_X_M
         if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
             return None   # on one side of the net, not touching it
         for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x

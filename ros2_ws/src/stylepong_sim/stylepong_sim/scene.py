@@ -14,8 +14,6 @@ conaffinity 1) but never each other (the URDF's collision meshes of neighbouring
 """
 from __future__ import annotations
 
-import math
-
 from stylepong_sim import headless  # noqa: F401  (before mujoco)
 
 # isort: split
@@ -42,10 +40,6 @@ _LINE_WIDTH_M = 0.02
 _LEG_HALF_SIZE_M = 0.03
 
 
-def _yaw_quat(yaw_rad: float) -> list[float]:
-    return [math.cos(yaw_rad / 2.0), 0.0, 0.0, math.sin(yaw_rad / 2.0)]
-
-
 def _look_at_quat(position_m, target_m) -> list[float]:
     """Orientation of a MuJoCo camera (looking along its -z, y up) at position looking at target."""
     forward = np.asarray(target_m, float) - np.asarray(position_m, float)
@@ -53,8 +47,13 @@ def _look_at_quat(position_m, target_m) -> list[float]:
     right = np.cross(forward, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
+    return _quat_of(np.column_stack([right, up, -forward]))
+
+
+def _quat_of(rotation: np.ndarray) -> list[float]:
+    """MuJoCo's quaternion (w, x, y, z) of a rotation matrix."""
     quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.column_stack([right, up, -forward]).ravel())
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).ravel())
     return quat.tolist()
 
 
@@ -118,8 +117,9 @@ def _add_looks(spec: mujoco.MjSpec) -> None:
 
 def _configure_robot(spec: mujoco.MjSpec) -> None:
     base = spec.body(rm.BASE_FRAME)
-    base.pos = list(ws.ROBOT_BASE_POSITION_M)
-    base.quat = _yaw_quat(ws.ROBOT_BASE_YAW_RAD)
+    rotation, position = ws.robot_base_pose()
+    base.pos = position.tolist()
+    base.quat = _quat_of(rotation)
     for body in spec.bodies:
         if body.name != 'world':
             body.gravcomp = 1.0   # ideal gravity compensation, in joint space (must be set before compiling)

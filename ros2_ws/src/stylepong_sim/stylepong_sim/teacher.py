@@ -261,8 +261,8 @@ class TeacherConfig:
 # Kinematics of the cell
 # ---------------------------------------------------------------------------------------------------
 def robot_base_in_world() -> pin.SE3:
-    """The robot base's pose in the world frame."""
-    return pin.SE3(yaw_rotation(ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
+    """The robot base's pose in the world frame (world_spec.robot_base_pose)."""
+    return pin.SE3(*ws.robot_base_pose())
 
 
 class CellKinematics:
@@ -396,11 +396,6 @@ def hand_wrench(config: TeacherConfig, position_m: np.ndarray, rotation: np.ndar
     return np.concatenate([clamp_norm(force, c.max_force_n), clamp_norm(torque, c.max_torque_nm)])
 
 
-def yaw_rotation(yaw_rad: float) -> np.ndarray:
-    """Rotation matrix about z by `yaw_rad`."""
-    return pin.utils.rpyToMatrix(0.0, 0.0, yaw_rad)
-
-
 class VirtualTeacher:
     """Approach the ready pose, wait to be started, play the stroke, hold, release.
 
@@ -487,7 +482,7 @@ class VirtualTeacher:
             self.phase, self._phase_start_s = 'finished', t_s
         if self.phase == 'settling':
             via = self.path.at(0.0)
-        target_centre = pin.SE3(yaw_rotation(via.yaw_rad) @ self.home_rotation, via.position_m)
+        target_centre = pin.SE3(ws.yaw_rotation(via.yaw_rad) @ self.home_rotation, via.position_m)
         target_grip = target_centre * self.centre_to_grip
         omega = np.array([0.0, 0.0, via.yaw_rate_rad_s])
         # Velocity of the gripped point on a body moving with the via-point: v + omega x r.
@@ -499,7 +494,7 @@ class VirtualTeacher:
 
     def at_rest_on(self, q: np.ndarray, qdot: np.ndarray, via: ViaPoint) -> bool:
         centre = self.kinematics.pose(q, self.centre_id)
-        target_rotation = yaw_rotation(via.yaw_rad) @ self.home_rotation
+        target_rotation = ws.yaw_rotation(via.yaw_rad) @ self.home_rotation
         c = self.config
         return (np.linalg.norm(centre.translation - via.position_m) < c.settle_position_m
                 and np.linalg.norm(pin.log3(target_rotation @ centre.rotation.T)) < c.settle_angle_rad

@@ -24,6 +24,10 @@ NET_LENGTH_M = 1.83            # 15.25 cm overhang on each side
 NET_THICKNESS_M = 0.01
 HALF_LENGTH_M = TABLE_LENGTH_M / 2.0
 HALF_WIDTH_M = TABLE_WIDTH_M / 2.0
+NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M     # the net's top edge above the floor
+# The net as a box: its lower and upper corners (m).
+NET_BOX_LOW_M = (-NET_THICKNESS_M / 2, -NET_LENGTH_M / 2, TABLE_HEIGHT_M)
+NET_BOX_HIGH_M = (NET_THICKNESS_M / 2, NET_LENGTH_M / 2, NET_TOP_HEIGHT_M)
 
 # --- Ball -----------------------------------------------------------------------------------------
 BALL_MASS_KG = 0.0027
@@ -33,6 +37,10 @@ DRAG_COEFFICIENT = 0.47
 BALL_AREA_M2 = math.pi * BALL_RADIUS_M ** 2
 # a_drag = -DRAG_K |v| v, with DRAG_K = rho C_D A / (2 m) (about 0.129 1/m; Koc's fitted 0.1414).
 DRAG_K_PER_M = 0.5 * AIR_DENSITY_KG_M3 * DRAG_COEFFICIENT * BALL_AREA_M2 / BALL_MASS_KG
+# Where the ball's centre is when it touches a surface: its bottom on the table top, its side on a
+# face of the net. Every simulator and the incoming-ball solvers test contacts against these.
+TABLE_CONTACT_HEIGHT_M = TABLE_HEIGHT_M + BALL_RADIUS_M
+NET_FACE_CONTACT_X_M = NET_THICKNESS_M / 2.0 + BALL_RADIUS_M
 
 # --- Contacts (restitution = normal velocity ratio; tangential factor = tangential velocity ratio) --
 TABLE_RESTITUTION = 0.89               # ITTF: 30 cm drop rebounds about 23 cm
@@ -90,12 +98,36 @@ BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its la
 CELL_HALF_EXTENT_M = (5.0, 4.0)
 
 
-def on_table(x_m: float, y_m: float) -> bool:
-    """Whether a point (x, y) lies over the table."""
-    return abs(x_m) <= HALF_LENGTH_M and abs(y_m) <= HALF_WIDTH_M
+def on_table(x_m, y_m):
+    """Whether a point (x, y) lies over the table. Floats, numpy arrays and torch tensors alike (the
+    referee's rules use it for one ball and for a batch)."""
+    return (abs(x_m) <= HALF_LENGTH_M) & (abs(y_m) <= HALF_WIDTH_M)
+
+
+def yaw_rotation(yaw_rad: float) -> np.ndarray:
+    """Rotation matrix about the world z axis by `yaw_rad`.
+
+    Pinocchio's rpyToMatrix: the virtual teacher's recorded strokes were made with it, and it differs
+    from a cos/sin matrix in the last bit, so it is the one definition.
+    """
+    # Imported here, not at the top: the referee and the cell read this module without Pinocchio.
+    import pinocchio as pin
+    return pin.utils.rpyToMatrix(0.0, 0.0, yaw_rad)
+
+
+def robot_base_pose() -> tuple[np.ndarray, np.ndarray]:
+    """The robot base in the world: (rotation 3x3, position m), from ROBOT_BASE_YAW_RAD and _POSITION_M."""
+    return yaw_rotation(ROBOT_BASE_YAW_RAD), np.array(ROBOT_BASE_POSITION_M)
 
 
 # --- Incoming balls -------------------------------------------------------------------------------
+# The serve solvers (sample_incoming_ball here, batched_launcher for batches) search the launch
+# elevation within this bracket, follow a flight to its first bounce for at most MAX_FLIGHT_S and the
+# rebound towards the paddle's reach for at most REBOUND_HORIZON_S.
+AIM_ELEVATION_RANGE_RAD = (math.radians(-30.0), math.radians(45.0))
+MAX_FLIGHT_S = 2.0
+REBOUND_HORIZON_S = 1.5
+
 @dataclass(frozen=True)
 class IncomingBallDistribution:
     """Serves from the opponent's end that bounce once on the robot's half and then come within reach.
@@ -158,7 +190,7 @@ def contact_response(relative_velocity_m_s, normal, restitution, tangential_fact
 
 
 def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float = PHYSICS_DT_S,
-                 max_time_s: float = 2.0) -> tuple[np.ndarray, np.ndarray, float, float]:
+                 max_time_s: float = MAX_FLIGHT_S) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Integrate free flight until the ball's bottom reaches the table plane (or max_time_s).
 
     Returns (position at contact, velocity at contact, time of flight, lowest clearance over the net:
@@ -168,7 +200,7 @@ def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float =
     p = np.array(position_m, dtype=float)
     v = np.array(velocity_m_s, dtype=float)
     gravity = np.array([0.0, 0.0, -GRAVITY_M_S2])
-    contact_z = TABLE_HEIGHT_M + BALL_RADIUS_M
+    contact_z = TABLE_CONTACT_HEIGHT_M
     net_clearance = math.inf
     t = 0.0
     while t < max_time_s:
@@ -177,7 +209,7 @@ def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float =
         if (p[0] > 0.0) != (p_new[0] > 0.0):
             frac = p[0] / (p[0] - p_new[0])
             z_at_net = p[2] + frac * (p_new[2] - p[2])
-            net_clearance = z_at_net - BALL_RADIUS_M - (TABLE_HEIGHT_M + NET_HEIGHT_M)
+            net_clearance = z_at_net - BALL_RADIUS_M - NET_TOP_HEIGHT_M
         if p_new[2] <= contact_z < p[2]:
             frac = (p[2] - contact_z) / (p[2] - p_new[2])
             return p + frac * (p_new - p), v + frac * (v_new - v), t + frac * dt_s, net_clearance
@@ -203,7 +235,7 @@ def _aim(start_m: np.ndarray, target_xy_m: np.ndarray, speed_m_s: float) -> np.n
         landing, _, _, _ = fly_to_table(start_m, velocity(elevation_rad), dt_s=0.002)
         return float(np.dot(landing[:2] - start_m[:2], heading))
 
-    low, high = math.radians(-30.0), math.radians(45.0)
+    low, high = AIM_ELEVATION_RANGE_RAD
     if landing_distance(low) > distance or landing_distance(high) < distance:
         return None
     for _ in range(30):
@@ -223,10 +255,10 @@ def rebound_reaches(contact_position_m: np.ndarray, contact_velocity_m_s: np.nda
     p = np.array(contact_position_m, dtype=float)
     centre = np.array(distribution.reach_centre_m)
     gravity = np.array([0.0, 0.0, -GRAVITY_M_S2])
-    for _ in range(int(1.5 / dt_s)):
+    for _ in range(int(REBOUND_HORIZON_S / dt_s)):
         v = v + (gravity + drag_acceleration(v)) * dt_s
         p = p + v * dt_s
-        if p[2] < TABLE_HEIGHT_M + BALL_RADIUS_M:   # fell back to table level: out of play or a 2nd bounce
+        if p[2] < TABLE_CONTACT_HEIGHT_M:   # fell back to table level: out of play or a 2nd bounce
             return False
         if p[2] >= distribution.min_hit_height_m and np.sum((p - centre) ** 2) <= distribution.reach_radius_m ** 2:
             return True

@@ -32,7 +32,7 @@ def test_forward_kinematics_matches_pinocchio(model64):
     kin = bk.forward_kinematics(model64, torch.tensor(q).T)
     model = rm.pinocchio_model()
     data = model.createData()
-    base = pin.SE3(bk.yaw_rotation(ws.ROBOT_BASE_YAW_RAD), np.array(ws.ROBOT_BASE_POSITION_M))
+    base = pin.SE3(*ws.robot_base_pose())
     frame = model.getFrameId(rm.PADDLE_CENTRE_FRAME)
     for i in range(len(q)):
         pin.framesForwardKinematics(model, data, q[i])
@@ -135,7 +135,7 @@ def test_table_bounce_follows_the_contact_law_and_nothing_tunnels():
     assert (world.ball_pos_m[2] > ws.TABLE_HEIGHT_M).all()
     # A ball bouncing vertically at 4 m/s leaves at restitution x 4 m/s.
     world = _world()
-    _launch(world, [(-0.5, 0.0, ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M + 0.02)], [(0.0, 0.0, -4.0)])
+    _launch(world, [(-0.5, 0.0, ws.TABLE_CONTACT_HEIGHT_M + 0.02)], [(0.0, 0.0, -4.0)])
     world.step(world.q_rad.clone())
     assert world.own_bounces[0] == 1
     # Midpoint flight after the bounce: v_z = e * v_in - g * t_after (drag small at this speed).

@@ -167,7 +167,7 @@ def test_nothing_tunnels_through_the_table_at_15_m_s(cell, velocity):
         p = cell.ball_position_m
         if ws.on_table(p[0], p[1]):
             lowest = min(lowest, p[2])
-    assert lowest >= ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M - 1e-9
+    assert lowest >= ws.TABLE_CONTACT_HEIGHT_M - 1e-9
     assert cell.ball_velocity_m_s[2] > 0.0
 
 

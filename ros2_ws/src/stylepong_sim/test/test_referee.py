@@ -5,8 +5,8 @@ from stylepong_msgs.msg import RallyEvent as RallyEventMsg
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
 
-OWN = (-0.6, 0.1, ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M)
-OPPONENT = (0.8, -0.2, ws.TABLE_HEIGHT_M + ws.BALL_RADIUS_M)
+OWN = (-0.6, 0.1, ws.TABLE_CONTACT_HEIGHT_M)
+OPPONENT = (0.8, -0.2, ws.TABLE_CONTACT_HEIGHT_M)
 AIR = (-1.4, 0.0, 1.0)
 FALLING = (0.0, 0.0, -1.0)
 

@@ -21,7 +21,6 @@ from stylepong_sim.teacher import (
     SwingVariation,
     TeacherConfig,
     sample_variation,
-    yaw_rotation,
 )
 
 HOME_Q = np.array(ws.HOME_JOINT_POSITIONS_RAD)
@@ -60,7 +59,7 @@ def joint_path(path: StrokePath, dt_s: float = 0.02) -> np.ndarray:
     trajectory = []
     for t in np.arange(0.0, path.duration_s + 1e-9, dt_s):
         via = path.at(t)
-        target = pin.SE3(yaw_rotation(via.yaw_rad) @ HOME_POSE.rotation, via.position_m)
+        target = pin.SE3(ws.yaw_rotation(via.yaw_rad) @ HOME_POSE.rotation, via.position_m)
         for _ in range(30):
             current = KIN.pose(q, CENTRE)
             error = np.concatenate([target.translation - current.translation,
