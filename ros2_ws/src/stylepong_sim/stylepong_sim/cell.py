@@ -37,10 +37,10 @@ net and floor (MuJoCo contacts), never with itself. Joint efforts = servo torque
 Ball (2.7 g, no spin): integrated here, not by MuJoCo, every physics step dt (the batched world does the same):
     v' = v + (g + drag_acceleration(v)) dt,  p' = p + v' dt                 (semi-implicit Euler)
   then the earliest contact within the step is found on the straight segment p -> p' (for the blade, the
-  segment in the blade's moving frame). Table top and the faces of net and blade: exact crossing times,
-  so nothing tunnels through them at any speed. The net's top edge and ends, the blade's rim and the
-  other robot links: the ball's end position against the obstacle; up to 15 m/s relative speed the ball
-  moves at most 15 mm per step, less than its radius, so no contact is missed or seen from the wrong side.
+  segment in the blade's moving frame): table, net and blade by ball_contacts (exact crossing times of
+  the table top and of the net's and blade's faces; the end position against the net's top and ends and
+  the blade's rim); the other robot links, only when none of those is touched, by the ball's end
+  position against their collision meshes (MuJoCo's distance query).
   At a contact at fraction f of the step, with outward unit normal n and the surface's velocity u at the
   contact point:  v_out = u + world_spec.contact_response(v' - u, n, restitution, tangential_factor);
   the ball is put on the surface and flies the rest of the step, p' = p_contact + v_out (1 - f) dt.
@@ -63,6 +63,7 @@ import mujoco
 import numpy as np
 
 from stylepong_description import robot_model as rm
+from stylepong_sim import ball_contacts as bc
 from stylepong_sim import referee as rf
 from stylepong_sim import scene
 from stylepong_sim import world_spec as ws
@@ -71,8 +72,6 @@ MAX_LAUNCH_SPEED_M_S = 30.0
 FRAME_WORLD = 'world'
 FRAME_TOOL = rm.TOOL_FRAME
 _GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
-_UP = np.array([0.0, 0.0, 1.0])
-_ZERO3 = np.zeros(3)
 
 
 class InputError(ValueError):
@@ -95,15 +94,6 @@ class BallPhysics:
     net_tangential_factor: float = ws.NET_TANGENTIAL_FACTOR
     robot_restitution: float = ws.ROBOT_LINK_RESTITUTION
     robot_tangential_factor: float = ws.ROBOT_LINK_TANGENTIAL_FACTOR
-
-
-@dataclass
-class _Contact:
-    kind: str                 # 'table' | 'net' | 'paddle' | 'robot'
-    fraction: float           # of the step at which it happens
-    centre_m: np.ndarray      # ball centre at the contact, on the surface
-    normal: np.ndarray        # unit, out of the surface towards the ball
-    surface_velocity_m_s: np.ndarray
 
 
 @dataclass
@@ -155,11 +145,6 @@ class Cell:
         torque_adr = m.sensor_adr[m.sensor(scene.FT_TORQUE_SENSOR).id]
         self._force_slice = slice(force_adr, force_adr + 3)
         self._torque_slice = slice(torque_adr, torque_adr + 3)
-        self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
-        self._blade_radius_m = rm.PADDLE.blade_radius_m
-        self._blade_bound_m = math.hypot(self._blade_radius_m, self._blade_half_thickness_m)
-        self._net_low = np.array(ws.NET_BOX_LOW_M)
-        self._net_high = np.array(ws.NET_BOX_HIGH_M)
         self._jac = np.zeros((3, m.nv))
         self._abs_qvel = np.zeros(6)
         self._distance_fromto = np.zeros(6)
@@ -423,17 +408,17 @@ class Cell:
         time_s = self.time_s
         if contact is not None:
             restitution, tangential = {
-                'table': (physics.table_restitution, physics.table_tangential_factor),
-                'net': (physics.net_restitution, physics.net_tangential_factor),
-                'paddle': (physics.paddle_restitution, physics.paddle_tangential_factor),
-                'robot': (physics.robot_restitution, physics.robot_tangential_factor),
+                bc.TABLE: (physics.table_restitution, physics.table_tangential_factor),
+                bc.NET: (physics.net_restitution, physics.net_tangential_factor),
+                bc.PADDLE: (physics.paddle_restitution, physics.paddle_tangential_factor),
+                bc.ROBOT: (physics.robot_restitution, physics.robot_tangential_factor),
             }[contact.kind]
             u = contact.surface_velocity_m_s
             v1 = u + ws.contact_response(v1 - u, contact.normal, restitution, tangential)
             p1 = contact.centre_m + v1 * ((1.0 - contact.fraction) * dt)
             contact_time_s = time_s - (1.0 - contact.fraction) * dt
-            report = {'table': self._referee.table_contact, 'net': self._referee.net_contact,
-                      'paddle': self._referee.paddle_contact, 'robot': self._referee.robot_contact}[contact.kind]
+            report = {bc.TABLE: self._referee.table_contact, bc.NET: self._referee.net_contact,
+                      bc.PADDLE: self._referee.paddle_contact, bc.ROBOT: self._referee.robot_contact}[contact.kind]
             self._events += report(contact_time_s, contact.centre_m)
         self._ball_p, self._ball_v = p1, v1
         self._place_ball_marker()
@@ -442,91 +427,16 @@ class Cell:
         elif rf.ball_is_dead(p1) or time_s - self._ball_launch_time_s >= ws.BALL_LIFETIME_S:
             self.remove_ball()
 
-    def _earliest_contact(self, p0, p1, v1, paddle_before, paddle_after) -> _Contact | None:
-        candidates = [c for c in (self._table_contact(p0, p1),
-                                  self._net_contact(p0, p1, v1),
-                                  self._paddle_contact(p0, p1, v1, paddle_before, paddle_after)) if c is not None]
-        if candidates:
-            return min(candidates, key=lambda c: c.fraction)
-        return self._robot_link_contact(p1, v1)
+    def _earliest_contact(self, p0, p1, v1, paddle_before, paddle_after) -> bc.Contact | None:
+        """Table, net and blade (ball_contacts); the other robot links only when none of them is touched."""
+        contact = bc.earliest_contact(p0, p1, v1, paddle_before, paddle_after, self._blade_point_velocity)
+        return contact if contact is not None else self._robot_link_contact(p1, v1)
 
-    def _table_contact(self, p0, p1) -> _Contact | None:
-        if not (p0[2] >= ws.TABLE_CONTACT_HEIGHT_M > p1[2]):
-            return None
-        fraction = (p0[2] - ws.TABLE_CONTACT_HEIGHT_M) / (p0[2] - p1[2])
-        centre = p0 + fraction * (p1 - p0)
-        if not ws.on_table(centre[0], centre[1]):
-            return None
-        centre[2] = ws.TABLE_CONTACT_HEIGHT_M
-        return _Contact('table', fraction, centre, _UP, _ZERO3)
+    def _blade_point_velocity(self, point_m: np.ndarray) -> np.ndarray:
+        return self._point_velocity(point_m, self._paddle_centre_body)
 
-    def _net_contact(self, p0, p1, v1) -> _Contact | None:
-        r, face_x = ws.BALL_RADIUS_M, ws.NET_FACE_CONTACT_X_M
-        if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
-            return None   # on one side of the net, not touching it
-        for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x
-            s0, s1 = side * p0[0], side * p1[0]
-            if s0 >= face_x > s1:
-                fraction = (s0 - face_x) / (s0 - s1)
-                centre = p0 + fraction * (p1 - p0)
-                if abs(centre[1]) <= self._net_high[1] and self._net_low[2] < centre[2] <= self._net_high[2]:
-                    centre[0] = side * face_x
-                    return _Contact('net', fraction, centre, np.array([side, 0.0, 0.0]), _ZERO3)
-        # Top edge and ends: the ball's end position against the net's box.
-        closest = np.clip(p1, self._net_low, self._net_high)
-        offset = p1 - closest
-        distance = float(np.linalg.norm(offset))
-        if distance >= r:
-            return None
-        normal = offset / distance if distance > 0.0 else np.array([math.copysign(1.0, p0[0]), 0.0, 0.0])
-        if np.dot(v1, normal) >= 0.0:
-            return None
-        return _Contact('net', 1.0, closest + normal * r, normal, _ZERO3)
-
-    def _paddle_contact(self, p0, p1, v1, before, after) -> _Contact | None:
-        (c0, rot0), (c1, rot1) = before, after
-        # Far from the blade's bounding sphere, even allowing for this step's motion of ball and blade?
-        reach = (self._blade_bound_m + ws.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0))
-                 + float(np.linalg.norm(c1 - c0)))
-        offset = p1 - c1
-        if offset @ offset > reach * reach:
-            return None
-        local0 = rot0.T @ (p0 - c0)   # ball centre in the blade's frame (z = face normal) before the step
-        local1 = rot1.T @ (p1 - c1)   # and after it: the segment between them is the relative motion
-        h, radius, r = self._blade_half_thickness_m, self._blade_radius_m, ws.BALL_RADIUS_M
-        face_z = h + r
-        for side in (-1.0, 1.0):
-            s0, s1 = side * local0[2], side * local1[2]
-            if s0 >= face_z > s1:
-                fraction = (s0 - face_z) / (s0 - s1)
-                local = local0 + fraction * (local1 - local0)
-                if local[0] ** 2 + local[1] ** 2 <= radius ** 2:
-                    local[2] = side * face_z
-                    normal = rot1[:, 2] * side
-                    centre = c1 + rot1 @ local
-                    surface_point = centre - normal * r
-                    return _Contact('paddle', fraction, centre, normal,
-                                    self._point_velocity(surface_point, self._paddle_centre_body))
-        # Rim (and a ball found inside the blade's slab): the end position against the solid disc.
-        rho = math.hypot(local1[0], local1[1])
-        scale = min(1.0, radius / rho) if rho > 0.0 else 1.0
-        closest = np.array([local1[0] * scale, local1[1] * scale, min(max(local1[2], -h), h)])
-        offset = local1 - closest
-        distance = float(np.linalg.norm(offset))
-        if distance >= r:
-            return None
-        if distance > 0.0:
-            local_normal = offset / distance
-        else:
-            local_normal = np.array([0.0, 0.0, math.copysign(1.0, local0[2])])
-        normal = rot1 @ local_normal
-        surface_point = c1 + rot1 @ closest
-        u = self._point_velocity(surface_point, self._paddle_centre_body)
-        if np.dot(v1 - u, normal) >= 0.0:
-            return None
-        return _Contact('paddle', 1.0, surface_point + normal * r, normal, u)
-
-    def _robot_link_contact(self, p1, v1) -> _Contact | None:
+    def _robot_link_contact(self, p1, v1) -> bc.Contact | None:
+        """The ball's end position against the other robot links' collision meshes (MuJoCo's distance)."""
         d = self.data
         offsets = d.geom_xpos[self._link_geoms] - p1
         near = self._link_geoms[np.einsum('ij,ij->i', offsets, offsets) < self._link_reach_sq_m2]
@@ -543,5 +453,5 @@ class Cell:
             u = self._point_velocity(surface_point, int(self.model.geom_bodyid[geom]))
             if np.dot(v1 - u, normal) >= 0.0:
                 continue
-            return _Contact('robot', 1.0, surface_point + normal * ws.BALL_RADIUS_M, normal, u)
+            return bc.Contact(bc.ROBOT, 1.0, surface_point + normal * ws.BALL_RADIUS_M, normal, u)
         return None
