@@ -49,8 +49,8 @@ from stylepong_sim import batched_world as bw
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
 
-FAILURE_REASONS: tuple[str, ...] = bw.REASONS
-SUCCESS_INDEX = bw.REASON_INDEX[rf.REASON_RETURNED]
+FAILURE_REASONS: tuple[str, ...] = rf.REASONS
+SUCCESS_INDEX = rf.REASON_INDEX[rf.REASON_RETURNED]
 ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
 REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action')
@@ -364,7 +364,7 @@ class TableTennisEnv:
         dones = events.decided
         outcome = {'done': dones, 'success': events.success & dones, 'hit': w.hit & dones,
                    'reason': events.reason.clamp_min(0)}
-        extras = {env_contract.EXTRAS_TIME_OUTS: dones & (events.reason == bw.REASON_INDEX[rf.REASON_TIMEOUT]),
+        extras = {env_contract.EXTRAS_TIME_OUTS: dones & (events.reason == rf.REASON_INDEX[rf.REASON_TIMEOUT]),
                   env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
                   env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
@@ -397,7 +397,7 @@ class TableTennisEnv:
                                       / cfg.sigma_land_m) * success
         illegal_mask = torch.zeros_like(success)
         for name in ILLEGAL_REASONS:
-            illegal_mask |= events.decided & (events.reason == bw.REASON_INDEX[name])
+            illegal_mask |= events.decided & (events.reason == rf.REASON_INDEX[name])
         qdd = (qd - self._qd_prev) / self.policy_dt_s
         acc = cfg.w_acc * (torch.exp(-torch.linalg.vector_norm(qdd, dim=1) / cfg.sigma_acc_rad_s2) - 1.0)
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)

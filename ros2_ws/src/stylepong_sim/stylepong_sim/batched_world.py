@@ -15,7 +15,8 @@ batched_kinematics):
 * the ball: gravity and drag, and the cell's analytic contacts (world_spec.contact_response) with the
   table top, the net's faces and top, and the paddle's blade (faces swept in the blade's moving
   frame, so nothing tunnels; rim by the end position), one contact per step at its exact fraction;
-* the referee's rules (stylepong_sim.referee) as tensors: own bounces, hits, verdict and reason.
+* the referee's rules, the same functions of stylepong_sim.referee the cell's referee applies, on tensors:
+  own bounces, hits, verdict and reason.
 The cell steps physics at 1 ms; here physics runs at `physics_rate_hz` (default 120 Hz, two steps per
 60 Hz policy step) with the ball integrated by the midpoint rule (exact for gravity, so the coarser
 step loses nothing: landing points agree with the cell's to millimetres) and the arm at
@@ -30,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import torch
 
@@ -37,15 +39,6 @@ from stylepong_description import robot_model as rm
 from stylepong_sim import batched_kinematics as bk
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
-
-# Verdicts as indices (the referee's reason strings, one source of truth for their names).
-REASONS: tuple[str, ...] = (
-    rf.REASON_RETURNED, rf.REASON_NO_HIT, rf.REASON_SECOND_BOUNCE_OWN_SIDE, rf.REASON_OWN_SIDE, rf.REASON_NET,
-    rf.REASON_DOUBLE_HIT, rf.REASON_ROBOT_CONTACT, rf.REASON_OUT, rf.REASON_TABLE_CONTACT_BY_ROBOT,
-    rf.REASON_TIMEOUT,
-)
-REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
-NO_VERDICT = -1
 
 # The world's default step rates (the task's TaskConfig takes them from here): physics at 120 Hz, two
 # steps per 60 Hz policy step, and the arm at 4 sub-steps per physics step (480 Hz); see the docstring.
@@ -56,6 +49,16 @@ ARM_SUBSTEPS = 4
 _NONE, _TABLE, _NET, _PADDLE = 0, 1, 2, 3
 # Contact fraction of a surface not touched in a step: past the step's end (1), so any real contact is earlier.
 _NO_CONTACT = 2.0
+
+
+class _Contact(NamedTuple):
+    """The ball's contact in one physics step, per environment: which surface, when and where."""
+    kind: torch.Tensor                   # long [N]: _NONE, _TABLE, _NET or _PADDLE
+    fraction: torch.Tensor               # [N] of the step at which it happens (1 where none)
+    robot_link: torch.Tensor             # bool [N]: a robot link other than the blade, where nothing else was
+    centre_m: torch.Tensor               # [3, N] ball centre at the contact, on the surface
+    normal: torch.Tensor                 # [3, N] unit, out of the surface towards the ball
+    surface_velocity_m_s: torch.Tensor   # [3, N] the blade's velocity at the contact (0: table, net, none)
 
 
 @contextlib.contextmanager
@@ -121,7 +124,7 @@ class StepEvents:
     own_bounce: torch.Tensor       # bool: the ball bounced on the robot's half
     decided: torch.Tensor          # bool: the rally got its verdict in this period
     success: torch.Tensor          # bool: the verdict (valid where decided)
-    reason: torch.Tensor           # long: index into REASONS (valid where decided)
+    reason: torch.Tensor           # long: index into referee.REASONS (valid where decided)
 
 
 class BatchedWorld:
@@ -179,7 +182,7 @@ class BatchedWorld:
         self.own_bounces = torch.zeros(n, dtype=torch.long, device=self.device)
         self.open = torch.zeros(n, dtype=torch.bool, device=self.device)
         self.success = torch.zeros(n, dtype=torch.bool, device=self.device)
-        self.reason = torch.full((n,), NO_VERDICT, dtype=torch.long, device=self.device)
+        self.reason = torch.full((n,), rf.NO_VERDICT, dtype=torch.long, device=self.device)
         self.landing_xy_m = torch.zeros(2, n, **kw)
         self._armature = torch.diag(torch.tensor(ws.ARM_ARMATURE_KG_M2, **kw))[..., None]   # [6, 6, 1]
         self.table_contact_pos_m = torch.zeros(3, n, **kw)
@@ -240,7 +243,7 @@ class BatchedWorld:
         self.own_bounces[env_ids] = 0
         self.open[env_ids] = True
         self.success[env_ids] = False
-        self.reason[env_ids] = NO_VERDICT
+        self.reason[env_ids] = rf.NO_VERDICT
         self.landing_xy_m[:, env_ids] = 0.0
         if params is not None:
             self.params.assign(env_ids, params)
@@ -278,7 +281,7 @@ class BatchedWorld:
             own_bounce = own_bounce | bounce
         decided = was_open & ~self.open
         return StepEvents(paddle_hit=paddle_hit, own_bounce=own_bounce, decided=decided,
-                          success=self.success & decided, reason=torch.where(decided, self.reason, NO_VERDICT))
+                          success=self.success & decided, reason=torch.where(decided, self.reason, rf.NO_VERDICT))
 
     # --- the arm -------------------------------------------------------------------------------------
     def _arm_dynamics(self, kin: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
@@ -332,21 +335,26 @@ class BatchedWorld:
 
     def _ball_step(self, kin0: bk.Kinematics, kin1: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
         """One physics step of the ball and the referee; returns (paddle hit, own-side bounce) flags."""
-        dt = self.physics_dt_s
-        r = ws.BALL_RADIUS_M
         p0, v0 = self.ball_pos_m, self.ball_vel_m_s
-        displacement, v1 = self._free_flight(v0, dt)
+        displacement, v1 = self._free_flight(v0, self.physics_dt_s)
         p1 = p0 + displacement
+        contact, capsule_a, capsule_b = self._earliest_contact(kin0, kin1, p0, p1, v1)
+        p_new, v_new = self._bounce(contact, p0, v0, p1, v1)
+        return self._judge(kin1, capsule_a, capsule_b, contact, p_new, v_new)
 
-        # Table top: the ball's bottom crosses the plane on the table.
+    def _table_contact(self, p0: torch.Tensor, p1: torch.Tensor) -> torch.Tensor:
+        """Fraction of the step [N] at which the ball's bottom crosses the table top's plane over the table."""
         contact_z = ws.TABLE_CONTACT_HEIGHT_M
         f_table = (p0[2] - contact_z) / (p0[2] - p1[2])
         at = p0 + f_table * (p1 - p0)
-        table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & (at[0].abs() <= ws.HALF_LENGTH_M) \
-            & (at[1].abs() <= ws.HALF_WIDTH_M)
-        f_table = torch.where(table_ok, f_table, _NO_CONTACT)
+        table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & ws.on_table(at[0], at[1])
+        return torch.where(table_ok, f_table, _NO_CONTACT)
 
-        # Net: its two faces swept exactly; its top and ends by the end position against its box.
+    def _net_contact(self, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The net: its two faces swept exactly; its top and ends by the end position against its box.
+        Returns (fraction [N], normal [3, N], ball centre at the contact [3, N])."""
+        r = ws.BALL_RADIUS_M
         face_x = ws.NET_FACE_CONTACT_X_M
         side_net = torch.where(p0[0] >= 0.0, 1.0, -1.0).to(self.dtype)
         s0, s1 = side_net * p0[0], side_net * p1[0]
@@ -363,8 +371,14 @@ class BatchedWorld:
         normal_net = torch.where(net_face, torch.stack((side_net, 0.0 * side_net, 0.0 * side_net)), normal_net_box)
         centre_net = torch.where(net_face, p0 + f_net.clamp(max=1.0) * (p1 - p0), closest_net + normal_net_box * r)
         centre_net[0] = torch.where(net_face, side_net * face_x, centre_net[0])
+        return f_net, normal_net, centre_net
 
-        # Blade faces swept in its moving frame (positions relative to the blade before and after).
+    def _blade_contact(self, kin0: bk.Kinematics, kin1: bk.Kinematics, p0: torch.Tensor, p1: torch.Tensor,
+                       v1: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The blade: its faces swept in its moving frame (positions relative to the blade before and after
+        the step), its rim by the end position. Returns (fraction [N], normal, ball centre at the contact,
+        the blade's velocity there [3, N])."""
+        r = ws.BALL_RADIUS_M
         c0, rot0 = kin0.paddle_pos_m, kin0.paddle_rot
         c1, rot1 = kin1.paddle_pos_m, kin1.paddle_rot
         local0 = bk.mat_t_vec(rot0, p0 - c0)
@@ -392,73 +406,93 @@ class BatchedWorld:
         rim_hit = ~face_hit & (dist_rim < r) & (bk.dot(v1 - u_pad, normal_pad) < 0.0)
         f_pad = torch.where(face_hit, f_face, torch.where(rim_hit, torch.ones_like(f_face), _NO_CONTACT))
         centre_pad = surface_pad + normal_pad * r
+        return f_pad, normal_pad, centre_pad, u_pad
 
-        # The earliest contact wins; robot links only when nothing else was touched.
+    def _earliest_contact(self, kin0: bk.Kinematics, kin1: bk.Kinematics, p0: torch.Tensor, p1: torch.Tensor,
+                          v1: torch.Tensor) -> tuple[_Contact, torch.Tensor, torch.Tensor]:
+        """The earliest of the table, net and blade contacts in the step; robot links only when nothing else
+        was touched. Returns it with the robot's capsules [3, L, N] (end points a, b) at the step's end."""
+        f_table = self._table_contact(p0, p1)
+        f_net, normal_net, centre_net = self._net_contact(p0, p1, v1)
+        f_pad, normal_pad, centre_pad, u_pad = self._blade_contact(kin0, kin1, p0, p1, v1)
         f = torch.minimum(torch.minimum(f_table, f_net), f_pad)
         kind = torch.where(f > 1.0, _NONE, torch.where(f == f_table, _TABLE, torch.where(f == f_net, _NET, _PADDLE)))
         capsule_a, capsule_b = bk.capsule_segments(self.model, kin1)
         robot = (kind == _NONE) & self._touches_links(capsule_a, capsule_b, p1)
         f = torch.where(kind == _NONE, torch.ones_like(f), f)
-
         is_table, is_net, is_pad = kind == _TABLE, kind == _NET, kind == _PADDLE
-        contact = (kind != _NONE)
         normal = torch.where(is_table, self._up, torch.where(is_net, normal_net, normal_pad))
         centre = torch.where(is_table, p0 + f * (p1 - p0), torch.where(is_net, centre_net, centre_pad))
-        centre[2] = torch.where(is_table, torch.full_like(f, contact_z), centre[2])
+        centre[2] = torch.where(is_table, torch.full_like(f, ws.TABLE_CONTACT_HEIGHT_M), centre[2])
         surface_velocity = torch.where(is_pad, u_pad, torch.zeros_like(u_pad))
+        contact = _Contact(kind=kind, fraction=f, robot_link=robot, centre_m=centre, normal=normal,
+                           surface_velocity_m_s=surface_velocity)
+        return contact, capsule_a, capsule_b
+
+    def _bounce(self, contact: _Contact, p0: torch.Tensor, v0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The ball's position and velocity [3, N] at the step's end: off the surface it touched
+        (world_spec.contact_response) and flown for the rest of the step, or as flown where it touched none."""
+        f, kind = contact.fraction, contact.kind
+        is_table, is_net = kind == _TABLE, kind == _NET
         restitution = torch.where(is_table, self.params.table_restitution,
                                   torch.where(is_net, torch.full_like(f, ws.NET_RESTITUTION),
                                               self.params.paddle_restitution))
         tangential = torch.where(is_table, self.params.table_tangential_factor,
                                  torch.where(is_net, torch.full_like(f, ws.NET_TANGENTIAL_FACTOR),
                                              self.params.paddle_tangential_factor))
+        surface_velocity = contact.surface_velocity_m_s
         v_at = v0 + f * (v1 - v0)
         relative = (v_at - surface_velocity).T
-        v_out = surface_velocity + ws.contact_response(relative, normal.T, restitution[:, None], tangential[:, None]).T
-        rest = (1.0 - f) * dt
+        v_out = surface_velocity + ws.contact_response(relative, contact.normal.T, restitution[:, None],
+                                                       tangential[:, None]).T
+        rest = (1.0 - f) * self.physics_dt_s
         displacement, v_after = self._free_flight(v_out, rest)
-        p_new = torch.where(contact, centre + displacement, p1)
-        v_new = torch.where(contact, v_after, v1)
+        touched = kind != _NONE
+        return torch.where(touched, contact.centre_m + displacement, p1), torch.where(touched, v_after, v1)
 
-        # --- referee (stylepong_sim.referee, in the same order) ---
+    def _judge(self, kin1: bk.Kinematics, capsule_a: torch.Tensor, capsule_b: torch.Tensor, contact: _Contact,
+               p_new: torch.Tensor, v_new: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The referee's rules (stylepong_sim.referee, the same functions and order as the cell's referee) for
+        this step's contact and the ball's state after it; updates the rally state and returns the flags
+        (paddle's first hit, own-side bounce) [N]."""
         open_ = self.open
-        verdict = torch.full((self.num_envs,), NO_VERDICT, dtype=torch.long, device=self.device)
+        verdict = torch.full((self.num_envs,), rf.NO_VERDICT, dtype=torch.long, device=self.device)
 
         def decide(mask: torch.Tensor, reason: str) -> None:
             nonlocal verdict
-            verdict = torch.where(mask & (verdict == NO_VERDICT), REASON_INDEX[reason], verdict)
+            verdict = torch.where(mask & (verdict == rf.NO_VERDICT), rf.REASON_INDEX[reason], verdict)
+
+        def decide_all(event: torch.Tensor, verdicts: rf.Verdicts) -> None:
+            for reason, holds in verdicts:
+                decide(event & holds, reason)
 
         decide(open_ & self._robot_touches_table(kin1, capsule_a, capsule_b), rf.REASON_TABLE_CONTACT_BY_ROBOT)
-        own_side = centre[0] < 0.0
-        table_event = open_ & is_table
-        own_bounce = table_event & own_side & ~self.hit
+        centre, kind = contact.centre_m, contact.kind
+        own_side = rf.is_own_side(centre)
+        table_event = open_ & (kind == _TABLE)
+        own_bounce = table_event & rf.own_side_bounce(self.hit, own_side)
         self.own_bounces = self.own_bounces + own_bounce.long()
-        decide(table_event & self.hit & ~own_side, rf.REASON_RETURNED)
-        decide(table_event & self.hit & own_side, rf.REASON_OWN_SIDE)
-        decide(own_bounce & (self.own_bounces >= 2), rf.REASON_SECOND_BOUNCE_OWN_SIDE)
-        decide(open_ & is_net & self.hit, rf.REASON_NET)
-        pad_event = open_ & is_pad
-        decide(pad_event & self.hit, rf.REASON_DOUBLE_HIT)
+        decide_all(table_event, rf.table_contact_verdicts(self.hit, own_side, self.own_bounces))
+        decide_all(open_ & (kind == _NET), rf.net_contact_verdicts(self.hit))
+        pad_event = open_ & (kind == _PADDLE)
+        decide_all(pad_event, rf.paddle_contact_verdicts(self.hit))
         first_hit = pad_event & ~self.hit
-        decide(open_ & robot, rf.REASON_ROBOT_CONTACT)
+        decide(open_ & contact.robot_link, rf.REASON_ROBOT_CONTACT)
         self.landing_xy_m = torch.where(table_event & self.hit, centre[:2], self.landing_xy_m)
-        self.table_contact_pos_m = torch.where(is_table, centre, self.table_contact_pos_m)
+        self.table_contact_pos_m = torch.where(kind == _TABLE, centre, self.table_contact_pos_m)
         hit_after = self.hit | first_hit
-        # After the step: dead, out and timeout.
-        time_s = self.time_s + dt
-        dead = ((p_new[2] <= r) | (p_new[0].abs() > ws.CELL_HALF_EXTENT_M[0])
-                | (p_new[1].abs() > ws.CELL_HALF_EXTENT_M[1]))
-        off_table = (p_new[0].abs() > ws.HALF_LENGTH_M) | (p_new[1].abs() > ws.HALF_WIDTH_M)
-        out = hit_after & (dead | ((p_new[2] - r < ws.TABLE_HEIGHT_M) & off_table & (v_new[2] < 0.0)))
-        newly_out = open_ & out & (verdict == NO_VERDICT)
+        # After the step: dead, out and timeout (time since the launch).
+        time_s = self.time_s + self.physics_dt_s
+        state_verdicts = rf.ball_state_verdicts(hit_after, p_new, v_new[2], time_s, self.timeout_s)
+        # Out balls: where the referee calls them out.
+        newly_out = open_ & dict(state_verdicts)[rf.REASON_OUT] & (verdict == rf.NO_VERDICT)
         self.landing_xy_m = torch.where(newly_out, p_new[:2], self.landing_xy_m)
-        decide(open_ & out, rf.REASON_OUT)
-        decide(open_ & dead & ~hit_after, rf.REASON_NO_HIT)
-        decide(open_ & (time_s >= self.timeout_s), rf.REASON_TIMEOUT)
+        decide_all(open_, state_verdicts)
 
-        decided = verdict != NO_VERDICT
+        decided = verdict != rf.NO_VERDICT
         self.reason = torch.where(decided, verdict, self.reason)
-        self.success = self.success | (decided & (verdict == REASON_INDEX[rf.REASON_RETURNED]))
+        self.success = self.success | (decided & (verdict == rf.REASON_INDEX[rf.REASON_RETURNED]))
         self.open = open_ & ~decided
         self.hit = hit_after
         self.time_s = time_s
@@ -497,6 +531,6 @@ class BatchedWorld:
         lowest_x = kin.paddle_pos_m[0] + scale * nz * normal[0]
         lowest_y = kin.paddle_pos_m[1] + scale * nz * normal[1]
         lowest_z = kin.paddle_pos_m[2] - self._blade_radius_m * in_plane - self._blade_half_thickness_m * nz.abs()
-        blade = (lowest_x.abs() <= ws.HALF_LENGTH_M) & (lowest_y.abs() <= ws.HALF_WIDTH_M) \
-            & (lowest_z < ws.TABLE_HEIGHT_M) & (lowest_z > ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M)
+        blade = ws.on_table(lowest_x, lowest_y) & (lowest_z < ws.TABLE_HEIGHT_M) \
+            & (lowest_z > ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M)
         return touching | blade

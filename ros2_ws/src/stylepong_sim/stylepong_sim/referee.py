@@ -2,8 +2,10 @@
 state machine, free of ROS.
 
 A simulator reports what happens to the ball it launched (contacts, its state every physics step);
-the referee turns that into the ball's RallyEvent sequence. The batched training world implements
-the same rules in torch, so here they are in full.
+the referee turns that into the ball's RallyEvent sequence. The rules themselves are functions of
+arrays (`table_contact_verdicts`, `ball_state_verdicts` and their helpers: Python floats and bools,
+numpy arrays and torch tensors alike), so the MuJoCo cell's Referee here and the batched training
+world, which judges N balls at once in torch, apply the same code.
 
 Events (codes identical to stylepong_msgs/RallyEvent):
   LAUNCHED                at launch.
@@ -43,6 +45,7 @@ After RALLY_END the referee stays silent about that ball.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from stylepong_sim import world_spec as ws
 
@@ -76,6 +79,17 @@ REASON_TABLE_CONTACT_BY_ROBOT = 'table_contact_by_robot'
 REASON_TIMEOUT = 'timeout'
 REASON_ABORTED = 'aborted'
 
+# The verdicts a rule can give, as indices for arrays of balls (the batched world); 'aborted' is not among
+# them: only a simulator that removes a ball gives it.
+REASONS: tuple[str, ...] = (
+    REASON_RETURNED, REASON_NO_HIT, REASON_SECOND_BOUNCE_OWN_SIDE, REASON_OWN_SIDE, REASON_NET,
+    REASON_DOUBLE_HIT, REASON_ROBOT_CONTACT, REASON_OUT, REASON_TABLE_CONTACT_BY_ROBOT, REASON_TIMEOUT,
+)
+REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
+NO_VERDICT = -1
+# The event a verdict of the ball's state comes with (a no_hit has none).
+_STATE_VERDICT_EVENTS = {REASON_OUT: OUT, REASON_TIMEOUT: TIMEOUT}
+
 
 @dataclass(frozen=True)
 class RallyEvent:
@@ -96,17 +110,66 @@ def _xyz(position_m) -> tuple[float, float, float]:
     return (float(position_m[0]), float(position_m[1]), float(position_m[2]))
 
 
-def ball_is_dead(position_m) -> bool:
+# --- The rules, on one ball or on arrays of balls -------------------------------------------------------
+# A mask is a bool, a numpy bool array or a torch bool tensor; a position is indexable by axis (x, y, z
+# first: a sequence, an array [3, ...] or a tensor [3, N]). A rule's verdicts are (reason, mask) pairs in
+# the order the rules apply: the first whose mask holds is the verdict.
+Mask = Any        # bool | numpy bool array | torch bool tensor
+Values = Any      # float | numpy array | torch tensor (one value per ball)
+Position = Any    # (x, y, z) sequence | numpy array [3, ...] | torch tensor [3, N]
+Verdicts = tuple[tuple[str, Mask], ...]
+
+
+def logical_not(mask: Mask) -> Mask:
+    """Not, for bools, numpy arrays and torch tensors alike (~ on a Python bool gives -2, not False)."""
+    return mask ^ True
+
+
+def ball_is_dead(position_m: Position) -> Mask:
     """The ball's bottom touched the floor or its centre left the cell."""
-    x, y, z = _xyz(position_m)
-    return z <= ws.BALL_RADIUS_M or abs(x) > ws.CELL_HALF_EXTENT_M[0] or abs(y) > ws.CELL_HALF_EXTENT_M[1]
+    return ((position_m[2] <= ws.BALL_RADIUS_M) | (abs(position_m[0]) > ws.CELL_HALF_EXTENT_M[0])
+            | (abs(position_m[1]) > ws.CELL_HALF_EXTENT_M[1]))
 
 
-def ball_cannot_reach_table(position_m, vertical_velocity_m_s: float) -> bool:
+def ball_cannot_reach_table(position_m: Position, vertical_velocity_m_s: Values) -> Mask:
     """Bottom below the table top, outside the footprint, falling: the table top is out of reach."""
-    x, y, z = _xyz(position_m)
-    return (z - ws.BALL_RADIUS_M < ws.TABLE_HEIGHT_M and not ws.on_table(x, y)
-            and vertical_velocity_m_s < 0.0)
+    return ((position_m[2] - ws.BALL_RADIUS_M < ws.TABLE_HEIGHT_M) & ws.off_table(position_m[0], position_m[1])
+            & (vertical_velocity_m_s < 0.0))
+
+
+def is_own_side(position_m: Position) -> Mask:
+    """A table contact at this ball position is on the robot's half (x < 0)."""
+    return position_m[0] < 0.0
+
+
+def own_side_bounce(hit: Mask, own_side: Mask) -> Mask:
+    """A table contact that counts as a bounce on the robot's half: one before the paddle's hit."""
+    return own_side & logical_not(hit)
+
+
+def table_contact_verdicts(hit: Mask, own_side: Mask, own_bounces: Values) -> Verdicts:
+    """A table contact's verdicts; own_bounces counts this contact's own_side_bounce already."""
+    return ((REASON_RETURNED, hit & logical_not(own_side)), (REASON_OWN_SIDE, hit & own_side),
+            (REASON_SECOND_BOUNCE_OWN_SIDE, own_side_bounce(hit, own_side) & (own_bounces >= 2)))
+
+
+def net_contact_verdicts(hit: Mask) -> Verdicts:
+    """A returned ball touching the net before its first table contact."""
+    return ((REASON_NET, hit),)
+
+
+def paddle_contact_verdicts(hit: Mask) -> Verdicts:
+    """The paddle touching a ball it has hit already."""
+    return ((REASON_DOUBLE_HIT, hit),)
+
+
+def ball_state_verdicts(hit: Mask, position_m: Position, vertical_velocity_m_s: Values, time_since_launch_s: Values,
+                        timeout_s: float) -> Verdicts:
+    """The verdicts of the ball's state after a physics step: a dead ball, an out ball, the timeout."""
+    dead = ball_is_dead(position_m)
+    out = hit & (dead | ball_cannot_reach_table(position_m, vertical_velocity_m_s))
+    return ((REASON_NO_HIT, dead & logical_not(hit)), (REASON_OUT, out),
+            (REASON_TIMEOUT, time_since_launch_s >= timeout_s))
 
 
 class Referee:
@@ -143,34 +206,26 @@ class Referee:
     def table_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
             return []
-        own_side = float(position_m[0]) < 0.0
+        own_side = is_own_side(_xyz(position_m))
         event = self._event(BOUNCE_OWN_SIDE if own_side else BOUNCE_OPPONENT_SIDE, time_s, position_m)
-        if self._hit:
-            if own_side:
-                return [event, self._end(time_s, position_m, False, REASON_OWN_SIDE)]
-            return [event, self._end(time_s, position_m, True, REASON_RETURNED)]
-        if own_side:
+        if own_side_bounce(self._hit, own_side):
             self._own_bounces += 1
-            if self._own_bounces >= 2:
-                return [event, self._end(time_s, position_m, False, REASON_SECOND_BOUNCE_OWN_SIDE)]
-        return [event]
+        return [event] + self._first_verdict(time_s, position_m,
+                                             table_contact_verdicts(self._hit, own_side, self._own_bounces))
 
     def net_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
             return []
         event = self._event(NET, time_s, position_m)
-        if self._hit:
-            return [event, self._end(time_s, position_m, False, REASON_NET)]
-        return [event]
+        return [event] + self._first_verdict(time_s, position_m, net_contact_verdicts(self._hit))
 
     def paddle_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
             return []
         event = self._event(PADDLE_HIT, time_s, position_m)
-        if self._hit:
-            return [event, self._end(time_s, position_m, False, REASON_DOUBLE_HIT)]
+        verdict = self._first_verdict(time_s, position_m, paddle_contact_verdicts(self._hit))
         self._hit = True
-        return [event]
+        return [event] + verdict
 
     def robot_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
@@ -188,13 +243,20 @@ class Referee:
         """Called with the ball's state after every physics step: timeout, dead and out balls."""
         if not self._open:
             return []
-        dead = ball_is_dead(position_m)
-        if dead and not self._hit:
-            return [self._end(time_s, position_m, False, REASON_NO_HIT)]
-        if self._hit and (dead or ball_cannot_reach_table(position_m, float(velocity_m_s[2]))):
-            return [self._event(OUT, time_s, position_m), self._end(time_s, position_m, False, REASON_OUT)]
-        if time_s - self._launch_time_s >= self.timeout_s:
-            return [self._event(TIMEOUT, time_s, position_m), self._end(time_s, position_m, False, REASON_TIMEOUT)]
+        verdicts = ball_state_verdicts(self._hit, _xyz(position_m), float(velocity_m_s[2]),
+                                       time_s - self._launch_time_s, self.timeout_s)
+        for reason, holds in verdicts:
+            if holds:
+                event = _STATE_VERDICT_EVENTS.get(reason)
+                ended = [self._end(time_s, position_m, False, reason)]
+                return ended if event is None else [self._event(event, time_s, position_m)] + ended
+        return []
+
+    def _first_verdict(self, time_s: float, position_m, verdicts: Verdicts) -> list[RallyEvent]:
+        """The RALLY_END of the first verdict that holds (none: the rally goes on)."""
+        for reason, holds in verdicts:
+            if holds:
+                return [self._end(time_s, position_m, reason == REASON_RETURNED, reason)]
         return []
 
     def _event(self, event_type: int, time_s: float, position_m) -> RallyEvent:

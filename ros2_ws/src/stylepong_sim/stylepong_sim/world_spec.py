@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -98,10 +99,15 @@ BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its la
 CELL_HALF_EXTENT_M = (5.0, 4.0)
 
 
-def on_table(x_m, y_m):
+def on_table(x_m: Any, y_m: Any) -> Any:
     """Whether a point (x, y) lies over the table. Floats, numpy arrays and torch tensors alike (the
     referee's rules use it for one ball and for a batch)."""
     return (abs(x_m) <= HALF_LENGTH_M) & (abs(y_m) <= HALF_WIDTH_M)
+
+
+def off_table(x_m: Any, y_m: Any) -> Any:
+    """Whether a point (x, y) lies outside the table's footprint; floats, arrays and tensors alike."""
+    return (abs(x_m) > HALF_LENGTH_M) | (abs(y_m) > HALF_WIDTH_M)
 
 
 def yaw_rotation(yaw_rad: float) -> np.ndarray:

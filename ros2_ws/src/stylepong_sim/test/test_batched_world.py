@@ -103,7 +103,7 @@ def _run_to_verdict(world, max_steps=240):
         world.step(command)
         if not bool(world.open.any()):
             break
-    return [bw.REASONS[int(r)] if r >= 0 else None for r in world.reason]
+    return [rf.REASONS[int(r)] if r >= 0 else None for r in world.reason]
 
 
 def test_free_flight_matches_a_fine_reference():
@@ -213,7 +213,7 @@ def test_paddle_on_the_table_ends_the_rally():
         world.step(command)
         if not bool(world.open[0]):
             break
-    assert bw.REASONS[int(world.reason[0])] == rf.REASON_TABLE_CONTACT_BY_ROBOT
+    assert rf.REASONS[int(world.reason[0])] == rf.REASON_TABLE_CONTACT_BY_ROBOT
 
 
 def test_timeout():

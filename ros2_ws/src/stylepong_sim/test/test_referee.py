@@ -1,5 +1,7 @@
-"""The referee's rules (docs/DESIGN.md, "Evaluation protocol"), one rally at a time."""
+"""The referee's rules (docs/DESIGN.md, "Evaluation protocol"), one rally at a time and on arrays of balls."""
+import numpy as np
 import pytest
+import torch
 
 from stylepong_msgs.msg import RallyEvent as RallyEventMsg
 from stylepong_sim import referee as rf
@@ -127,3 +129,36 @@ def test_silent_after_the_verdict():
     for report in (ref.table_contact(0.6, OPPONENT), ref.paddle_contact(0.6, AIR), ref.net_contact(0.6, AIR),
                    ref.robot_table_contact(0.6, AIR), ref.ball_state(9.0, (0, 0, 0), FALLING)):
         assert report == []
+
+
+def _verdict_masks(verdicts) -> dict:
+    return {reason: holds for reason, holds in verdicts}
+
+
+def test_the_rules_judge_one_ball_and_arrays_of_balls_alike():
+    # The cell's Referee calls the rule functions on floats and bools, the batched world on tensors [3, N]:
+    # each ball of an array must get what the same ball gets alone.
+    rng = np.random.default_rng(0)
+    n = 400
+    position = np.stack((rng.uniform(-5.5, 5.5, n), rng.uniform(-4.5, 4.5, n), rng.uniform(-0.1, 1.5, n)))
+    position[:, :40] = np.array(OWN)[:, None]          # some exactly on the table's contact plane
+    vz = rng.uniform(-3.0, 3.0, n)
+    hit = rng.uniform(size=n) < 0.5
+    own_bounces = rng.integers(0, 3, n)
+    elapsed = rng.uniform(0.0, 2.0 * ws.BALL_TIMEOUT_S, n)
+    for array in (np.asarray, torch.as_tensor):
+        p, h = array(position), array(hit)
+        state = _verdict_masks(rf.ball_state_verdicts(h, p, array(vz), array(elapsed), ws.BALL_TIMEOUT_S))
+        own_side = rf.is_own_side(p)
+        table = _verdict_masks(rf.table_contact_verdicts(h, own_side, array(own_bounces)))
+        bounce = rf.own_side_bounce(h, own_side)
+        for i in range(n):
+            alone = tuple(float(x) for x in position[:, i])
+            hit_i = bool(hit[i])
+            expected_state = _verdict_masks(rf.ball_state_verdicts(hit_i, alone, float(vz[i]), float(elapsed[i]),
+                                                                   ws.BALL_TIMEOUT_S))
+            assert {k: bool(v[i]) for k, v in state.items()} == expected_state, i
+            own_i = rf.is_own_side(alone)
+            expected_table = _verdict_masks(rf.table_contact_verdicts(hit_i, own_i, int(own_bounces[i])))
+            assert {k: bool(v[i]) for k, v in table.items()} == expected_table, i
+            assert bool(bounce[i]) == rf.own_side_bounce(hit_i, own_i)
