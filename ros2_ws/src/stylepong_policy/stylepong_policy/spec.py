@@ -53,6 +53,16 @@ OBS_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 NUM_OBS = sum(size for _, size in OBS_LAYOUT)
 
+
+def observation_slice(name: str) -> slice:
+    """The columns of OBS_LAYOUT's entry `name` in an observation row (KeyError for an unknown name)."""
+    start = 0
+    for entry, size in OBS_LAYOUT:
+        if entry == name:
+            return slice(start, start + size)
+        start += size
+    raise KeyError(f'no {name!r} in OBS_LAYOUT: {[entry for entry, _ in OBS_LAYOUT]}')
+
 # torch is imported inside the functions that use it: the constants above are the whole contract, and the
 # player's ONNX path reads them on a robot computer that has no torch (player_core builds the same
 # observation with numpy).

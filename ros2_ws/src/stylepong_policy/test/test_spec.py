@@ -17,6 +17,15 @@ def test_layout_and_contract():
     assert decoding['home_rad'] == list(spec.HOME_JOINT_POSITIONS_RAD)
 
 
+def test_observation_slices_tile_the_layout_in_order():
+    slices = [spec.observation_slice(name) for name, _ in spec.OBS_LAYOUT]
+    assert [s.stop - s.start for s in slices] == [size for _, size in spec.OBS_LAYOUT]
+    assert slices[0].start == 0 and slices[-1].stop == spec.NUM_OBS
+    assert all(a.stop == b.start for a, b in zip(slices, slices[1:]))
+    with pytest.raises(KeyError):
+        spec.observation_slice('paddle_position_m')
+
+
 def test_decode_action_is_home_plus_scaled_clipped_action_within_limits():
     limits = rm.joint_limits()
     zero = spec.decode_action(torch.zeros(1, 6))
