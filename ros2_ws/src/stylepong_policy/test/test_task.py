@@ -87,7 +87,7 @@ def test_observation_delay_shows_an_older_ball():
         env.step(torch.zeros(4, 6))
     env.episode.ball_delay_steps[:] = torch.tensor([0.0, 1.0, 2.0, 0.5])
     obs, _ = env._observations()
-    ball = slice(12, 15)
+    ball = spec.observation_slice('ball_position_m')
     history = env._ball_history
     torch.testing.assert_close(obs[0, ball], history[0, 0, :3])
     torch.testing.assert_close(obs[1, ball], history[1, 1, :3])
@@ -180,9 +180,11 @@ def test_done_envs_restart_with_a_new_ball_and_the_arm_near_home():
             assert float(env.world.time_s[i]) == 0.0 and bool(env.world.open[i])
             assert not bool(env.world.hit[i])
             home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD)
-            torch.testing.assert_close(obs[i, :6], env.world.q_rad[:, i] - home)
-            assert obs[i, 12] > 0.5   # the new ball starts on the opponent's side
-            assert (obs[i, 20:26] == 0).all()   # no previous action in a new episode
+            torch.testing.assert_close(obs[i, spec.observation_slice('joint_position_offset_rad')],
+                                       env.world.q_rad[:, i] - home)
+            ball_x_m = obs[i, spec.observation_slice('ball_position_m')][0]
+            assert ball_x_m > 0.5   # the new ball starts on the opponent's side
+            assert (obs[i, spec.observation_slice('last_action')] == 0).all()   # no previous action in a new episode
             break
     assert seen
 
