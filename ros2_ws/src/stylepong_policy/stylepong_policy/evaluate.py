@@ -36,6 +36,7 @@ os.environ.setdefault('MUJOCO_GL', 'egl')
 
 import argparse
 import json
+import math
 import pathlib
 import sys
 import time
@@ -59,6 +60,8 @@ WORLDS = {False: 'batched world, nominal (no randomisation, no sensing noise)',
           True: 'batched world, training randomisation (physics, sensing noise, latencies; --randomize)'}
 VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
 SPEEDS = ('all', 'low', 'high')
+# |arrival y - paddle home y| bands (m) of dtw_by_lateral_offset: the demonstrated hits lie within 0.18 m.
+LATERAL_OFFSET_BANDS_M = (0.0, 0.2, 0.4, 0.6, math.inf)
 DTW_CALL = "dtaidistance.dtw_ndim.distance_fast(stroke, clip, inner_dist='euclidean')"
 
 
@@ -231,7 +234,15 @@ def smoothness_table(strokes: Sequence[st.Stroke], rate_hz: float = ACTION_RATE_
     return table
 
 
-def dtw_table(strokes: Sequence[st.Stroke], dataset, rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
+def nearest_matches(strokes: Sequence[st.Stroke], dataset) -> list[sm.DtwMatch | None]:
+    """Each stroke's nearest reference clip of its own label (None where the dataset has no such clip)."""
+    references = {direction: sm.reference_clips(dataset, direction) for direction in st.DIRECTIONS}
+    return [sm.nearest_reference(s.joint_positions_rad, references[s.direction]) if references[s.direction]
+            else None for s in strokes]
+
+
+def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None], dataset,
+              rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
     """Per direction: every stroke against every reference clip of that label, the mean of the smallest,
     and the summed distance split by joint and by phase of the stroke (style_metrics.cost_breakdown)."""
     from stylepong_description.robot_model import JOINT_NAMES
@@ -240,21 +251,35 @@ def dtw_table(strokes: Sequence[st.Stroke], dataset, rate_hz: float = ACTION_RAT
     for direction in st.DIRECTIONS:
         references = sm.reference_clips(dataset, direction)
         clips = dict(references)
-        chosen = [s for s in strokes if s.direction == direction]
-        entry = {'strokes': len(chosen), 'reference_clips': len(references), 'mean_rad': None, 'std_rad': None,
-                 'mean_per_path_step_rad': None, 'sum_by_joint_rad': None, 'sum_by_phase_rad': None}
-        if chosen and references:
-            matches = [sm.nearest_reference(s.joint_positions_rad, references) for s in chosen]
-            distances = np.array([m.distance for m in matches])
+        chosen = [(s, m) for s, m in zip(strokes, matches) if s.direction == direction and m is not None]
+        entry = {'strokes': sum(s.direction == direction for s in strokes), 'reference_clips': len(references),
+                 'mean_rad': None, 'std_rad': None, 'mean_per_path_step_rad': None, 'sum_by_joint_rad': None,
+                 'sum_by_phase_rad': None}
+        if chosen:
+            distances = np.array([m.distance for _, m in chosen])
             parts = [sm.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
-                     for s, m in zip(chosen, matches)]
+                     for s, m in chosen]
             by_joint = np.sum([p.by_joint_rad for p in parts], axis=0)
             entry.update(mean_rad=float(distances.mean()), std_rad=float(distances.std()),
-                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for m in matches])),
+                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for _, m in chosen])),
                          sum_by_joint_rad=dict(zip(JOINT_NAMES, by_joint.tolist())),
                          sum_by_phase_rad={phase: float(sum(p.by_phase_rad[phase] for p in parts))
                                            for phase in sm.PHASES})
         table[direction] = entry
+    return table
+
+
+def dtw_by_lateral_offset(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None],
+                          paddle_home_y_m: float) -> dict[str, dict]:
+    """Mean DTW distance of the strokes grouped by how far to the side of the paddle's home the ball
+    arrives (|arrival y - home y|, LATERAL_OFFSET_BANDS_M): whether strokes far from the demonstrated
+    hitting points are further from the demonstrations than those near them."""
+    table = {}
+    for low, high in zip(LATERAL_OFFSET_BANDS_M[:-1], LATERAL_OFFSET_BANDS_M[1:]):
+        distances = [m.distance for s, m in zip(strokes, matches)
+                     if m is not None and low <= abs(s.arrival_y_m - paddle_home_y_m) < high]
+        table[f'{low:g}-{high:g} m'] = {'strokes': len(distances),
+                                        'mean_rad': float(np.mean(distances)) if distances else None}
     return table
 
 
@@ -296,7 +321,9 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'smoothness': smoothness_table(strokes),
     }
     if dataset is not None:
-        summary['dtw'] = dtw_table(strokes, dataset)
+        matches = nearest_matches(strokes, dataset)
+        summary['dtw'] = dtw_table(strokes, matches, dataset)
+        summary['dtw_by_lateral_offset'] = dtw_by_lateral_offset(strokes, matches, home_y)
         summary['dtw_dataset'] = portable_path(dataset_path) if dataset_path is not None else None
         summary['dtw_call'] = DTW_CALL
     return summary

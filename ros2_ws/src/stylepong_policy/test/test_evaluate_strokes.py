@@ -85,6 +85,11 @@ def test_json_has_directions_smoothness_dtw_and_no_absolute_path(evaluated):
         if counts[direction]:
             assert dtw['mean_rad'] > 0 and 0 < dtw['mean_per_path_step_rad'] < dtw['mean_rad']
             assert result['smoothness'][direction]['peak_joint_speed_rad_s'] > 0
+    # Every stroke falls in one lateral-offset band, and the bands' means average to the directions' means.
+    bands = result['dtw_by_lateral_offset'].values()
+    assert sum(b['strokes'] for b in bands) == BALLS
+    by_direction = sum(d['mean_rad'] * d['strokes'] for d in result['dtw'].values() if d['strokes'])
+    assert sum(b['mean_rad'] * b['strokes'] for b in bands if b['strokes']) == pytest.approx(by_direction)
     assert result['mean_successes_per_seed'] == pytest.approx(result['success_rate'] * BALLS)
     for text in json_strings(result):
         assert not text.startswith('/'), text
@@ -112,7 +117,7 @@ def test_run_evaluation_returns_what_evaluate_prints(evaluated):
     printed = json.loads((evaluated / 'out' / 'eval.json').read_text())
     assert summary['per_seed'] == printed['per_seed'] and summary['failures'] == printed['failures']
     assert summary['directions'] == printed['directions'] and 'dtw' not in summary
-    assert set(printed) - set(summary) == {'dtw', 'dtw_dataset', 'dtw_call', 'strokes_file'}
+    assert set(printed) - set(summary) == {'dtw', 'dtw_by_lateral_offset', 'dtw_dataset', 'dtw_call', 'strokes_file'}
     # A loaded actor is accepted as well, and the path it was loaded from is reported as given.
     from stylepong_policy.rl.export import load_actor
     again = evaluate.run_evaluation(load_actor(PPO_ACTOR), seeds=1, first_seed=SEED, balls=BALLS)
