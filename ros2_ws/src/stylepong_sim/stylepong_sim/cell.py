@@ -34,7 +34,8 @@ Robot: the URDF's arm under the servo law of world_spec (rate-limited reference,
 the effort limits, ideal gravity compensation, armature, joint speed clip). It collides with the table,
 net and floor (MuJoCo contacts), never with itself. Joint efforts = servo torque + gravity compensation.
 
-Ball (2.7 g, no spin): integrated here, not by MuJoCo, every physics step dt (the batched world does the same):
+Ball (2.7 g, no spin): integrated here, not by MuJoCo, every physics step dt (the batched world integrates the
+same forces by the midpoint rule at its coarser step):
     v' = v + (g + drag_acceleration(v)) dt,  p' = p + v' dt                 (semi-implicit Euler)
   then the earliest contact within the step is found on the straight segment p -> p' (for the blade, the
   segment in the blade's moving frame): table, net and blade by ball_contacts (exact crossing times of
