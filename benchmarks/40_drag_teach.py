@@ -7,6 +7,10 @@
    500 Hz, wall clock) for DURATION_S; drag_teach reports on Ctrl-C what it measured itself: cycles,
    achieved rate, missed ticks (periods without a cycle) and compute time per cycle (its timer
    callback: controller plus publishing).
+3. Side by side: the same run with the drag_teach of OLD_COMMIT (its stylepong_fdcc and
+   stylepong_description sources from git, first on PYTHONPATH, against today's ur5_sim), alternating
+   with today's, PAIRS times each: this shared machine's load changes by the minute, so only runs
+   made together compare.
 Prints one Markdown section for BENCHMARKS.md (`make bench`).
 """
 import os
@@ -25,6 +29,9 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 DURATION_S = 20.0
 CYCLES = 20000
+OLD_COMMIT = '9dcd180'   # the code whose drag_teach missed 0.79 % of its ticks (BENCHMARKS.md of that commit)
+PAIRS = 3
+STATS = re.compile(r'(\d+) cycles in .*? (\d+) missed, compute mean (\d+) us, p99 (\d+) us')
 
 
 def controller_cycles() -> np.ndarray:
@@ -63,15 +70,31 @@ def controller_cycles() -> np.ndarray:
     return times
 
 
-def node_run() -> tuple[str, tuple[float, float, float]]:
+def old_sources() -> pathlib.Path | None:
+    """OLD_COMMIT's stylepong_fdcc and stylepong_description packages, extracted; None if the clone lacks it."""
+    target = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_old_'))
+    archive = subprocess.run(['git', 'archive', OLD_COMMIT, 'ros2_ws/src/stylepong_fdcc',
+                              'ros2_ws/src/stylepong_description'], cwd=ROOT, capture_output=True)
+    if archive.returncode != 0:
+        return None
+    subprocess.run(['tar', '-x', '-C', str(target)], input=archive.stdout, check=True)
+    return target / 'ros2_ws' / 'src'
+
+
+def node_run(old_src: pathlib.Path | None = None) -> tuple[str, tuple[float, float, float]]:
+    """drag_teach (today's, or the one in old_src) against ur5_sim; its statistics line and the load."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                PYTHONUNBUFFERED='1')
+    drag_command = ['ros2', 'run', 'stylepong_fdcc', 'drag_teach']
+    if old_src is not None:
+        env['PYTHONPATH'] = os.pathsep.join([str(old_src / 'stylepong_fdcc'), str(old_src / 'stylepong_description'),
+                                             env.get('PYTHONPATH', '')])
+        drag_command = [sys.executable, '-m', 'stylepong_fdcc.drag_teach_node']
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_'))
     sim_log, drag_log = open(logs / 'ur5_sim.log', 'w'), open(logs / 'drag_teach.log', 'w')
     sim = subprocess.Popen(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], stdout=sim_log, stderr=subprocess.STDOUT,
                            env=env, start_new_session=True)
-    drag = subprocess.Popen(['ros2', 'run', 'stylepong_fdcc', 'drag_teach'], stdout=drag_log,
-                            stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    drag = subprocess.Popen(drag_command, stdout=drag_log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
     try:
         deadline = time.monotonic() + 60.0
         while 'running' not in (logs / 'drag_teach.log').read_text():
@@ -114,7 +137,25 @@ def main() -> int:
     print(f'Load average of the machine at the end: {load[0]:.2f} (1 min), {load[1]:.2f} (5 min) on '
           f'{os.cpu_count()} cores: other work on this shared machine takes cycles from the node, which '
           'shows as missed ticks.')
+    print_side_by_side(old_sources())
     return 0
+
+
+def print_side_by_side(old_src: pathlib.Path | None) -> None:
+    """Today's drag_teach and OLD_COMMIT's, alternating, PAIRS runs each, as a Markdown table."""
+    print(f'\n### Side by side with the drag_teach of commit {OLD_COMMIT}\n')
+    if old_src is None:
+        print(f'Not measured: commit {OLD_COMMIT} is not in this clone.')
+        return
+    print(f'{PAIRS} runs of each, alternating (old first), {DURATION_S:.0f} s each, the same ur5_sim:\n')
+    print('| code | run | cycles | missed ticks | missed % | compute mean | compute p99 | load (1 min) |')
+    print('|---|---|---|---|---|---|---|---|')
+    for run in range(1, PAIRS + 1):
+        for name, source in ((f'old ({OLD_COMMIT})', old_src), ('today', None)):
+            stats, load = node_run(source)
+            cycles, missed, mean_us, p99_us = (int(x) for x in STATS.search(stats).groups())
+            print(f'| {name} | {run} | {cycles} | {missed} | {100.0 * missed / (cycles + missed):.2f} % | '
+                  f'{mean_us} us | {p99_us} us | {load[0]:.2f} |', flush=True)
 
 
 if __name__ == '__main__':
