@@ -278,8 +278,8 @@ def dtw_by_lateral_offset(strokes: Sequence[st.Stroke], matches: Sequence[sm.Dtw
     for low, high in zip(LATERAL_OFFSET_BANDS_M[:-1], LATERAL_OFFSET_BANDS_M[1:]):
         distances = [m.distance for s, m in zip(strokes, matches)
                      if m is not None and low <= abs(s.arrival_y_m - paddle_home_y_m) < high]
-        table[f'{low:g}-{high:g} m'] = {'strokes': len(distances),
-                                        'mean_rad': float(np.mean(distances)) if distances else None}
+        band = f'{low:g}-{high:g} m' if math.isfinite(high) else f'{low:g} m and more'
+        table[band] = {'strokes': len(distances), 'mean_rad': float(np.mean(distances)) if distances else None}
     return table
 
 
