@@ -185,8 +185,8 @@ def _tool_rotation_in_world(q) -> np.ndarray:
     model = rm.pinocchio_model()
     data = model.createData()
     pin.framesForwardKinematics(model, data, np.asarray(q))
-    yaw = pin.utils.rpyToMatrix(0.0, 0.0, ws.ROBOT_BASE_YAW_RAD)
-    return yaw @ data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
+    base_rotation, _ = ws.robot_base_pose()
+    return base_rotation @ data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
 
 
 def _mean_force(samples) -> np.ndarray:

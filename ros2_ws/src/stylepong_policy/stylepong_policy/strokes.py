@@ -67,7 +67,7 @@ def paddle_home_position_m() -> tuple[float, float, float]:
     model = rm.pinocchio_model()
     data = model.createData()
     pin.framesForwardKinematics(model, data, np.asarray(ws.HOME_JOINT_POSITIONS_RAD, dtype=float))
-    base = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, ws.ROBOT_BASE_YAW_RAD), np.asarray(ws.ROBOT_BASE_POSITION_M))
+    base = pin.SE3(*ws.robot_base_pose())
     position = (base * data.oMf[model.getFrameId(rm.PADDLE_CENTRE_FRAME)]).translation
     return float(position[0]), float(position[1]), float(position[2])
 
