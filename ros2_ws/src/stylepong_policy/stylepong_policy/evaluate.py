@@ -48,10 +48,10 @@ import torch
 
 from stylepong_policy import strokes as st
 from stylepong_policy import style_metrics as sm
-from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_policy.spec import ACTION_RATE_HZ
 from stylepong_sim.referee import REASON_RETURNED
+from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
 SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball

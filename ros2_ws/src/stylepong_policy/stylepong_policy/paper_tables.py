@@ -46,10 +46,9 @@ from stylepong_policy import paper_charts as charts
 from stylepong_policy import paper_figures as paper
 from stylepong_policy import strokes as st
 from stylepong_policy import style_metrics as sm
-from stylepong_policy.rl.config import FIRST_EVALUATION_SEED
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_policy.spec import ACTION_RATE_HZ
-from stylepong_sim.world_spec import SPEED_RANGES_M_S
+from stylepong_sim.world_spec import FIRST_EVALUATION_SEED, SPEED_RANGES_M_S
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')
 SHIPPED_FILES = {'ppo': 'ppo_actor.pt', 'amp-noaug': 'amp_noaug_actor.pt', 'amp': 'amp_actor.pt'}

@@ -41,10 +41,11 @@ from dataclasses import dataclass
 
 import torch
 
-from stylepong_policy.rl.config import FIRST_EVALUATION_SEED, config_from_dict, method_of
+from stylepong_policy.rl.config import config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.networks import ActorCritic
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
+from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
 CSV_NAME = 'validation.csv'
 CURVE_NAME = 'validation_curve.png'

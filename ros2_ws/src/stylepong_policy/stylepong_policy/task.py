@@ -69,7 +69,7 @@ class TaskConfig:
     compile_world: bool = False                     # torch.compile the world's stages (3x faster, ~1 min start)
     episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
     reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
-    goal_radius_m: float = 0.25
+    goal_radius_m: float = ws.GOAL_RADIUS_M
     # Sensing noise: maximum standard deviations; each episode draws a level in [0, 1] times these.
     noise_joint_position_rad: float = 0.003
     noise_joint_velocity_rad_s: float = 0.03

@@ -35,7 +35,6 @@ import time
 import torch
 
 from stylepong_policy.rl.config import (
-    FIRST_EVALUATION_SEED,
     METHODS,
     ORIGINAL_CLIPS_ONLY,
     AMPConfig,
@@ -48,6 +47,7 @@ from stylepong_policy.rl.config import (
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.logger import CSV_NAME, plot_learning_curve
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, OnPolicyRunner, find_checkpoint, read_checkpoint, seed_everything
+from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
 PACKAGE = 'stylepong_policy'
 SUMMARY_NAME = 'summary.json'

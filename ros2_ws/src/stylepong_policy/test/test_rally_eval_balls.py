@@ -18,7 +18,7 @@ def test_rally_eval_balls_are_the_evaluation_balls_of_the_seed():
 
 def test_goals_lie_on_the_opponents_half_with_their_region():
     goals = rally_eval.goals_for_seed(3, 500)
-    r = rally_eval.GOAL_RADIUS_M
+    r = ws.GOAL_RADIUS_M
     assert (goals[:, 0] >= r).all() and (goals[:, 0] <= ws.HALF_LENGTH_M - r).all()
     assert (np.abs(goals[:, 1]) <= ws.HALF_WIDTH_M - r).all()
-    assert rally_eval.GOAL_RADIUS_M == task.TaskConfig().goal_radius_m
+    assert task.TaskConfig().goal_radius_m == r      # the task rewards the region rally_eval sends

@@ -8,7 +8,7 @@ the balls are those of `ros2 run stylepong_policy evaluate` for S: the batched w
 sampler seeded with S, in the same batch size, so ball i here is environment i's first ball there (the
 launch state exactly; what differs is the cell: MuJoCo at 1 kHz instead of the batched world's physics,
 and ROS timing). Each ball gets a goal drawn from the task's goal distribution (uniform over centres of
-a GOAL_RADIUS_M region wholly on the opponent's half, seeded with S), sent on /player/goal.
+a ws.GOAL_RADIUS_M region wholly on the opponent's half, seeded with S), sent on /player/goal.
 
 Between balls: wait until the rally has ended (RALLY_END for that ball), the ball is gone and the player
 is back at home (/player/status: ready and at_home; without a player, until /joint_states is at home
@@ -52,8 +52,6 @@ from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import world_spec as ws
 from stylepong_sim.referee import REASON_RETURNED
 
-FIRST_EVALUATION_SEED = 1000      # seeds below are training and validation seeds
-GOAL_RADIUS_M = 0.25              # the task's goal region radius (stylepong_policy.task.TaskConfig.goal_radius_m)
 HOME_TOLERANCE_RAD = 0.02
 REST_SPEED_RAD_S = 0.05
 BALL_GONE_S = 0.3                 # no /ball/state for this long (wall): the ball has left the cell
@@ -93,9 +91,9 @@ def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.nd
 
 
 def goals_for_seed(seed: int, count: int) -> np.ndarray:
-    """Goal centres [count, 2], uniform so that a GOAL_RADIUS_M region lies on the opponent's half."""
+    """Goal centres [count, 2], uniform so that a ws.GOAL_RADIUS_M region lies on the opponent's half."""
     rng = np.random.default_rng(seed)
-    r = GOAL_RADIUS_M
+    r = ws.GOAL_RADIUS_M
     return np.stack((rng.uniform(r, ws.HALF_LENGTH_M - r, count),
                      rng.uniform(-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r, count)),
                     axis=1)
@@ -270,8 +268,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
     parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
     parser.add_argument('--balls', type=int, default=20, help='balls per seed')
-    parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
-                        help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')
+    parser.add_argument('--first-seed', type=int, default=ws.FIRST_EVALUATION_SEED,
+                        help=f'first seed (evaluation seeds are >= {ws.FIRST_EVALUATION_SEED})')
     parser.add_argument('--seeds', type=int, default=1, help='number of seeds')
     parser.add_argument('--speed', choices=tuple(ws.SPEED_RANGES_M_S), default='all', help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the summary here')
@@ -294,8 +292,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the rally_eval executable."""
     argv = sys.argv if argv is None else ['rally_eval', *argv]
     args = parse_args(remove_ros_args(argv)[1:])
-    if args.first_seed < FIRST_EVALUATION_SEED:
-        print(f'rally_eval: seeds below {FIRST_EVALUATION_SEED} are training/validation seeds', file=sys.stderr)
+    if args.first_seed < ws.FIRST_EVALUATION_SEED:
+        print(f'rally_eval: seeds below {ws.FIRST_EVALUATION_SEED} are training/validation seeds', file=sys.stderr)
     rclpy.init(args=argv)
     node = RallyEvalNode()
     executor = SingleThreadedExecutor()

@@ -127,6 +127,14 @@ def robot_base_pose() -> tuple[np.ndarray, np.ndarray]:
 
 
 # --- Incoming balls -------------------------------------------------------------------------------
+# Seeds of the incoming balls: training and validation seeds stay below FIRST_EVALUATION_SEED and
+# evaluation seeds start at it, so no reported figure comes from a world the policy was trained or
+# selected in (docs/DESIGN.md, "Evaluation protocol"). Read by train, select_checkpoint, evaluate and
+# rally_eval.
+FIRST_EVALUATION_SEED = 1000
+# A rally's goal: a region of this radius on the opponent's half, its centre drawn per ball (the task
+# and rally_eval).
+GOAL_RADIUS_M = 0.25
 # The serve solvers (sample_incoming_ball here, batched_launcher for batches) search the launch
 # elevation within this bracket, follow a flight to its first bounce for at most MAX_FLIGHT_S and the
 # rebound towards the paddle's reach for at most REBOUND_HORIZON_S.

@@ -20,9 +20,6 @@ from typing import Any
 import yaml
 
 SCHEDULES = ('adaptive', 'fixed', 'linear')
-# Training and validation seeds stay below it, evaluation seeds start at it, so no reported figure comes
-# from a world the policy was trained or selected in (docs/DESIGN.md, "Evaluation protocol").
-FIRST_EVALUATION_SEED = 1000
 
 
 @dataclass
@@ -61,7 +58,7 @@ class PPOConfig:
 class RunnerConfig:
     """The run: iterations, seed, device, threads and checkpointing."""
     iterations: int = 1300               # total iterations of the run (a resumed run continues to this)
-    seed: int = 1                        # below FIRST_EVALUATION_SEED
+    seed: int = 1                        # below world_spec.FIRST_EVALUATION_SEED
     device: str = 'cpu'                  # 'cpu' or 'cuda' (or 'cuda:N')
     num_threads: int = 2                 # torch intra-op threads on CPU
     save_interval: int = 50              # iterations between numbered checkpoints (last.pt is every iteration)
