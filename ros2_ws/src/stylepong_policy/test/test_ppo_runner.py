@@ -80,6 +80,24 @@ def test_checkpoint_files_csv_and_tensorboard(tmp_path):
     assert (tmp_path / 'curve.png').stat().st_size > 10_000
 
 
+def test_a_slim_checkpoint_resumes_with_its_model_and_a_fresh_optimiser(tmp_path):
+    """A checkpoint stripped to the model and its records (optimiser and RNG states dropped) still resumes."""
+    seed_everything(3)
+    run = make_runner(tmp_path / 'a')
+    run.learn(2, progress_bar=False)
+    slim = read_checkpoint(tmp_path / 'a' / 'checkpoints' / 'last.pt')
+    slim.update(optimizer=None, rng=None, motion_prior=None)
+    torch.save(slim, tmp_path / 'slim.pt')
+    resumed = make_runner(tmp_path / 'b')
+    resumed.load(tmp_path / 'slim.pt')
+    assert resumed.iteration == 2
+    for a, b in zip(run.actor_critic.state_dict().values(), resumed.actor_critic.state_dict().values()):
+        assert torch.equal(a, b)
+    assert not resumed.alg.optimizer.state            # fresh: no Adam moments yet
+    resumed.learn(3, progress_bar=False)
+    assert resumed.iteration == 3
+
+
 def test_resume_from_an_older_checkpoint_rewrites_the_csv_history(tmp_path):
     make_runner(tmp_path).learn(5, progress_bar=False)
     again = make_runner(tmp_path)

@@ -222,7 +222,10 @@ class OnPolicyRunner:
             diff = {k: (data['architecture'].get(k), v) for k, v in mine.items() if data['architecture'].get(k) != v}
             raise ValueError(f'checkpoint {path} does not fit this network/env (checkpoint vs now): {diff}')
         self.actor_critic.load_state_dict(data['model'])
-        self.alg.optimizer.load_state_dict(data['optimizer'])
+        # A slim checkpoint (the model and its records only, as numbered checkpoints are kept to save
+        # space) continues with a fresh optimiser and, under AMP, a fresh discriminator.
+        if data.get('optimizer') is not None:
+            self.alg.optimizer.load_state_dict(data['optimizer'])
         self.alg._set_learning_rate(data['learning_rate'])
         self.iteration = int(data['iteration'])
         self.env_steps = int(data['env_steps'])
@@ -231,7 +234,7 @@ class OnPolicyRunner:
         self.sessions = [dict(s) for s in data.get('sessions') or []]
         if self.motion_prior is not None and data.get('motion_prior') is not None:
             self.motion_prior.load_state_dict(data['motion_prior'])
-        if restore_rng:
+        if restore_rng and data.get('rng') is not None:
             restore_rng_state(data['rng'], self.shuffle)
         return path
 
