@@ -33,6 +33,12 @@ class VideoRecorder:
         self.camera = camera
         self.clock = SampleClock(fps)
         self.frames = 0
+        # An unwritable destination fails here, with its reason (OSError), not at the first frame inside ffmpeg.
+        if self.path.suffix.lower() == '.mp4':
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.path.open('wb').close()
+        else:
+            self.path.mkdir(parents=True, exist_ok=True)
         try:
             self._renderer = mujoco.Renderer(model, height, width)
         except mujoco.FatalError as error:
@@ -41,12 +47,9 @@ class VideoRecorder:
         self._writer = None
         if self.path.suffix.lower() == '.mp4':
             import imageio_ffmpeg
-            self.path.parent.mkdir(parents=True, exist_ok=True)
             self._writer = imageio_ffmpeg.write_frames(str(self.path), (width, height), fps=fps, codec='libx264',
                                                        pix_fmt_out='yuv420p', quality=7)
             self._writer.send(None)   # starts ffmpeg
-        else:
-            self.path.mkdir(parents=True, exist_ok=True)
 
     def capture(self, data: mujoco.MjData) -> None:
         self._renderer.update_scene(data, camera=self.camera)

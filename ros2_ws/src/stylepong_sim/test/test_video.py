@@ -46,3 +46,15 @@ def test_bad_video_settings_are_rejected(tmp_path):
         VideoRecorder(cell.model, str(tmp_path / 'x.mp4'), camera='nowhere')
     with pytest.raises(ValueError):
         VideoRecorder(cell.model, str(tmp_path / 'x.mp4'), width=330)
+
+
+def test_an_unwritable_destination_fails_at_once_with_its_reason(tmp_path):
+    cell = Cell()
+    taken = tmp_path / 'clip.mp4'
+    taken.mkdir()                                     # a folder where the file should go: ffmpeg would only
+    with pytest.raises(OSError):                      # fail at the first frame
+        VideoRecorder(cell.model, str(taken))
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    with pytest.raises(OSError):                      # a file where the frames' folder should go
+        VideoRecorder(cell.model, str(blocker / 'frames'))
