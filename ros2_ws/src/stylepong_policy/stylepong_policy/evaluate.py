@@ -26,17 +26,10 @@ device=...)` returns the same dict.
 """
 from __future__ import annotations
 
-import os
-
-# Before torch loads OpenMP: idle OpenMP threads sleep instead of spinning. On 2 cores shared with other
-# work, spinning threads made a PPO update 4-5x slower than one thread; sleeping ones cost ~nothing.
-os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
-# MuJoCo picks its GL back end when first imported (the world imports it): headless EGL for --video.
-os.environ.setdefault('MUJOCO_GL', 'egl')
-
 import argparse
 import json
 import math
+import os
 import pathlib
 import sys
 import time

@@ -22,16 +22,12 @@ Exit status 0 when written, 2 when an actor is missing or does not load, or for 
 """
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # see evaluate: idle OpenMP threads must not spin
-os.environ.setdefault('MUJOCO_GL', 'egl')             # Fig. 2 renders headless
-
 import argparse
 import contextlib
 import datetime
 import io
 import json
+import os
 import pathlib
 import sys
 import time

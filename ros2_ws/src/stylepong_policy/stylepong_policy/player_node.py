@@ -15,7 +15,6 @@ Clock       the node's: wall time, or /clock with use_sim_time:=true (ur5_sim), 
 from __future__ import annotations
 
 import json
-import os
 import pathlib
 import sys
 import time
@@ -93,8 +92,6 @@ class PlayerNode(Node):
         except ValueError as error:
             raise ParameterError(str(error)) from error
         actor_path = value['actor'] or _default_actor()
-        # Before onnxruntime or torch start thread pools: idle threads sleep rather than spin (shared cores).
-        os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
         actor = core.load_actor(actor_path, value['backend'])
         self.core = core.PlayerCore(config, actor)
         self.backend = value['backend']

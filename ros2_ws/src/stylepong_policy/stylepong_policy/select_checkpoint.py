@@ -25,13 +25,10 @@ higher high-speed success rate (when validated), then to the earlier iteration (
 """
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # before torch: idle OpenMP threads sleep (evaluate.py)
-
 import argparse
 import csv
 import json
+import os
 import pathlib
 import re
 import sys

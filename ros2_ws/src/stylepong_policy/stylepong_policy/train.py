@@ -15,12 +15,6 @@ interrupted run up to it (Ctrl-C saves and exports).
 """
 from __future__ import annotations
 
-import os
-
-# Before torch loads OpenMP: idle OpenMP threads sleep instead of spinning. On 2 cores shared with other
-# work, spinning threads made a PPO update 4-5x slower than one thread; sleeping ones cost ~nothing.
-os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')
-
 import argparse
 import dataclasses
 import json

@@ -57,9 +57,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from stylepong_sim import headless  # noqa: F401  (before mujoco: the cell's model can be rendered)
-
-# isort: split
 import mujoco
 import numpy as np
 

@@ -14,9 +14,6 @@ conaffinity 1) but never each other (the URDF's collision meshes of neighbouring
 """
 from __future__ import annotations
 
-from stylepong_sim import headless  # noqa: F401  (before mujoco)
-
-# isort: split
 import mujoco
 import numpy as np
 

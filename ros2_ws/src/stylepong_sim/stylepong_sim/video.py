@@ -1,7 +1,7 @@
 """Headless video of the cell: MuJoCo's offscreen renderer to an MP4 file or a folder of PNG frames.
 
 Free of ROS. Rendering needs MUJOCO_GL=egl (or osmesa) before mujoco is first imported when there is no
-display; stylepong_sim.headless (imported by cell, scene and this module first) sets egl in that case.
+display; importing stylepong_sim (its __init__) sets egl in that case.
 A 640x480 frame costs about 15-20 ms of CPU.
     recorder = VideoRecorder(cell.model, 'rally.mp4', fps=30)   # or a folder path: frame_000000.png, ...
     if recorder.clock.due(cell.time_s): recorder.capture(cell.data)
@@ -11,9 +11,6 @@ from __future__ import annotations
 
 import pathlib
 
-from stylepong_sim import headless  # noqa: F401  (before mujoco)
-
-# isort: split
 import mujoco
 import numpy as np
 
