@@ -45,8 +45,7 @@ class ActorCritic(nn.Module):
     """Gaussian policy pi(a|o) = N(actor(norm(o)), diag(std^2)) and value V(norm_c(o_critic))."""
 
     def __init__(self, num_obs: int, num_critic_obs: int, num_actions: int,
-                 actor_hidden_dims: Sequence[int] = (512, 256, 128),
-                 critic_hidden_dims: Sequence[int] = (512, 256, 128),
+                 actor_hidden_dims: Sequence[int], critic_hidden_dims: Sequence[int],   # rl.config.PolicyConfig
                  activation: str = 'elu', init_noise_std: float = 1.0, min_std: float = 1e-3,
                  normalize_observations: bool = True):
         super().__init__()
