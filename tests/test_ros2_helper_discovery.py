@@ -201,3 +201,14 @@ def test_topic_list_returns_once_the_graph_is_complete_not_at_the_cap(helper, pr
     # About spin time + settling (4 s). A GID format mismatch would never let the graph count as complete:
     # the wait would run to its cap.
     assert took < helper.DEFAULT_SPIN_TIME_S + helper.GRAPH_MAX_EXTRA_S, took
+
+
+def test_an_error_after_a_stop_signal_ends_the_verb_quietly(helper, monkeypatch):
+    # SIGTERM while rclpy converts a received message surfaces as pybind11's RuntimeError, not _Stopped.
+    def interrupted(_argv):
+        raise RuntimeError('Unable to convert call argument')
+    monkeypatch.setattr(helper, '_stop_signal', None)
+    with pytest.raises(RuntimeError):                 # without a stop signal, an error is an error
+        helper._run_graph_verb(interrupted, [])
+    monkeypatch.setattr(helper, '_stop_signal', 'SIGTERM')
+    assert helper._run_graph_verb(interrupted, []) == 0
