@@ -22,6 +22,8 @@ from tests import joint_state_bags
 
 JOINT_STATES = '/joint_states'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+WRENCH = '/force_torque_sensor_broadcaster/wrench'
+WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 STORE = joint_state_bags.jazzy_typestore()
 
 

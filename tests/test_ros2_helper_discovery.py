@@ -99,31 +99,30 @@ def _fake_discovery(monkeypatch, helper, readers_after_s: float) -> _FakeReader:
     return reader
 
 
+def _timed_wait(helper, monkeypatch, node_name: str, readers_after_s: float) -> tuple[float, _FakeReader]:
+    """Seconds `_wait_for_graph` (spin time 0.2 s) takes on a fresh helper node whose faked discovery
+    shows the remote readers readers_after_s after the node starts; and the fake reader."""
+    rclpy, node = helper._start_node(node_name)
+    try:
+        reader = _fake_discovery(monkeypatch, helper, readers_after_s=readers_after_s)
+        started = time.monotonic()
+        helper._wait_for_graph(node, spin_time=0.2)
+        return time.monotonic() - started, reader
+    finally:
+        helper._stop_node(rclpy, node)
+
+
 def test_the_wait_outlasts_a_quiet_graph_until_the_named_endpoints_are_discovered(helper, ros_env, monkeypatch):
     # The node's own graph (a domain of its own) stays unchanged: the settle rule alone would return after
     # spin_time + GRAPH_SETTLE_S = 0.7 s, without the cell's subscriptions.
-    rclpy, node = helper._start_node('_ros2_helper_wait_test')
-    try:
-        reader = _fake_discovery(monkeypatch, helper, readers_after_s=2.0)
-        started = time.monotonic()
-        helper._wait_for_graph(node, spin_time=0.2)
-        waited = time.monotonic() - started
-    finally:
-        helper._stop_node(rclpy, node)
+    waited, reader = _timed_wait(helper, monkeypatch, '_ros2_helper_wait_test', readers_after_s=2.0)
     assert 2.0 <= waited < 2.0 + 1.0, waited
     assert reader.closed
 
 
 def test_the_wait_gives_up_on_an_incomplete_graph_after_the_hard_cap(helper, ros_env, monkeypatch):
     monkeypatch.setattr(helper, 'GRAPH_MAX_EXTRA_S', 1.0)
-    rclpy, node = helper._start_node('_ros2_helper_cap_test')
-    try:
-        _fake_discovery(monkeypatch, helper, readers_after_s=float('inf'))
-        started = time.monotonic()
-        helper._wait_for_graph(node, spin_time=0.2)
-        waited = time.monotonic() - started
-    finally:
-        helper._stop_node(rclpy, node)
+    waited, _ = _timed_wait(helper, monkeypatch, '_ros2_helper_cap_test', readers_after_s=float('inf'))
     assert 1.2 <= waited < 1.2 + 1.0, waited
 
 

@@ -59,13 +59,12 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
 def evaluate_shipped(name: str, models: pathlib.Path) -> list[pathlib.Path]:
     """Run `evaluate` on the shipped actor for every entry of EVALUATIONS; returns the JSON files written.
 
-    The actor is named relative to the repository when it lies inside it, as the eval files record it."""
+    Run from the repository root, so that evaluate records the actor's path relative to it."""
     actor = (models / f'{name}_actor.pt').resolve()
-    shown = actor.relative_to(ROOT) if actor.is_relative_to(ROOT) else actor
     written = []
     for suffix, flags in EVALUATIONS.items():
         path = (models / f'{name}_{suffix}.json').resolve()
-        subprocess.run(['ros2', 'run', 'stylepong_policy', 'evaluate', '--actor', str(shown), *flags,
+        subprocess.run(['ros2', 'run', 'stylepong_policy', 'evaluate', '--actor', str(actor), *flags,
                         '--json', str(path)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
         written.append(path)
     return written

@@ -227,14 +227,18 @@ def smoothness_table(strokes: Sequence[st.Stroke], rate_hz: float = ACTION_RATE_
     return table
 
 
-def nearest_matches(strokes: Sequence[st.Stroke], dataset) -> list[sm.DtwMatch | None]:
+def references_by_direction(dataset) -> dict[str, list[tuple[int, np.ndarray]]]:
+    """The reference clips (index, joint positions) of each direction's label, all speed factors."""
+    return {direction: sm.reference_clips(dataset, direction) for direction in st.DIRECTIONS}
+
+
+def nearest_matches(strokes: Sequence[st.Stroke], references: dict[str, list]) -> list[sm.DtwMatch | None]:
     """Each stroke's nearest reference clip of its own label (None where the dataset has no such clip)."""
-    references = {direction: sm.reference_clips(dataset, direction) for direction in st.DIRECTIONS}
     return [sm.nearest_reference(s.joint_positions_rad, references[s.direction]) if references[s.direction]
             else None for s in strokes]
 
 
-def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None], dataset,
+def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None], references: dict[str, list],
               rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
     """Per direction: every stroke against every reference clip of that label, the mean of the smallest,
     and the summed distance split by joint and by phase of the stroke (style_metrics.cost_breakdown)."""
@@ -242,10 +246,9 @@ def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None
 
     table = {}
     for direction in st.DIRECTIONS:
-        references = sm.reference_clips(dataset, direction)
-        clips = dict(references)
+        clips = dict(references[direction])
         chosen = [(s, m) for s, m in zip(strokes, matches) if s.direction == direction and m is not None]
-        entry = {'strokes': sum(s.direction == direction for s in strokes), 'reference_clips': len(references),
+        entry = {'strokes': sum(s.direction == direction for s in strokes), 'reference_clips': len(clips),
                  'mean_rad': None, 'std_rad': None, 'mean_per_path_step_rad': None, 'sum_by_joint_rad': None,
                  'sum_by_phase_rad': None}
         if chosen:
@@ -314,8 +317,9 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'smoothness': smoothness_table(strokes),
     }
     if dataset is not None:
-        matches = nearest_matches(strokes, dataset)
-        summary['dtw'] = dtw_table(strokes, matches, dataset)
+        references = references_by_direction(dataset)
+        matches = nearest_matches(strokes, references)
+        summary['dtw'] = dtw_table(strokes, matches, references)
         summary['dtw_by_lateral_offset'] = dtw_by_lateral_offset(strokes, matches, home_y)
         summary['dtw_dataset'] = portable_path(dataset_path) if dataset_path is not None else None
         summary['dtw_call'] = DTW_CALL

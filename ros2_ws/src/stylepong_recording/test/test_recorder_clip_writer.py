@@ -19,6 +19,8 @@ from tests.bag_check import (
     JOINT_NAMES,
     JOINT_STATE_TYPE,
     JOINT_STATES,
+    WRENCH,
+    WRENCH_TYPE,
     joint_state_cdr,
     read_with_mcap_ros2,
     read_with_rosbags,
@@ -27,8 +29,6 @@ from tests.bag_check import (
 )
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
-WRENCH = '/force_torque_sensor_broadcaster/wrench'
-WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 
 
 def spec(topic, msgtype):

@@ -12,13 +12,15 @@ import yaml
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from stylepong_recording.bag_layout import IN_PROGRESS_NAME
+from stylepong_recording.bag_layout import IN_PROGRESS_NAME, STORAGE_SUFFIX
 from stylepong_recording.clip_writer import ClipWriter, TopicSpec
 from stylepong_recording.msg_definitions import MessageDefinitions
 from stylepong_recording.recover_bag import RecoveryError, main, recover_bag
 from tests.bag_check import (
     JOINT_STATE_TYPE,
     JOINT_STATES,
+    WRENCH,
+    WRENCH_TYPE,
     joint_state_cdr,
     read_with_mcap_ros2,
     read_with_rosbags,
@@ -27,8 +29,6 @@ from tests.bag_check import (
 )
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
-WRENCH = '/force_torque_sensor_broadcaster/wrench'
-SUFFIX = {'mcap': '.mcap', 'sqlite3': '.db3'}
 
 
 class FakeClock:
@@ -42,7 +42,7 @@ def open_writer(bag_dir, storage='mcap', label='forward'):
     clock = FakeClock()
     clip = ClipWriter(bag_dir, storage, {'label': label}, flush_period_s=0.1, monotonic_s=clock)
     clip.open()
-    for topic, msgtype in [(JOINT_STATES, JOINT_STATE_TYPE), (WRENCH, 'geometry_msgs/msg/WrenchStamped')]:
+    for topic, msgtype in [(JOINT_STATES, JOINT_STATE_TYPE), (WRENCH, WRENCH_TYPE)]:
         clip.add_topic(TopicSpec(topic, msgtype, *DEFINITIONS.definition(msgtype)))
     clip.flush()
     return clip, clock
@@ -96,7 +96,7 @@ def test_a_killed_clip_is_recovered_with_everything_flushed_and_its_label(tmp_pa
     assert report.message_counts == {JOINT_STATES: 1000, WRENCH: 0}
     assert any('not closed' in p for p in report.problems)
     assert not (crashed / IN_PROGRESS_NAME).exists()
-    storage_name = f'{clip.bag_dir.name}{SUFFIX[storage]}'
+    storage_name = f'{clip.bag_dir.name}{STORAGE_SUFFIX[storage]}'
     assert sorted(p.name for p in crashed.iterdir()) == sorted(['metadata.yaml', storage_name])
     content = read_with_rosbags(crashed)
     assert content.custom_data == {'label': 'forward'}
