@@ -3,7 +3,7 @@
 The shared convention (stylepong_common.node_support): exit code 2, one line on stderr, `<program>: <reason>`
 naming the parameter, and at once: the node stops while it is being built instead of spinning with a
 half-understood setting. The package unit tests check each node's table value by value; this checks the
-installed executables end to end. (The recorder's case lives with the recorder's tests.)
+installed executables end to end, the recorder under its old package name too.
 """
 from __future__ import annotations
 
@@ -27,6 +27,10 @@ CASES = [
     pytest.param('stylepong_policy', 'player', ('--ros-args', '-p', 'status_rate_hz:=0.0'), 'status_rate_hz',
                  id='player'),
     pytest.param('stylepong_sim', 'rally_eval', ('--speed', 'fast'), '--speed', id='rally_eval'),
+    pytest.param('stylepong_recording', 'recorder', ('--ros-args', '-p', 'flush_period_s:=-0.1'), 'flush_period_s',
+                 id='recorder'),
+    pytest.param('stylepong_fdcc', 'recorder', ('--ros-args', '-p', 'flush_period_s:=-0.1'), 'flush_period_s',
+                 id='recorder-compatibility-name'),
 ]
 
 

