@@ -162,8 +162,10 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     path = reference_dataset_path(cfg.amp, run_dir)
     dataset = ReferenceDataset.load(path)
-    reference = ReferenceMotion.from_dataset(dataset, cfg.amp.sequence_length, cfg.amp.speed_factors, device)
+    reference = ReferenceMotion.from_dataset(dataset, cfg.amp.sequence_length, cfg.amp.speed_factors, device,
+                                             cfg.amp.frame_features)
     print(f'train: reference motions {path}: {reference.num_windows} windows of {cfg.amp.sequence_length} frames '
+          f'({cfg.amp.frame_features}) '
           f'from clips with speed factors {cfg.amp.speed_factors or "all"}', flush=True)
     return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed), path
 

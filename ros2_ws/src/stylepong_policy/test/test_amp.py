@@ -7,7 +7,14 @@ import pytest
 import torch
 
 from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion, ReplayBuffer, StyleHistory, style_reward
+from stylepong_policy.rl.amp import (
+    MotionPrior,
+    ReferenceMotion,
+    ReplayBuffer,
+    StyleHistory,
+    feature_columns,
+    style_reward,
+)
 from stylepong_policy.rl.config import AMPConfig, config_from_dict
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 
@@ -120,6 +127,33 @@ def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_o
     accuracy = 0.5 * ((d_reference > 0).float().mean() + (d_fake < 0).float().mean())
     assert accuracy > 0.85, (negative, float(accuracy), stats)
     assert d_reference.mean() > 0.3 and d_fake.mean() < -0.3
+
+
+def test_position_features_keep_only_the_joint_positions_of_reference_and_policy_frames():
+    """frame_features 'q': the reference windows, the replayed policy windows and the windows scored for the
+    reward hold the first half of each (positions, velocities) frame, in order."""
+    frames = np.arange(40 * 4, dtype=np.float64).reshape(40, 4)    # 2 joints: q0 q1 qd0 qd1
+    dataset = ReferenceDataset(t=np.arange(40) / 60.0, q=frames[:, :2], qd=frames[:, 2:], clip_start=np.array([0]),
+                               clip_length=np.array([40]), label=np.array(['forward']), speed_factor=np.array([1]),
+                               source=np.array(['toy']), original=np.array([0]), time_source=np.array(['header']),
+                               velocity_source=np.array(['bag']), rate_hz=60.0, joint_names=np.array(['a', 'b']))
+    cfg = AMPConfig(sequence_length=3, frame_features='q', batch_size=8, updates_per_iteration=1)
+    reference = ReferenceMotion.from_dataset(dataset, cfg.sequence_length, features='q')
+    assert torch.equal(reference.windows(torch.tensor([0]))[0], torch.tensor(frames[:3, :2], dtype=torch.float32))
+    prior = MotionPrior(cfg, reference, frame_size=4, num_envs=2, device='cpu')
+    policy = torch.tensor([[1.0, 2.0, 30.0, 40.0], [5.0, 6.0, 70.0, 80.0]])
+    prior.start(policy)
+    prior.observe(policy + 1.0, torch.tensor([False, True]), policy)
+    assert torch.equal(prior.replay.data[:2, -1], policy[:, :2] + 1.0)
+    assert torch.equal(prior.history.frames[1], policy[1, :2].expand(3, 2))    # restarted from its new first frame
+    assert prior.discriminator.normalizer.mean.shape[-1] == 2
+    assert 'disc/loss' in prior.update()
+    with pytest.raises(ValueError, match='reference frames hold 4'):
+        MotionPrior(cfg, ReferenceMotion.from_dataset(dataset, 3), frame_size=4, num_envs=1, device='cpu')
+    with pytest.raises(ValueError, match='not positions and velocities'):
+        feature_columns('q', 5)
+    with pytest.raises(ValueError, match='unknown frame features'):
+        feature_columns('qdd', 4)
 
 
 def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():

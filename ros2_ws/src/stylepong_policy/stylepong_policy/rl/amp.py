@@ -36,8 +36,22 @@ from .networks import make_mlp
 from .normalizer import RunningNormalizer
 
 STYLE_REWARDS = ('lsgan', 'log')
+# What of each frame the discriminator sees. A style frame is the joint positions followed by as many
+# joint velocities (the env contract's style_state, the dataset's states()).
+FRAME_FEATURES = ('q_qdot', 'q')
 # The bounded -log form: a discriminator "probability" of 1 - 1e-4 or more earns the full reward.
 LOG_REWARD_FLOOR = 1e-4
+
+
+def feature_columns(features: str, frame_size: int) -> slice:
+    """The columns of a (positions, velocities) frame of `frame_size` values that `features` keeps."""
+    if features == 'q_qdot':
+        return slice(0, frame_size)
+    if features == 'q':
+        if frame_size % 2:
+            raise ValueError(f'a frame of {frame_size} values is not positions and velocities')
+        return slice(0, frame_size // 2)
+    raise ValueError(f'unknown frame features {features!r}; choose one of {FRAME_FEATURES}')
 
 
 class ReferenceMotion:
@@ -60,13 +74,15 @@ class ReferenceMotion:
 
     @classmethod
     def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
-                     device: torch.device | str = 'cpu') -> 'ReferenceMotion':
-        """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, of the clips with
-        these speed factors (None: all, originals and speed-ups)."""
+                     device: torch.device | str = 'cpu', features: str = 'q_qdot') -> 'ReferenceMotion':
+        """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
+        of the clips with these speed factors (None: all, originals and speed-ups)."""
         clips = dataset.select(speed_factors=speed_factors)
         if not len(clips):
             raise ValueError(f'the dataset has no clip with speed factor in {list(speed_factors or [])}')
-        return cls(dataset.states(), dataset.clip_start[clips], dataset.clip_length[clips], length, device)
+        states = dataset.states()
+        frames = states[:, feature_columns(features, states.shape[1])]
+        return cls(frames, dataset.clip_start[clips], dataset.clip_length[clips], length, device)
 
     @property
     def num_windows(self) -> int:
@@ -178,8 +194,15 @@ class MotionPrior:
 
     def __init__(self, cfg: AMPConfig, reference: ReferenceMotion, frame_size: int, num_envs: int,
                  device: torch.device | str, seed: int = 0):
+        """frame_size: the env's style frame; the discriminator sees its cfg.frame_features, as `reference`
+        must hold them."""
         self.cfg = cfg
         self.device = torch.device(device)
+        self.columns = feature_columns(cfg.frame_features, frame_size)
+        frame_size = self.columns.stop - self.columns.start
+        if reference.frames.shape[1] != frame_size:
+            raise ValueError(f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
+                             f'{frame_size} ({cfg.frame_features!r} of {self.columns.stop} values)')
         self.reference = reference
         self.discriminator = Discriminator(frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation,
                                            cfg.normalizer_clip).to(self.device)
@@ -195,19 +218,19 @@ class MotionPrior:
     # --- during rollouts ---------------------------------------------------------------------------
     def start(self, first_frames: torch.Tensor) -> None:
         """Every environment begins a new episode with these frames [N, D]."""
-        self.history = StyleHistory(first_frames, self.cfg.sequence_length)
+        self.history = StyleHistory(first_frames[:, self.columns], self.cfg.sequence_length)
 
     def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor) -> torch.Tensor:
         """One policy step: frames [N, D] reached by this step (before resets), dones [N], and the frames
         every environment is in now (after resets). Stores the windows; returns the style reward [N]."""
         if self.history is None:
             raise RuntimeError('call start() with the first frames before observe()')
-        windows = self.history.push(frames)
+        windows = self.history.push(frames[:, self.columns])
         reward = style_reward(self.discriminator.score(windows), self.cfg.style_reward)
         self.replay.insert(windows)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
-            self.history.restart(done_ids, next_first_frames[done_ids])
+            self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
         return reward
 
     def mix(self, task_reward: torch.Tensor, style: torch.Tensor) -> torch.Tensor:

@@ -72,6 +72,7 @@ class AMPConfig:
     dataset: str = ''                    # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
     speed_factors: list[int] | None = None   # clips used (None: all; [1]: the originals only, "amp-noaug")
     sequence_length: int = 4             # L arm states per discriminator window, at the policy rate
+    frame_features: str = 'q_qdot'       # of each arm state: 'q_qdot' (positions and velocities) or 'q'
     hidden_dims: list[int] = field(default_factory=lambda: [512, 256])
     activation: str = 'elu'
     normalizer_clip: float = 5.0
@@ -97,6 +98,8 @@ class AMPConfig:
                      'w_style'):
             if getattr(self, name) < 0:
                 raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
+        if self.frame_features not in ('q_qdot', 'q'):
+            raise ValueError(f"amp.frame_features must be 'q_qdot' or 'q', got {self.frame_features!r}")
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):
