@@ -45,10 +45,18 @@ def actor_windows(actor_path: pathlib.Path, envs: int, steps: int, seed: int, le
         for _ in range(steps):
             obs, _, _, dones, extras = env.step(actor(obs))
             frames.append(extras['style_state'].clone())   # before the reset: still the ended episode's
-            ended.append(dones.long())
-    frames = torch.stack(frames)                                                    # [T + 1, N, 12]
+            ended.append(dones)
+    return episode_windows(torch.stack(frames), torch.stack(ended), length)
+
+
+def episode_windows(frames: torch.Tensor, ended: torch.Tensor, length: int) -> torch.Tensor:
+    """Every window [W, L, D] of `length` consecutive frames inside one episode.
+
+    frames [T + 1, N, D]: frame 0 at the reset, frame t after step t (before that step's reset);
+    ended [T, N]: whether step t + 1 ended the environment's episode.
+    """
     # Frame t belongs to the episode after as many ends as the steps before it (1 .. t - 1) had.
-    episode = torch.cat((torch.zeros(2, envs, dtype=torch.long), torch.stack(ended[:-1]).cumsum(0)))
+    episode = torch.cat((torch.zeros(2, frames.shape[1], dtype=torch.long), ended[:-1].long().cumsum(0)))
     windows = []
     for end in range(length - 1, frames.shape[0]):
         span = slice(end - length + 1, end + 1)
