@@ -31,20 +31,18 @@ from torch import nn
 
 from stylepong_policy.dataset import window_start_indices
 
-from .config import AMPConfig
+from .config import FRAME_FEATURES, AMPConfig
 from .networks import make_mlp
 from .normalizer import RunningNormalizer
 
 STYLE_REWARDS = ('lsgan', 'log')
-# What of each frame the discriminator sees. A style frame is the joint positions followed by as many
-# joint velocities (the env contract's style_state, the dataset's states()).
-FRAME_FEATURES = ('q_qdot', 'q')
 # The bounded -log form: a discriminator "probability" of 1 - 1e-4 or more earns the full reward.
 LOG_REWARD_FLOOR = 1e-4
 
 
 def feature_columns(features: str, frame_size: int) -> slice:
-    """The columns of a (positions, velocities) frame of `frame_size` values that `features` keeps."""
+    """The columns of a frame of `frame_size` values that `features` keeps. A style frame is the joint
+    positions followed by as many joint velocities (the env contract's style_state, the dataset's states())."""
     if features == 'q_qdot':
         return slice(0, frame_size)
     if features == 'q':

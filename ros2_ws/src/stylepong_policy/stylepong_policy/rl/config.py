@@ -66,6 +66,10 @@ class RunnerConfig:
     progress_bar: bool = True
 
 
+# What of each arm state the discriminator may see (stylepong_policy.rl.amp.feature_columns).
+FRAME_FEATURES = ('q_qdot', 'q')
+
+
 @dataclass
 class AMPConfig:
     """The adversarial motion prior (stylepong_policy.rl.amp); config/amp.yaml says why each value."""
@@ -98,8 +102,8 @@ class AMPConfig:
                      'w_style'):
             if getattr(self, name) < 0:
                 raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
-        if self.frame_features not in ('q_qdot', 'q'):
-            raise ValueError(f"amp.frame_features must be 'q_qdot' or 'q', got {self.frame_features!r}")
+        if self.frame_features not in FRAME_FEATURES:
+            raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):

@@ -5,7 +5,8 @@ episode ends. Nothing here knows what the task is; the table-tennis task (stylep
 toy task of the tests both follow it.
 
 Sizes: `num_envs`, `num_obs` (the actor's input), `num_critic_obs` (the critic's, privileged),
-`num_actions`, `num_style_features` (one frame of the state the style discriminator sees); `device`.
+`num_actions`, `num_style_features` (one frame of the state the style discriminator sees: positions
+followed by as many velocities, as a reference dataset's states()); `device`.
 
 `reset() -> (obs [N, num_obs], critic_obs [N, num_critic_obs])` starts every environment afresh.
 
