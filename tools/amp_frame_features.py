@@ -126,13 +126,10 @@ def main() -> int:
     if args.seed >= 1000:
         parser.error('--seed must be a validation seed below 1000')
     torch.set_num_threads(2)
-    from stylepong_policy import build_dataset
     from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.train import build_shipped_dataset
     with tempfile.TemporaryDirectory() as tmp:
-        path = pathlib.Path(tmp) / 'dataset.npz'
-        if build_dataset.run([str(ROOT / 'ros2_ws' / 'bags'), '-o', str(path)]) != 0:
-            return 1
-        dataset = ReferenceDataset.load(path)
+        dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     rows = []
     for length in [int(x) for x in args.lengths.split(',')]:
         windows = actor_windows(args.actor, args.envs, args.steps, args.seed, length)

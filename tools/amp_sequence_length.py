@@ -75,13 +75,10 @@ def main() -> int:
     parser.add_argument('--seeds', type=int, default=3)
     args = parser.parse_args()
     torch.set_num_threads(2)
-    from stylepong_policy import build_dataset
     from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.train import build_shipped_dataset
     with tempfile.TemporaryDirectory() as tmp:
-        path = pathlib.Path(tmp) / 'dataset.npz'
-        if build_dataset.run([str(ROOT / 'ros2_ws' / 'bags'), '-o', str(path)]) != 0:
-            return 1
-        dataset = ReferenceDataset.load(path)
+        dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     lengths = [int(x) for x in args.lengths.split(',')]
     rows = []
     for length in lengths:

@@ -148,11 +148,17 @@ def reference_dataset_path(cfg: AMPConfig, run_dir: pathlib.Path) -> pathlib.Pat
         return path
     path = run_dir / DATASET_NAME
     if not path.is_file():
-        from stylepong_policy import build_dataset
-        bags = shipped_bags_dir()
-        print(f'train: building the reference motions from {bags} into {path}', flush=True)
-        if build_dataset.run([str(bags), '-o', str(path)]) != 0 or not path.is_file():
-            raise FileNotFoundError(f'could not build a reference dataset from {bags}; pass --dataset')
+        print(f'train: building the reference motions from {shipped_bags_dir()} into {path}', flush=True)
+        build_shipped_dataset(path)
+    return path
+
+
+def build_shipped_dataset(path: pathlib.Path) -> pathlib.Path:
+    """build_dataset over the shipped clips (ros2_ws/bags) into `path`; FileNotFoundError if it fails."""
+    from stylepong_policy import build_dataset
+    bags = shipped_bags_dir()
+    if build_dataset.run([str(bags), '-o', str(path)]) != 0 or not path.is_file():
+        raise FileNotFoundError(f'could not build a reference dataset from {bags}; pass --dataset')
     return path
 
 
