@@ -1,7 +1,9 @@
-"""The controller's commands for a fixed input sequence, pinned bit for bit.
+"""The controller's commands for a fixed input sequence, pinned to a nanoradian.
 
 data/fdcc_regression.npz holds what the controller produced for `run_sequence` before its code was split
-into modules (the single fdcc.py of that time), so any change that alters a command by one bit fails here.
+into modules (the single fdcc.py of that time), so any change of behaviour fails here. The comparison is
+not bit for bit: numpy's BLAS picks its kernels by CPU, so the same code rounds differently on another
+machine (seen in CI), while a change of behaviour moves a command by far more than COMMAND_TOLERANCE_RAD.
 When a change of behaviour is intended, regenerate the file with `python3 test_fdcc_regression.py` and
 say so in the change.
 """
@@ -23,6 +25,10 @@ from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load
 PINNED = pathlib.Path(__file__).resolve().parent / 'data' / 'fdcc_regression.npz'
 STATES = ('disabled', 'waiting', 'running', 'holding')
 HOME = np.array([0.0, -1.7, 1.9, -1.8, -1.5708, 0.0])   # near the cell's home pose, fixed here on purpose
+# Rounding differences between machines are about 4e-16 rad (measured against the pinned file); changing
+# by 0.1 % any FdccConfig constant the sequence reaches moves some command by 1.5e-9 rad (the virtual
+# links' inertia) to 1.4e-3 rad (the watchdog timeout).
+COMMAND_TOLERANCE_RAD = 1e-9
 
 SCENARIOS = {
     'default': dict(config=dict(), cycles=420),
@@ -79,14 +85,21 @@ def run_sequence(config: dict, cycles: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize('name', SCENARIOS)
-def test_commands_are_bit_identical_to_the_pinned_ones(name):
+def test_commands_match_the_pinned_ones(name):
     pinned = np.load(PINNED)
     commands, states = run_sequence(**SCENARIOS[name])
     assert np.array_equal(states, pinned[f'{name}/states'])
-    assert np.array_equal(commands, pinned[f'{name}/commands'], equal_nan=True)
+    # NaN rows (no command published) must be the same rows; the rest agree to the tolerance.
+    np.testing.assert_allclose(commands, pinned[f'{name}/commands'], rtol=0.0, atol=COMMAND_TOLERANCE_RAD)
     # The sequence exercises what it is meant to: waiting, running, holding and a moving arm.
     assert set(states.tolist()) == {1, 2, 3}
     assert np.nanmax(np.abs(np.diff(commands, axis=0))) > 1e-4
+
+
+def test_the_tolerance_catches_a_small_change_of_behaviour():
+    pinned = np.load(PINNED)['default/commands']
+    commands, _ = run_sequence(config=dict(virtual_end_mass_kg=FdccConfig().virtual_end_mass_kg * 1.001), cycles=420)
+    assert np.nanmax(np.abs(commands - pinned)) > 1000 * COMMAND_TOLERANCE_RAD
 
 
 def pin_outputs(path: pathlib.Path = PINNED) -> None:
