@@ -2,6 +2,7 @@
 
     select_checkpoint --run RUN_DIR [--seeds 10] [--first-seed 900] [--balls 200] [--speed all]
                       [--high-first-seed 950] [--high-seeds N] [--high-balls N]
+                      [--dtw DATASET.npz [--min-success RATE]]
                       [--export ACTOR.pt] [--device cpu] [--num-threads 2]
 
 Every numbered checkpoint of the run (RUN_DIR/checkpoints/model_*.pt, written by the training runner
@@ -22,6 +23,15 @@ ONNX), as `train` exports its final actor.
 
 The rule: the highest mean success rate over the validation seeds at `--speed`; a tie goes to the
 higher high-speed success rate (when validated), then to the earlier iteration (fewer samples).
+
+A style actor is chosen for how it moves as well: with `--dtw DATASET.npz` each checkpoint's strokes on
+the validation balls are also measured against the reference clips (`evaluate --dtw`, per direction:
+val_dtw_forward / _leftward / _rightward, and the dataset in dtw_dataset), and with `--min-success RATE`
+the rule becomes the style rule (STYLE_RULE): among the checkpoints that return at least RATE of the
+validation balls, the one whose strokes lie closest to the demonstrations (the mean of the three
+directions' distances); when none returns that many, the success rule above. A success-only choice
+takes the latest checkpoint that returns a few more balls, however far its strokes have drifted from
+the demonstrations while it learned to.
 """
 from __future__ import annotations
 
@@ -42,6 +52,7 @@ from stylepong_policy.rl.config import config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.networks import ActorCritic
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
+from stylepong_policy.strokes import DIRECTIONS
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
 CSV_NAME = 'validation.csv'
@@ -51,10 +62,15 @@ CONFIG_NAME = 'config.yaml'            # train writes the run's configuration un
 CHECKPOINT_PATTERN = re.compile(r'^model_(\d+)\.pt$')
 COLUMNS = ('iteration', 'samples', 'val_success_all', 'val_success_high', 'val_hit_rate_all', 'val_hit_rate_high',
            'speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'checkpoint', 'wall_time_s')
+# With --dtw: the mean DTW distance (rad) of each direction's strokes and the reference dataset. Files
+# written before these columns existed keep their header and can still be extended without --dtw.
+DTW_COLUMNS = tuple(f'val_dtw_{d}' for d in DIRECTIONS) + ('dtw_dataset',)
 # The columns that say how a row was validated: a checkpoint counts as validated only for its setting.
-SETTING_COLUMNS = ('speed', 'seeds', 'balls', 'high_seeds', 'high_balls')
+SETTING_COLUMNS = ('speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'dtw_dataset')
 RULE = ('highest mean success rate over the validation seeds at the validation speed (val_success_all); '
         'ties: higher val_success_high when validated, then the earlier iteration')
+STYLE_RULE = ('lowest mean DTW distance to the demonstrations over the three directions (val_dtw_*) among '
+              'the checkpoints with val_success_all >= {min_success}; when there is none, ' + RULE)
 
 
 @dataclass(frozen=True)
@@ -67,13 +83,16 @@ class Setting:
     high_first_seed: int | None
     high_seeds: int
     high_balls: int
+    dtw_dataset: str = ''          # the reference dataset of the DTW columns, as given ('' : no DTW)
 
     def row(self) -> dict[str, str]:
-        """The setting as it appears in validation.csv."""
+        """The setting as it appears in validation.csv (a row validated with DTW also serves a setting
+        without it: its success figures are the same measurement)."""
         high = self.high_first_seed is not None
         return {'speed': self.speed, 'seeds': seed_range(self.first_seed, self.seeds), 'balls': str(self.balls),
                 'high_seeds': seed_range(self.high_first_seed, self.high_seeds) if high else '',
-                'high_balls': str(self.high_balls) if high else ''}
+                'high_balls': str(self.high_balls) if high else '',
+                **({'dtw_dataset': self.dtw_dataset} if self.dtw_dataset else {})}
 
 
 def seed_range(first: int, count: int) -> str:
@@ -116,11 +135,21 @@ def export_checkpoint(checkpoint: dict, path: pathlib.Path, onnx: bool, extra: d
 
 
 def run_evaluation(actor: pathlib.Path, *, seeds: int, first_seed: int, balls: int, speed: str,
-                   device: str) -> dict:
-    """evaluate's result dict for an exported actor (success_rate, hit_rate, per_seed, ...)."""
+                   device: str, dtw_dataset: str | None = None) -> dict:
+    """evaluate's result dict for an exported actor (success_rate, hit_rate, per_seed, ..., dtw with a dataset)."""
     from stylepong_policy import evaluate
     return evaluate.run_evaluation(actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed,
-                                   device=device)
+                                   device=device, dtw_dataset=dtw_dataset)
+
+
+def dtw_cells(result: dict) -> dict[str, str]:
+    """The DTW columns of a row from evaluate's result (empty where a direction had no stroke)."""
+    table = result.get('dtw') or {}
+    cells = {}
+    for direction in DIRECTIONS:
+        mean = (table.get(direction) or {}).get('mean_rad')
+        cells[f'val_dtw_{direction}'] = f'{mean:.3f}' if mean is not None else ''
+    return cells
 
 
 def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict[str, str]:
@@ -129,7 +158,7 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
     with tempfile.TemporaryDirectory(prefix='select_checkpoint_') as tmp:
         actor = export_checkpoint(checkpoint, pathlib.Path(tmp) / 'actor.pt', onnx=False)
         result = run_evaluation(actor, seeds=setting.seeds, first_seed=setting.first_seed, balls=setting.balls,
-                                speed=setting.speed, device=device)
+                                speed=setting.speed, device=device, dtw_dataset=setting.dtw_dataset or None)
         high = None
         if setting.high_first_seed is not None:
             high = run_evaluation(actor, seeds=setting.high_seeds, first_seed=setting.high_first_seed,
@@ -137,6 +166,7 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
     return {'val_success_all': f'{result["success_rate"]:.4f}', 'val_hit_rate_all': f'{result["hit_rate"]:.4f}',
             'val_success_high': f'{high["success_rate"]:.4f}' if high else '',
             'val_hit_rate_high': f'{high["hit_rate"]:.4f}' if high else '',
+            **(dtw_cells(result) if setting.dtw_dataset else {}),
             'wall_time_s': f'{time.perf_counter() - started:.1f}'}
 
 
@@ -144,7 +174,7 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
 def read_rows(path: pathlib.Path) -> tuple[list[str], list[dict[str, str]]]:
     """The header and rows of validation.csv (the expected columns and no rows if it is missing)."""
     if not path.is_file():
-        return list(COLUMNS), []
+        return list(COLUMNS + DTW_COLUMNS), []
     with path.open(newline='') as stream:
         reader = csv.DictReader(stream)
         return list(reader.fieldnames or COLUMNS), list(reader)
@@ -171,10 +201,20 @@ def _rate(text: str | None) -> float:
     return float(text) if text not in (None, '') else float('-inf')
 
 
-def choose(rows: list[dict[str, str]]) -> dict[str, str]:
-    """The row the rule (RULE) picks."""
+def choose(rows: list[dict[str, str]], min_success: float | None = None) -> dict[str, str]:
+    """The row the rule picks: RULE, or STYLE_RULE with a success floor (rows with their DTW columns)."""
+    if min_success is not None:
+        qualified = [r for r in rows if _rate(r['val_success_all']) >= min_success and mean_dtw(r) is not None]
+        if qualified:
+            return min(qualified, key=lambda r: (mean_dtw(r), -_rate(r['val_success_all']), int(r['iteration'])))
     return max(rows, key=lambda r: (_rate(r['val_success_all']), _rate(r.get('val_success_high')),
                                     -int(r['iteration'])))
+
+
+def mean_dtw(row: dict[str, str]) -> float | None:
+    """The mean of a row's three directions' DTW distances (rad); None unless all three were measured."""
+    values = [row.get(f'val_dtw_{d}') or '' for d in DIRECTIONS]
+    return sum(float(v) for v in values) / len(values) if all(values) else None
 
 
 def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Setting, path: pathlib.Path) -> None:
@@ -193,6 +233,13 @@ def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Sett
                 label=f'success, high speeds (seeds {setting.row()["high_seeds"]})')
     ax.axvline(int(chosen['samples']) / 1e6, color='grey', linestyle='--',
                label=f'chosen: iteration {chosen["iteration"]}')
+    style = [(x, mean_dtw(r)) for x, r in zip(samples_m, rows) if mean_dtw(r) is not None]
+    if style:
+        dtw_axis = ax.twinx()
+        dtw_axis.plot(*zip(*style), 'd:', color='tab:red', label='DTW to the demonstrations, mean of 3 directions')
+        dtw_axis.set_ylabel('validation DTW (rad)', color='tab:red')
+        dtw_axis.set_ylim(bottom=0.0)
+        dtw_axis.legend(loc='upper left')
     ax.set_xlabel('training samples (M)')
     ax.set_ylabel('validation success rate')
     ax.set_ylim(-0.02, 1.02)
@@ -217,6 +264,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--high-first-seed', type=int, help='also validate at high speeds from this seed (< 1000)')
     parser.add_argument('--high-seeds', type=int, help='high-speed validation seeds (default: --seeds)')
     parser.add_argument('--high-balls', type=int, help='balls per high-speed seed (default: --balls)')
+    parser.add_argument('--dtw', metavar='DATASET.npz',
+                        help="also measure the strokes' DTW distance to this reference dataset's clips")
+    parser.add_argument('--min-success', type=float, metavar='RATE',
+                        help='with --dtw: choose by the style rule, among checkpoints returning at least RATE')
     parser.add_argument('--export', type=pathlib.Path, metavar='ACTOR.pt', help="write the chosen checkpoint's actor")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
@@ -229,6 +280,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ranges = [('--first-seed', args.first_seed, args.seeds)]
     if args.high_first_seed is not None:
         ranges.append(('--high-first-seed', args.high_first_seed, args.high_seeds))
+    if args.min_success is not None and (args.dtw is None or not 0.0 <= args.min_success <= 1.0):
+        parser.error('--min-success needs --dtw and a rate between 0 and 1')
+    if args.dtw is not None and not pathlib.Path(args.dtw).is_file():
+        parser.error(f'--dtw {args.dtw}: no such reference dataset')
     for flag, first, count in ranges:
         if first < 0:
             parser.error(f'{flag} must not be negative')
@@ -248,10 +303,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     torch.set_num_threads(args.num_threads)
     setting = Setting(args.speed, args.first_seed, args.seeds, args.balls, args.high_first_seed, args.high_seeds,
-                      args.high_balls)
+                      args.high_balls, args.dtw or '')
     csv_path = run_dir / CSV_NAME
     header, rows = read_rows(csv_path)
-    missing = [c for c in COLUMNS if c not in header]
+    missing = [c for c in COLUMNS + (DTW_COLUMNS if args.dtw else ()) if c not in header]
     if missing:
         print(f'select_checkpoint: {csv_path} lacks the columns {missing}; rows are only appended, so it is '
               'left as it is (move it aside to start a new one)', file=sys.stderr)
@@ -273,17 +328,20 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f'iteration {row["iteration"]}: success {row["val_success_all"]} ({setting.speed} speeds)'
               + (f', {row["val_success_high"]} (high speeds)' if row['val_success_high'] else '')
+              + (f', DTW {" / ".join(row[f"val_dtw_{d}"] or "-" for d in DIRECTIONS)} rad' if args.dtw else '')
               + f', {row["wall_time_s"]} s', flush=True)
 
     candidates = [r for r in rows if same_setting(r, setting)]
-    chosen = choose(candidates)
+    chosen = choose(candidates, args.min_success)
     plot_curve(candidates, chosen, setting, run_dir / CURVE_NAME)
     selection = {
         'iteration': int(chosen['iteration']), 'samples': int(chosen['samples']), 'checkpoint': chosen['checkpoint'],
         'val_success_all': float(chosen['val_success_all']),
         'val_success_high': float(chosen['val_success_high']) if chosen['val_success_high'] else None,
         'val_hit_rate_all': float(chosen['val_hit_rate_all']),
-        'rule': RULE,
+        **({'val_dtw_rad': {d: float(chosen[f'val_dtw_{d}']) if chosen[f'val_dtw_{d}'] else None
+                            for d in DIRECTIONS}, 'dtw_dataset': args.dtw} if args.dtw else {}),
+        'rule': STYLE_RULE.format(min_success=args.min_success) if args.min_success is not None else RULE,
         'validation': {'speed': setting.speed,
                        'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
                        'balls_per_seed': setting.balls,

@@ -1,4 +1,5 @@
-"""Shared test helpers of stylepong_policy's tests are plain modules beside them (ppo_toy_task, json_text).
+"""Shared test helpers of stylepong_policy's tests are plain modules beside them (ppo_toy_task, json_text,
+synthetic_reference).
 
 The suite runs in pytest's importlib mode (test files of different packages share basenames), which
 puts no test folder on sys.path; this one is added so the tests can `import ppo_toy_task`.

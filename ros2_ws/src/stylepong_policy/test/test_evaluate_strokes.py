@@ -6,30 +6,14 @@ import pathlib
 import numpy as np
 import pytest
 from json_text import json_strings  # beside this file: conftest.py
+from synthetic_reference import write_reference
 
 from stylepong_policy import evaluate, strokes
-from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PPO_ACTOR = PACKAGE / 'models' / 'ppo_actor.pt'
 BALLS = 12
 SEED = 1000
-
-
-def write_reference(path: pathlib.Path) -> pathlib.Path:
-    """A small reference dataset in the robot's joint order: one swing per label, x1 and x2."""
-    from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
-
-    t = np.arange(90) / 60.0
-    home = np.array(HOME_JOINT_POSITIONS_RAD)
-    sources = []
-    for k, label in enumerate(strokes.DIRECTIONS):
-        swing = 0.4 * np.sin(np.pi * t / t[-1])[:, None] * np.eye(6)[k]
-        q = home + swing
-        sources.append(SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), label, f'synthetic:{label}'))
-    assemble_dataset(sources, (2,), JOINT_NAMES, 60.0).save(path)
-    return path
 
 
 @pytest.fixture(scope='module')

@@ -2,10 +2,12 @@
 every iteration), then validation, append-only validation.csv, selection.json and the chosen actor."""
 import csv
 import json
+import shutil
 import subprocess
 import sys
 
 import pytest
+from synthetic_reference import write_reference  # beside this file: conftest.py
 
 from stylepong_policy import select_checkpoint as sc
 from stylepong_policy.rl.export import load_actor
@@ -116,3 +118,59 @@ def test_a_csv_without_the_columns_is_left_alone(tmp_path, capsys):
     assert sc.main(['--run', str(run), '--seeds', '1']) == 2
     assert 'lacks the columns' in capsys.readouterr().err
     assert (run / sc.CSV_NAME).read_text() == 'iteration,samples,val_success_all\n5,100,0.9\n'
+
+
+def test_with_dtw_each_row_measures_the_strokes_and_the_style_rule_chooses_the_closest(run_dir, tmp_path):
+    run = tmp_path / 'run'
+    shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')   # a fresh validation.csv
+    reference = str(write_reference(tmp_path / 'reference.npz'))
+    setting = ['--seeds', '1', '--first-seed', '901', '--balls', '40', '--dtw', reference]
+    assert sc.main(['--run', str(run), *setting, '--min-success', '0.0']) == 0
+    rows = read_csv(run / sc.CSV_NAME)
+    assert [r['iteration'] for r in rows] == ['1', '2'] and {r['dtw_dataset'] for r in rows} == {reference}
+    for row in rows:
+        assert all(float(row[f'val_dtw_{d}']) > 0.0 for d in sc.DIRECTIONS)
+    selection = json.loads((run / sc.SELECTION_NAME).read_text())
+    closest = min(rows, key=sc.mean_dtw)
+    assert selection['iteration'] == int(closest['iteration'])
+    assert selection['rule'] == sc.STYLE_RULE.format(min_success=0.0)
+    assert selection['val_dtw_rad'] == {d: float(closest[f'val_dtw_{d}']) for d in sc.DIRECTIONS}
+
+    # A floor no checkpoint reaches: the success rule; the DTW rows are reused, nothing is run again.
+    assert sc.main(['--run', str(run), *setting, '--min-success', '1.0']) == 0
+    assert read_csv(run / sc.CSV_NAME) == rows
+    selection = json.loads((run / sc.SELECTION_NAME).read_text())
+    assert selection['iteration'] == int(sc.choose(rows)['iteration'])
+
+
+def test_the_style_rule_takes_the_closest_strokes_among_checkpoints_that_return_enough():
+    def row(iteration, success, dtw=('', '', '')):
+        return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': '',
+                **{f'val_dtw_{d}': v for d, v in zip(sc.DIRECTIONS, dtw)}}
+    rows = [row(1, '0.95', ('30', '40', '40')), row(2, '0.93', ('12', '18', '17')),
+            row(3, '0.80', ('5', '5', '5')), row(4, '0.97')]
+    assert sc.choose(rows, 0.93)['iteration'] == '2'      # 3 is closer but returns too few; 4 was not measured
+    assert sc.choose(rows, 0.96)['iteration'] == '4'      # none qualifies with its distances: the success rule
+    assert sc.choose(rows)['iteration'] == '4'
+    assert sc.mean_dtw(rows[1]) == pytest.approx(47 / 3) and sc.mean_dtw(rows[3]) is None
+
+
+def test_a_csv_from_before_the_dtw_columns_is_extended_without_dtw_and_refused_with_it(tmp_path, run_dir, capsys):
+    run = tmp_path / 'run'
+    shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')
+    with (run / sc.CSV_NAME).open('w', newline='') as stream:
+        csv.DictWriter(stream, fieldnames=sc.COLUMNS).writeheader()
+    before = (run / sc.CSV_NAME).read_text()
+    assert sc.main(['--run', str(run), '--seeds', '1', '--balls', '4', '--dtw',
+                    str(write_reference(tmp_path / 'reference.npz'))]) == 2
+    assert 'lacks the columns' in capsys.readouterr().err and (run / sc.CSV_NAME).read_text() == before
+    assert sc.main(['--run', str(run), '--seeds', '1', '--balls', '4']) == 0
+    assert [r['iteration'] for r in read_csv(run / sc.CSV_NAME)] == ['1', '2']
+
+
+@pytest.mark.parametrize('args', [['--min-success', '0.9'], ['--dtw', 'missing.npz'],
+                                  ['--dtw', __file__, '--min-success', '1.5']])
+def test_the_style_rule_needs_a_dataset_and_a_rate(run_dir, args, capsys):
+    with pytest.raises(SystemExit) as refused:
+        sc.main(['--run', str(run_dir), *args])
+    assert refused.value.code == 2 and '--' in capsys.readouterr().err
