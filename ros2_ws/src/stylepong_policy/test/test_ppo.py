@@ -172,6 +172,16 @@ def test_config_yaml_round_trip_and_shipped_default(tmp_path):
     assert shipped.runner.seed < 1000
 
 
+def test_every_training_config_in_the_package_loads():
+    # The experiment recipes are documented commands: a key misspelt in one fails here, not an hour into a run.
+    paths = sorted(p for p in (HERE.parent / 'config').glob('*.yaml') if p.name != 'player.yaml')
+    assert {'ppo.yaml', 'amp.yaml'} <= {p.name for p in paths}
+    for path in paths:
+        cfg = load_config(path)
+        cfg.validate()
+        assert cfg.runner.seed < 1000, path.name
+
+
 def test_defaults_are_the_shipped_ppo_yaml():
     # config/ppo.yaml is the source of the dataclass defaults (rl.config's docstring): a section or key a
     # YAML leaves out means what the baseline ran with.
