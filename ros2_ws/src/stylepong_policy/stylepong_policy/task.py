@@ -108,6 +108,10 @@ class TaskConfig:
     w_rate: float = 0.02
     sigma_rate: float = 0.5
     w_action: float = 0.01
+    # A factor on the motion prior's style weight for the steps from the paddle's first touch of the ball to
+    # the verdict (1: the same weight throughout; PPO ignores it). No task term pays for how the arm moves
+    # once the ball is struck, so style there costs no return.
+    style_weight_after_hit: float = 1.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -129,7 +133,7 @@ class TaskConfig:
                     raise ValueError(f'{f.name} must be (low, high), got {(a, b)}')
         if not set(self.bat_axes) <= set('xyz') or not self.bat_axes:
             raise ValueError(f"bat_axes must be letters of 'xyz', got {self.bat_axes!r}")
-        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s'):
+        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s', 'style_weight_after_hit'):
             if getattr(self, name) < 0.0:
                 raise ValueError(f'{name} must not be negative')
 
@@ -325,8 +329,9 @@ class TableTennisEnv:
         actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_policy.spec).
         Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, extras) as
         the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
-        'style_state'). 'log' holds success_rate, hit_rate, goal_rate, episode_length_s, ball/<verdict>
-        (the share of each referee verdict) and reward/<term> (the episodes' sums of each reward term).
+        'style_state', and 'style_weight' when style_weight_after_hit is not 1). 'log' holds success_rate,
+        hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each referee verdict) and
+        reward/<term> (the episodes' sums of each reward term).
         The task's own extras, after the step and before any reset:
           'outcome'       per ball decided in this step: {'done', 'success', 'hit' (the paddle touched it
                           before the verdict) [N] bool, 'reason' [N] int64 index into FAILURE_REASONS}
@@ -369,6 +374,8 @@ class TableTennisEnv:
                   env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}
+        if self.cfg.style_weight_after_hit != 1.0:
+            extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(w.hit, self.cfg.style_weight_after_hit, 1.0)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
             extras[env_contract.EXTRAS_LOG] = self._episode_log(done_ids, outcome)

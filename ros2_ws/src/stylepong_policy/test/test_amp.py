@@ -1,5 +1,6 @@
 """The adversarial motion prior (stylepong_policy.rl.amp): reference windows, history, replay, the
 discriminator's loss and what it learns, the style reward, and AMP training on the toy task."""
+import math
 import pathlib
 
 import numpy as np
@@ -168,6 +169,38 @@ def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():
     weight = prior.discriminator.head.weight.detach().clone()
     stats = prior.update()
     assert stats['disc/grad_penalty'] == pytest.approx(float(weight.square().sum()), rel=1e-4)
+
+
+def test_an_env_style_factor_scales_the_style_weight_per_environment(tmp_path):
+    """The runner passes the env's 'style_weight' extras to the mix: a style-only reward with the factor 0
+    in every environment returns nothing, with the factor 2 twice what it does without one."""
+    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+                            'ppo': {'num_steps_per_env': 40}, 'runner': {'seed': 0, 'save_interval': 1000},
+                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
+                                    'w_style': 1.0, 'replay_size': 1000}})
+
+    class FactorTask(TOY.ReachTask):
+        def __init__(self, factor):
+            super().__init__(num_envs=16, seed=0, episode_steps=10)
+            self.factor = factor
+
+        def step(self, actions):
+            obs, critic_obs, rewards, dones, extras = super().step(actions)
+            if self.factor is not None:
+                extras['style_weight'] = torch.full((self.num_envs,), self.factor)
+            return obs, critic_obs, rewards, dones, extras
+
+    returns = {}
+    for factor in (None, 0.0, 2.0):
+        seed_everything(0)
+        env = FactorTask(factor)
+        reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
+        prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+        runner = OnPolicyRunner(env, cfg, tmp_path / str(factor), tensorboard=False, motion_prior=prior)
+        returns[factor] = runner.learn(1, progress_bar=False)
+    assert returns[None]['mean_return'] > 0.0 and returns[0.0]['mean_return'] == 0.0
+    assert math.isclose(returns[2.0]['mean_return'], 2.0 * returns[None]['mean_return'], rel_tol=1e-5)
+    assert returns[2.0]['step_reward/style'] == returns[None]['step_reward/style']    # logged unweighted
 
 
 def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_path):

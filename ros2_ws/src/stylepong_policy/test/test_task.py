@@ -119,6 +119,27 @@ def _force_return(env, i, start, velocity):
     w.open[i] = True
 
 
+def test_style_weight_factor_holds_from_the_hit_to_the_verdict():
+    _, _, _, _, extras = _env(2, randomize=False).step(torch.zeros(2, 6))
+    assert 'style_weight' not in extras                          # the default: no factor, the same weight throughout
+    env = _env(2, randomize=False, style_weight_after_hit=5.0)
+    env.reset()
+    _, _, _, _, extras = env.step(torch.zeros(2, 6))
+    assert extras['style_weight'].tolist() == [1.0, 1.0]          # balls still incoming
+    _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
+    factors = []
+    for _ in range(90):
+        _, _, _, dones, extras = env.step(torch.zeros(2, 6))
+        factors.append(float(extras['style_weight'][0]))
+        if dones[0]:
+            break
+    assert bool(dones[0]) and set(factors) == {5.0}               # every step after the stroke, the verdict's too
+    _, _, _, _, extras = env.step(torch.zeros(2, 6))
+    assert float(extras['style_weight'][0]) == 1.0                 # the next ball starts at the plain weight
+    with pytest.raises(ValueError, match='style_weight_after_hit'):
+        task.TaskConfig(style_weight_after_hit=-1.0)
+
+
 def test_rewards_for_a_return_a_miss_and_illegal_contact():
     env = _env(3, randomize=False)
     env.reset()

@@ -231,9 +231,11 @@ class MotionPrior:
             self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
         return reward
 
-    def mix(self, task_reward: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style."""
-        return self.cfg.w_task * task_reward + self.cfg.w_style * style
+    def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None
+            ) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style, w_style times the env's per-step factor [N] when it gives one."""
+        weighted = style if style_factor is None else style_factor * style
+        return self.cfg.w_task * task_reward + self.cfg.w_style * weighted
 
     # --- training ----------------------------------------------------------------------------------
     def update(self) -> dict[str, float]:

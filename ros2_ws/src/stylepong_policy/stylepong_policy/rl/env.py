@@ -19,6 +19,9 @@ episodes are already reset, so obs are the new episodes' first observations. `ex
   'log_weight'   int: how many episodes 'log' averages;
   'style_state'  [N, num_style_features]: the frame the style discriminator sees, after the step and
                  before any reset (so the last frame of an ended episode is still its own).
+and may hold
+  'style_weight' [N] float: a factor on this step's style weight, for an env that knows where in an
+                 episode the motion matters more (absent: 1 everywhere).
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -35,6 +38,7 @@ EXTRAS_TIME_OUTS = 'time_outs'
 EXTRAS_LOG = 'log'
 EXTRAS_LOG_WEIGHT = 'log_weight'
 EXTRAS_STYLE_STATE = 'style_state'
+EXTRAS_STYLE_WEIGHT = 'style_weight'
 
 
 class VecEnv(Protocol):

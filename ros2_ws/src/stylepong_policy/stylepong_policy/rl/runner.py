@@ -277,7 +277,7 @@ class OnPolicyRunner:
                     style = self.motion_prior.observe(extras[env_contract.EXTRAS_STYLE_STATE], dones,
                                                       self.env.style_state())
                     parts = {'task': rewards, 'style': style}
-                    rewards = self.motion_prior.mix(rewards, style)
+                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT))
                     self._sync()
                     style_s += time.perf_counter() - t2
                 stats.record(rewards, dones, extras, parts)
