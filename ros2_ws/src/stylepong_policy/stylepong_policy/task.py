@@ -110,7 +110,8 @@ class TaskConfig:
     w_action: float = 0.01
     # A factor on the motion prior's style weight for the steps from the paddle's first touch of the ball to
     # the verdict (1: the same weight throughout; PPO ignores it). No task term pays for how the arm moves
-    # once the ball is struck, so style there costs no return.
+    # once the ball is struck, but the factor lasts until the verdict, so above 1 it pays for a longer
+    # flight: at 5 the policy learned to lob and lost returns (docs/DESIGN.md, Known limits).
     style_weight_after_hit: float = 1.0
 
     def __post_init__(self):
