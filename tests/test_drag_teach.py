@@ -2,6 +2,7 @@
 both with their defaults, driven and watched through their topics (the first three drag_teach checks of
 docs/DESIGN.md, "Acceptance checks"), then its services (enable, tare) and, with stiffness, a target pose
 on ~/target_pose."""
+import math
 import subprocess
 import sys
 import threading
@@ -260,9 +261,16 @@ def test_with_stiffness_it_is_a_compliance_controller_around_the_target_pose(ros
         x, y, z, w = pin.Quaternion(start.rotation).coeffs()
         msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = x, y, z, w
         assert wait_until(lambda: publisher.get_subscription_count() > 0, 10.0)
-        publisher.publish(msg)
+        # The target is sent again every 0.5 s, as a user's tool streams it. Sent once, it was not reached
+        # within the 10 s once in a full run of the suite and was in every rerun: a message published as
+        # soon as the publisher sees the subscription can be lost while discovery completes, and the
+        # test is about the compliance, not about one message's delivery.
+        last_sent = [-math.inf]
 
         def at_target() -> bool:
+            if time.monotonic() - last_sent[0] > 0.5:
+                publisher.publish(msg)
+                last_sent[0] = time.monotonic()
             reached = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))
             return np.linalg.norm(reached.translation - target) < 0.005
         assert wait_until(at_target, 10.0), 'the tool never reached the target pose'
