@@ -64,7 +64,8 @@ COLUMNS = ('iteration', 'samples', 'val_success_all', 'val_success_high', 'val_h
            'speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'checkpoint', 'wall_time_s')
 # With --dtw: the mean DTW distance (rad) of each direction's strokes and the reference dataset. Files
 # written before these columns existed keep their header and can still be extended without --dtw.
-DTW_COLUMNS = tuple(f'val_dtw_{d}' for d in DIRECTIONS) + ('dtw_dataset',)
+DTW_COLUMN = {d: f'val_dtw_{d}' for d in DIRECTIONS}
+DTW_COLUMNS = tuple(DTW_COLUMN.values()) + ('dtw_dataset',)
 # The columns that say how a row was validated: a checkpoint counts as validated only for its setting.
 SETTING_COLUMNS = ('speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'dtw_dataset')
 RULE = ('highest mean success rate over the validation seeds at the validation speed (val_success_all); '
@@ -148,7 +149,7 @@ def dtw_cells(result: dict) -> dict[str, str]:
     cells = {}
     for direction in DIRECTIONS:
         mean = (table.get(direction) or {}).get('mean_rad')
-        cells[f'val_dtw_{direction}'] = f'{mean:.3f}' if mean is not None else ''
+        cells[DTW_COLUMN[direction]] = f'{mean:.3f}' if mean is not None else ''
     return cells
 
 
@@ -211,10 +212,15 @@ def choose(rows: list[dict[str, str]], min_success: float | None = None) -> dict
                                     -int(r['iteration'])))
 
 
+def dtw_by_direction(row: dict[str, str]) -> dict[str, float | None]:
+    """A row's DTW distance (rad) per direction; None where it was not measured."""
+    return {d: float(row[c]) if row.get(c) else None for d, c in DTW_COLUMN.items()}
+
+
 def mean_dtw(row: dict[str, str]) -> float | None:
     """The mean of a row's three directions' DTW distances (rad); None unless all three were measured."""
-    values = [row.get(f'val_dtw_{d}') or '' for d in DIRECTIONS]
-    return sum(float(v) for v in values) / len(values) if all(values) else None
+    values = list(dtw_by_direction(row).values())
+    return None if None in values else sum(values) / len(values)
 
 
 def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Setting, path: pathlib.Path) -> None:
@@ -233,7 +239,7 @@ def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Sett
                 label=f'success, high speeds (seeds {setting.row()["high_seeds"]})')
     ax.axvline(int(chosen['samples']) / 1e6, color='grey', linestyle='--',
                label=f'chosen: iteration {chosen["iteration"]}')
-    style = [(x, mean_dtw(r)) for x, r in zip(samples_m, rows) if mean_dtw(r) is not None]
+    style = [(x, d) for x, d in zip(samples_m, map(mean_dtw, rows)) if d is not None]
     if style:
         dtw_axis = ax.twinx()
         dtw_axis.plot(*zip(*style), 'd:', color='tab:red', label='DTW to the demonstrations, mean of 3 directions')
@@ -328,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f'iteration {row["iteration"]}: success {row["val_success_all"]} ({setting.speed} speeds)'
               + (f', {row["val_success_high"]} (high speeds)' if row['val_success_high'] else '')
-              + (f', DTW {" / ".join(row[f"val_dtw_{d}"] or "-" for d in DIRECTIONS)} rad' if args.dtw else '')
+              + (f', DTW {" / ".join(row[c] or "-" for c in DTW_COLUMN.values())} rad' if args.dtw else '')
               + f', {row["wall_time_s"]} s', flush=True)
 
     candidates = [r for r in rows if same_setting(r, setting)]
@@ -339,8 +345,7 @@ def main(argv: list[str] | None = None) -> int:
         'val_success_all': float(chosen['val_success_all']),
         'val_success_high': float(chosen['val_success_high']) if chosen['val_success_high'] else None,
         'val_hit_rate_all': float(chosen['val_hit_rate_all']),
-        **({'val_dtw_rad': {d: float(chosen[f'val_dtw_{d}']) if chosen[f'val_dtw_{d}'] else None
-                            for d in DIRECTIONS}, 'dtw_dataset': args.dtw} if args.dtw else {}),
+        **({'val_dtw_rad': dtw_by_direction(chosen), 'dtw_dataset': args.dtw} if args.dtw else {}),
         'rule': STYLE_RULE.format(min_success=args.min_success) if args.min_success is not None else RULE,
         'validation': {'speed': setting.speed,
                        'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
