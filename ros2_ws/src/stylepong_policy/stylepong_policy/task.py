@@ -108,11 +108,13 @@ class TaskConfig:
     w_rate: float = 0.02
     sigma_rate: float = 0.5
     w_action: float = 0.01
-    # A factor on the motion prior's style weight for the steps from the paddle's first touch of the ball to
-    # the verdict (1: the same weight throughout; PPO ignores it). No task term pays for how the arm moves
-    # once the ball is struck, but the factor lasts until the verdict, so above 1 it pays for a longer
-    # flight: at 5 the policy learned to lob and lost returns (docs/DESIGN.md, Known limits).
+    # A factor on the motion prior's style weight for the steps from the paddle's first touch of the ball
+    # (1: the same weight throughout; PPO ignores it). No task term pays for how the arm moves once the
+    # ball is struck. It holds for style_weight_after_hit_s after the touch, or until the verdict when that
+    # is 0; lasting until the verdict, above 1 it pays for a longer flight: at 5 the policy learned to lob
+    # and lost returns (docs/DESIGN.md, Known limits). 0.3 s is the follow-through the strokes are judged on.
     style_weight_after_hit: float = 1.0
+    style_weight_after_hit_s: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
@@ -134,7 +136,8 @@ class TaskConfig:
                     raise ValueError(f'{f.name} must be (low, high), got {(a, b)}')
         if not set(self.bat_axes) <= set('xyz') or not self.bat_axes:
             raise ValueError(f"bat_axes must be letters of 'xyz', got {self.bat_axes!r}")
-        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s', 'style_weight_after_hit'):
+        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s', 'style_weight_after_hit',
+                     'style_weight_after_hit_s'):
             if getattr(self, name) < 0.0:
                 raise ValueError(f'{name} must not be negative')
 
@@ -206,6 +209,9 @@ class TableTennisEnv:
                                 action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
                                 reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS})
         self.launch_velocity_m_s = torch.zeros(n, 3, **kw)   # this episode's ball at launch
+        # Policy steps since the ball was struck (0 before, and again from the next ball, whose hit flag is clear).
+        self._steps_since_hit = torch.zeros(n, dtype=torch.long, device=self.device)
+        self._style_weight_steps = round(cfg.style_weight_after_hit_s / self.policy_dt_s)
         self.num_style_features = ARM_STATE_SIZE
 
     # --- what the outside reads -------------------------------------------------------------------
@@ -375,8 +381,10 @@ class TableTennisEnv:
                   env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}
+        self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
         if self.cfg.style_weight_after_hit != 1.0:
-            extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(w.hit, self.cfg.style_weight_after_hit, 1.0)
+            factor = self.cfg.style_weight_after_hit
+            extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(self._style_weighted(), factor, 1.0)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
             extras[env_contract.EXTRAS_LOG] = self._episode_log(done_ids, outcome)
@@ -384,6 +392,13 @@ class TableTennisEnv:
             self._reset_envs(done_ids)
         obs, critic_obs = self._observations()
         return obs, critic_obs, reward, dones, extras
+
+    def _style_weighted(self) -> torch.Tensor:
+        """[N] bool: the steps that earn style_weight_after_hit, from the hit for its duration or to the verdict."""
+        struck = self._steps_since_hit > 0
+        if self._style_weight_steps == 0:
+            return struck
+        return struck & (self._steps_since_hit <= self._style_weight_steps)
 
     def _rewards(self, action, hit_before, events: bw.StepEvents, q, qd) -> dict[str, torch.Tensor]:
         cfg = self.cfg

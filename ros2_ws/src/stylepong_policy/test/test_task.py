@@ -140,6 +140,23 @@ def test_style_weight_factor_holds_from_the_hit_to_the_verdict():
         task.TaskConfig(style_weight_after_hit=-1.0)
 
 
+def test_style_weight_factor_for_a_fixed_time_after_the_hit():
+    env = _env(2, randomize=False, style_weight_after_hit=5.0, style_weight_after_hit_s=0.3)
+    env.reset()
+    _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
+    factors = []
+    for _ in range(90):
+        _, _, _, dones, extras = env.step(torch.zeros(2, 6))
+        factors.append(float(extras['style_weight'][0]))
+        if dones[0]:
+            break
+    assert bool(dones[0]) and len(factors) > 18                  # the flight outlasts the window
+    assert factors[:18] == [5.0] * 18                            # 0.3 s at 60 Hz from the stroke
+    assert set(factors[18:]) == {1.0}                            # a longer flight earns no more of it
+    with pytest.raises(ValueError, match='style_weight_after_hit_s'):
+        task.TaskConfig(style_weight_after_hit_s=-0.1)
+
+
 def test_rewards_for_a_return_a_miss_and_illegal_contact():
     env = _env(3, randomize=False)
     env.reset()
