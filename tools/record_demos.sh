@@ -9,6 +9,8 @@
 # Each clip is another take: clip N (1-based, in the order recorded) gets the virtual teacher's seed
 # N + SEED_OFFSET (default 0), so the shipped set is seeds 1-7 (forward 1, 4, 7; leftward 2, 5;
 # rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
+# BLADE_PITCH_RAD (default 0.0, the shipped clips' upright blade) is how far the teacher opens the blade
+# through each stroke (teacher.TeacherConfig.blade_pitch_rad).
 #
 # The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
 # clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
@@ -35,6 +37,7 @@ export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
 SEED_OFFSET=${SEED_OFFSET:-0}
+BLADE_PITCH_RAD=${BLADE_PITCH_RAD:-0.0}
 mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
 say() { printf '[record] %s\n' "$*"; }
@@ -56,7 +59,7 @@ for swing in "${SWINGS[@]}"; do
   log=$LOGS/virtual_teacher_${clip}_$swing.log
   say "teaching a $swing stroke (clip $clip, seed $seed)"
   if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p seed:="$seed" -p use_sim_time:=true \
-      >"$log" 2>&1; then
+      -p blade_pitch_rad:="$BLADE_PITCH_RAD" >"$log" 2>&1; then
     say "the $swing stroke failed; its log:"
     tail -n 20 "$log" >&2
     exit 1

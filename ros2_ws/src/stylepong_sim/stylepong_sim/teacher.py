@@ -228,6 +228,12 @@ class TeacherConfig:
     expected_rot_damping_nms_per_rad: float = 3.0
     max_force_n: float = 35.0
     max_torque_nm: float = 3.5
+    # How far the person opens the blade (turns its face up, about its horizontal axis) during the back-swing
+    # and holds it open through the hit and the follow-through. 0, the blade upright as at home, gives the
+    # shipped clips; an upright blade strikes a ball down onto the robot's own half, and about 0.6 rad
+    # returns it (tools/demo_returns.py, docs/DESIGN.md Known limits). Beyond 1 rad it faces the ceiling
+    # more than the opponent.
+    blade_pitch_rad: float = 0.0
     # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
     # when the paddle is further than this from the via-point, and stops beyond the second distance.
     lag_slowdown_m: float = 0.03
@@ -242,6 +248,8 @@ class TeacherConfig:
                 raise ValueError(f'{name} must be positive')
         if self.lag_stop_m <= self.lag_slowdown_m:
             raise ValueError('lag_stop_m must exceed lag_slowdown_m')
+        if self.blade_pitch_rad > 1.0:
+            raise ValueError(f'blade_pitch_rad must be within 0-1 rad, got {self.blade_pitch_rad!r}')
         if not 1.5 <= self.stroke_s <= 3.0:
             raise ValueError(f'a stroke (back-swing to follow-through) takes 1.5-3 s like a slow drag, '
                              f'got {self.stroke_s:.2f} s')
@@ -303,11 +311,22 @@ def minimum_jerk(tau: float) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class ViaPoint:
-    """A via point of the paddle's path: position, velocity, yaw and yaw rate (world frame)."""
+    """A via point of the paddle's path: position, velocity, yaw, pitch and their rates (world frame)."""
     position_m: np.ndarray       # paddle centre, world
     velocity_m_s: np.ndarray
     yaw_rad: float               # blade turned about world z from its home orientation
     yaw_rate_rad_s: float
+    pitch_rad: float = 0.0       # blade face turned up about its horizontal axis (before the yaw)
+    pitch_rate_rad_s: float = 0.0
+
+    def rotation(self, home_rotation: np.ndarray) -> np.ndarray:
+        """The blade's orientation: pitched up about world y, then yawed about world z, from home."""
+        return ws.yaw_rotation(self.yaw_rad) @ pin.utils.rpyToMatrix(0.0, -self.pitch_rad, 0.0) @ home_rotation
+
+    def angular_velocity_rad_s(self) -> np.ndarray:
+        """World angular velocity of the blade moving with the via-point."""
+        pitch_axis_rate = ws.yaw_rotation(self.yaw_rad) @ np.array([0.0, -self.pitch_rate_rad_s, 0.0])
+        return np.array([0.0, 0.0, self.yaw_rate_rad_s]) + pitch_axis_rate
 
 
 class StrokePath:
@@ -359,15 +378,17 @@ class StrokePath:
             s, ds = minimum_jerk(t_s / self.backswing_s)
             ds /= self.backswing_s
             _, yaw_back, _, _ = self.yaws
+            pitch = self.config.blade_pitch_rad   # opened with the back-swing, held open after it
             return ViaPoint(self.ready + s * (self.back - self.ready), ds * (self.back - self.ready),
-                            s * yaw_back, ds * yaw_back)
+                            s * yaw_back, ds * yaw_back, s * pitch, ds * pitch)
         # Forward swing: u(t) minimum-jerk from 0 to 1 along the quadratic.
         u, du = minimum_jerk((t_s - self.backswing_s) / self.forward_swing_s)
         du /= self.forward_swing_s
         powers = np.array([1.0, u, u * u])
         dpowers = np.array([0.0, 1.0, 2.0 * u])
         points, yaws = self._swing_coefficients_m, self._swing_yaw_coefficients_rad
-        return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws), float(du * (dpowers @ yaws)))
+        return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws), float(du * (dpowers @ yaws)),
+                        self.config.blade_pitch_rad)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -442,7 +463,8 @@ class VirtualTeacher:
         if self.phase == 'stroke':
             via = self.path.at(min(self._stroke_clock_s, self.path.duration_s))
             return ViaPoint(via.position_m, self._stroke_rate * via.velocity_m_s, via.yaw_rad,
-                            self._stroke_rate * via.yaw_rate_rad_s)
+                            self._stroke_rate * via.yaw_rate_rad_s, via.pitch_rad,
+                            self._stroke_rate * via.pitch_rate_rad_s)
         return self.path.at(self.path.duration_s)
 
     def _advance_stroke_clock(self, t_s: float, centre_position_m: np.ndarray) -> None:
@@ -482,9 +504,9 @@ class VirtualTeacher:
             self.phase, self._phase_start_s = 'finished', t_s
         if self.phase == 'settling':
             via = self.path.at(0.0)
-        target_centre = pin.SE3(ws.yaw_rotation(via.yaw_rad) @ self.home_rotation, via.position_m)
+        target_centre = pin.SE3(via.rotation(self.home_rotation), via.position_m)
         target_grip = target_centre * self.centre_to_grip
-        omega = np.array([0.0, 0.0, via.yaw_rate_rad_s])
+        omega = via.angular_velocity_rad_s()
         # Velocity of the gripped point on a body moving with the via-point: v + omega x r.
         lever = target_grip.translation - target_centre.translation
         target_twist = np.concatenate([via.velocity_m_s + np.cross(omega, lever), omega])
@@ -494,7 +516,7 @@ class VirtualTeacher:
 
     def at_rest_on(self, q: np.ndarray, qdot: np.ndarray, via: ViaPoint) -> bool:
         centre = self.kinematics.pose(q, self.centre_id)
-        target_rotation = ws.yaw_rotation(via.yaw_rad) @ self.home_rotation
+        target_rotation = via.rotation(self.home_rotation)
         c = self.config
         return (np.linalg.norm(centre.translation - via.position_m) < c.settle_position_m
                 and np.linalg.norm(pin.log3(target_rotation @ centre.rotation.T)) < c.settle_angle_rad

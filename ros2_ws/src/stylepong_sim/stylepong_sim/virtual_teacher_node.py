@@ -61,6 +61,8 @@ PARAMETERS = (
     Param('expected_damping_ns_per_m', _DEFAULTS.expected_damping_ns_per_m,
           'how heavy the person expects the arm to feel'),
     Param('max_force_n', _DEFAULTS.max_force_n, 'the hardest the hand pushes'),
+    Param('blade_pitch_rad', _DEFAULTS.blade_pitch_rad, 'how far the blade is opened (face turned up) through '
+          'the stroke (0: upright, the shipped clips)', low=0.0, high=1.0),
 )
 
 

@@ -101,3 +101,21 @@ def test_the_hand_waits_for_an_arm_that_does_not_follow():
     assert teacher.phase == 'stroke'              # the stroke did not run on without the arm
     assert max(forces) < config.hand_stiffness_n_per_m * config.lag_stop_m + 5.0
     assert teacher.via_point(t).velocity_m_s @ teacher.via_point(t).velocity_m_s < 1e-6   # the via-point waits
+
+
+def test_an_opened_blade_faces_up_from_the_back_swing_on_and_is_upright_at_the_ready_pose():
+    opened = VirtualTeacher('forward', TeacherConfig(blade_pitch_rad=0.6))
+    path = opened.path
+    hit = path.at(path.hit_time_s())
+    assert VirtualTeacher('forward').path.at(path.hit_time_s()).pitch_rad == 0.0   # the default: upright
+    assert path.at(0.0).pitch_rad == 0.0 and hit.pitch_rad == 0.6 and path.at(path.duration_s).pitch_rad == 0.6
+    normal = hit.rotation(opened.home_rotation)[:, 2]             # the blade's face, +x at home
+    assert normal[2] == pytest.approx(np.sin(0.6), abs=0.01) and normal[0] == pytest.approx(np.cos(0.6), abs=0.01)
+    # Opening during the back-swing: the angular velocity is the rotation's rate of change.
+    t, dt = TeacherConfig().lead_in_s + 0.5 * path.backswing_s, 1e-6
+    before, after = path.at(t), path.at(t + dt)
+    assert 0.0 < before.pitch_rad < 0.6
+    turned = pin.log3(after.rotation(opened.home_rotation) @ before.rotation(opened.home_rotation).T) / dt
+    np.testing.assert_allclose(turned, before.angular_velocity_rad_s(), atol=1e-4)
+    with pytest.raises(ValueError, match='blade_pitch_rad'):
+        TeacherConfig(blade_pitch_rad=1.2).validate()
