@@ -172,6 +172,22 @@ def test_config_yaml_round_trip_and_shipped_default(tmp_path):
     assert shipped.runner.seed < 1000
 
 
+def test_a_config_extends_another_and_changes_only_what_it_names(tmp_path):
+    (tmp_path / 'base.yaml').write_text('ppo:\n  gamma: 0.9\n  lam: 0.9\ntask:\n  num_envs: 8\n')
+    (tmp_path / 'child.yaml').write_text('extends: base.yaml\nppo:\n  lam: 0.8\n')
+    cfg = load_config(tmp_path / 'child.yaml')
+    assert (cfg.ppo.gamma, cfg.ppo.lam, cfg.task['num_envs']) == (0.9, 0.8, 8)
+    save_config(cfg, tmp_path / 'saved.yaml')                     # what a run keeps is whole
+    assert 'extends' not in (tmp_path / 'saved.yaml').read_text()
+    assert load_config(tmp_path / 'saved.yaml') == cfg
+    (tmp_path / 'loop.yaml').write_text('extends: loop.yaml\n')
+    with pytest.raises(ValueError, match='extends itself'):
+        load_config(tmp_path / 'loop.yaml')
+    (tmp_path / 'orphan.yaml').write_text('extends: nowhere.yaml\n')
+    with pytest.raises(ValueError, match='cannot read config'):
+        load_config(tmp_path / 'orphan.yaml')
+
+
 def test_every_training_config_in_the_package_loads():
     # The experiment recipes are documented commands: a key misspelt in one fails here, not an hour into a run.
     paths = sorted(p for p in (HERE.parent / 'config').glob('*.yaml') if p.name != 'player.yaml')

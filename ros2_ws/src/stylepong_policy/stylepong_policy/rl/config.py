@@ -8,6 +8,10 @@ back to a default). `task` is kept as a plain dict and handed to the task module
 The defaults of `policy`, `ppo` and `runner` (and TaskConfig's num_envs) are the values of the shipped
 config/ppo.yaml, the source: what a section leaves out is what the baseline ran with, and
 test_ppo.py's test_defaults_are_the_shipped_ppo_yaml keeps the two equal.
+
+A file may start from another: `extends: base.yaml` (relative to the file) takes the base's sections
+and lets the file change keys in them, so an experiment states only how it differs from its recipe.
+What a run saves is the resolved configuration, whole.
 """
 from __future__ import annotations
 
@@ -187,9 +191,10 @@ def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:
     return dataclasses.asdict(cfg)
 
 
-def load_config(path: str | pathlib.Path) -> TrainConfig:
-    """Read a YAML configuration; ValueError naming the file for anything wrong with it."""
-    path = pathlib.Path(path)
+EXTENDS_KEY = 'extends'
+
+
+def _read_mapping(path: pathlib.Path) -> dict[str, Any]:
     try:
         data = yaml.safe_load(path.read_text())
     except OSError as err:
@@ -198,6 +203,37 @@ def load_config(path: str | pathlib.Path) -> TrainConfig:
         raise ValueError(f'config {path} is not valid YAML: {err}') from err
     if data is not None and not isinstance(data, dict):
         raise ValueError(f'config {path} must be a YAML mapping')
+    return data or {}
+
+
+def merged_sections(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """`base` with each section of `changes` laid over it key by key (a non-mapping value replaces)."""
+    result = copy.deepcopy(base)
+    for name, values in changes.items():
+        if isinstance(values, dict) and isinstance(result.get(name), dict):
+            result[name] = {**result[name], **copy.deepcopy(values)}
+        else:
+            result[name] = copy.deepcopy(values)
+    return result
+
+
+def _resolved_mapping(path: pathlib.Path, chain: tuple[pathlib.Path, ...] = ()) -> dict[str, Any]:
+    """The file's sections with those of the files it extends beneath them."""
+    if path.resolve() in chain:
+        raise ValueError(f'config {path} extends itself through {[str(p) for p in chain]}')
+    data = _read_mapping(path)
+    base_name = data.pop(EXTENDS_KEY, None)
+    if base_name is None:
+        return data
+    if not isinstance(base_name, str):
+        raise ValueError(f'config {path}: {EXTENDS_KEY} must be a file name, got {base_name!r}')
+    return merged_sections(_resolved_mapping(path.parent / base_name, chain + (path.resolve(),)), data)
+
+
+def load_config(path: str | pathlib.Path) -> TrainConfig:
+    """Read a YAML configuration (and what it extends); ValueError naming the file for anything wrong."""
+    path = pathlib.Path(path)
+    data = _resolved_mapping(path)
     try:
         return config_from_dict(data)
     except (TypeError, ValueError) as err:
