@@ -108,11 +108,11 @@ class TaskConfig:
     w_rate: float = 0.02
     sigma_rate: float = 0.5
     w_action: float = 0.01
-    # A factor on the motion prior's style weight for the steps from the paddle's first touch of the ball
-    # (1: the same weight throughout; PPO ignores it). No task term pays for how the arm moves once the
-    # ball is struck. It holds for style_weight_after_hit_s after the touch, or until the verdict when that
-    # is 0; lasting until the verdict, above 1 it pays for a longer flight: at 5 the policy learned to lob
-    # and lost returns (docs/DESIGN.md, Known limits). 0.3 s is the follow-through the strokes are judged on.
+    # A factor on the motion prior's style weight from the paddle's first touch of the ball, where no task
+    # term pays for how the arm moves (1: the same weight throughout; PPO ignores it). It lasts
+    # style_weight_after_hit_s (0.3 s: the follow-through evaluate's strokes include), or to the verdict
+    # when that is 0; then above 1 it pays for a longer flight, and at 5 the policy learned to lob and lost
+    # returns (docs/DESIGN.md, Known limits).
     style_weight_after_hit: float = 1.0
     style_weight_after_hit_s: float = 0.0
 

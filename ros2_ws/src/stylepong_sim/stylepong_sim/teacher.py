@@ -10,6 +10,9 @@ vertical by a yaw:
 
     ready -> back-swing -> hit (the fastest point, in front of the robot) -> follow-through
 
+The blade stays upright unless TeacherConfig.blade_pitch_rad opens it (turns its face up) during the
+back-swing and holds it open to the end: an upright blade strikes a ball down onto the robot's own half.
+
 The back-swing is a minimum-jerk move from rest to rest. The forward swing runs from the back-swing
 through the hitting point to the follow-through along the quadratic through those three points, timed
 by a minimum-jerk profile (top speed half-way through it) that passes the hitting point near its top
