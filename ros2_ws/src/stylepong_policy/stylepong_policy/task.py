@@ -381,8 +381,8 @@ class TableTennisEnv:
                   env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}
-        self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
-        if self.cfg.style_weight_after_hit != 1.0:
+        if self.cfg.style_weight_after_hit != 1.0:   # the counter only serves the factor: none, no cost
+            self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
             factor = self.cfg.style_weight_after_hit
             extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(self._style_weighted(), factor, 1.0)
         done_ids = torch.nonzero(dones).squeeze(1)

@@ -119,6 +119,17 @@ def _force_return(env, i, start, velocity):
     w.open[i] = True
 
 
+def _style_factors_until_verdict(env) -> list[float]:
+    """Env 0's style weight factor at each step up to and including its verdict (which must come)."""
+    factors = []
+    for _ in range(90):
+        _, _, _, dones, extras = env.step(torch.zeros(2, 6))
+        factors.append(float(extras['style_weight'][0]))
+        if dones[0]:
+            return factors
+    raise AssertionError('no verdict within 1.5 s')
+
+
 def test_style_weight_factor_holds_from_the_hit_to_the_verdict():
     _, _, _, _, extras = _env(2, randomize=False).step(torch.zeros(2, 6))
     assert 'style_weight' not in extras                          # the default: no factor, the same weight throughout
@@ -127,13 +138,8 @@ def test_style_weight_factor_holds_from_the_hit_to_the_verdict():
     _, _, _, _, extras = env.step(torch.zeros(2, 6))
     assert extras['style_weight'].tolist() == [1.0, 1.0]          # balls still incoming
     _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
-    factors = []
-    for _ in range(90):
-        _, _, _, dones, extras = env.step(torch.zeros(2, 6))
-        factors.append(float(extras['style_weight'][0]))
-        if dones[0]:
-            break
-    assert bool(dones[0]) and set(factors) == {5.0}               # every step after the stroke, the verdict's too
+    factors = _style_factors_until_verdict(env)
+    assert set(factors) == {5.0}                                 # every step after the stroke, the verdict's too
     _, _, _, _, extras = env.step(torch.zeros(2, 6))
     assert float(extras['style_weight'][0]) == 1.0                 # the next ball starts at the plain weight
     with pytest.raises(ValueError, match='style_weight_after_hit'):
@@ -144,13 +150,8 @@ def test_style_weight_factor_for_a_fixed_time_after_the_hit():
     env = _env(2, randomize=False, style_weight_after_hit=5.0, style_weight_after_hit_s=0.3)
     env.reset()
     _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
-    factors = []
-    for _ in range(90):
-        _, _, _, dones, extras = env.step(torch.zeros(2, 6))
-        factors.append(float(extras['style_weight'][0]))
-        if dones[0]:
-            break
-    assert bool(dones[0]) and len(factors) > 18                  # the flight outlasts the window
+    factors = _style_factors_until_verdict(env)
+    assert len(factors) > 18                                     # the flight outlasts the window
     assert factors[:18] == [5.0] * 18                            # 0.3 s at 60 Hz from the stroke
     assert set(factors[18:]) == {1.0}                            # a longer flight earns no more of it
     with pytest.raises(ValueError, match='style_weight_after_hit_s'):
