@@ -10,7 +10,8 @@
 # N + SEED_OFFSET (default 0), so the shipped set is seeds 1-7 (forward 1, 4, 7; leftward 2, 5;
 # rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
 # BLADE_PITCH_RAD (default 0.0, the shipped clips' upright blade) is how far the teacher opens the blade
-# through each stroke (teacher.TeacherConfig.blade_pitch_rad).
+# through each stroke (teacher.TeacherConfig.blade_pitch_rad), SIDE_TURN_RAD (default 0.0) how far it turns
+# the leftward and rightward strokes further to their side (teacher.TeacherConfig.side_turn_rad).
 #
 # The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
 # clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
@@ -38,6 +39,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
 SEED_OFFSET=${SEED_OFFSET:-0}
 BLADE_PITCH_RAD=${BLADE_PITCH_RAD:-0.0}
+SIDE_TURN_RAD=${SIDE_TURN_RAD:-0.0}
 mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
 say() { printf '[record] %s\n' "$*"; }
@@ -59,7 +61,7 @@ for swing in "${SWINGS[@]}"; do
   log=$LOGS/virtual_teacher_${clip}_$swing.log
   say "teaching a $swing stroke (clip $clip, seed $seed)"
   if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p seed:="$seed" -p use_sim_time:=true \
-      -p blade_pitch_rad:="$BLADE_PITCH_RAD" >"$log" 2>&1; then
+      -p blade_pitch_rad:="$BLADE_PITCH_RAD" -p side_turn_rad:="$SIDE_TURN_RAD" >"$log" 2>&1; then
     say "the $swing stroke failed; its log:"
     tail -n 20 "$log" >&2
     exit 1

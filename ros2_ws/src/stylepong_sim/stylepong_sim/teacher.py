@@ -12,6 +12,8 @@ vertical by a yaw:
 
 The blade stays upright unless TeacherConfig.blade_pitch_rad opens it (turns its face up) during the
 back-swing and holds it open to the end: an upright blade strikes a ball down onto the robot's own half.
+TeacherConfig.side_turn_rad swings a leftward or rightward stroke round the shoulder pan's axis towards
+its side, to meet a ball wider than the nominal hitting points.
 
 The back-swing is a minimum-jerk move from rest to rest. The forward swing runs from the back-swing
 through the hitting point to the follow-through along the quadratic through those three points, timed
@@ -40,6 +42,11 @@ from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
 
 SWINGS = ('forward', 'leftward', 'rightward')
+# Which way TeacherConfig.side_turn_rad turns each swing about the vertical (+: to the robot's left).
+SIDE_TURN_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
+# The turn swings the stroke round a point 0.35 m behind home, so it also takes the hit back from the end
+# line: at 1 rad a leftward hit is 0.47 m behind it and hardly further to the side than at 0.8 rad.
+MAX_SIDE_TURN_RAD = 1.0
 
 
 @dataclass(frozen=True)
@@ -237,6 +244,14 @@ class TeacherConfig:
     # returns it (tools/demo_returns.py, docs/DESIGN.md Known limits). Beyond 1 rad it faces the ceiling
     # more than the opponent.
     blade_pitch_rad: float = 0.0
+    # How far a leftward or rightward stroke is turned towards its side about the shoulder pan's axis (the
+    # robot base's vertical): a person reaching for a wide ball swings the whole stroke round at the
+    # shoulder. The key poses and the blade's yaw turn together, so the joint path is the unturned one with
+    # the shoulder pan moved by this much (every reach, clearance and wrist check of the unturned stroke
+    # holds). 0 gives the nominal strokes, whose hits lie within 0.18 m of home; 0.4 rad meets the ball
+    # 0.13-0.15 m further out and 0.8 rad 0.19-0.27 m, towards where most balls reach the robot
+    # (docs/DESIGN.md Known limits).
+    side_turn_rad: float = 0.0
     # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
     # when the paddle is further than this from the via-point, and stops beyond the second distance.
     lag_slowdown_m: float = 0.03
@@ -253,6 +268,8 @@ class TeacherConfig:
             raise ValueError('lag_stop_m must exceed lag_slowdown_m')
         if self.blade_pitch_rad > 1.0:
             raise ValueError(f'blade_pitch_rad must be within 0-1 rad, got {self.blade_pitch_rad!r}')
+        if self.side_turn_rad > MAX_SIDE_TURN_RAD:
+            raise ValueError(f'side_turn_rad must be within 0-{MAX_SIDE_TURN_RAD} rad, got {self.side_turn_rad!r}')
         if not 1.5 <= self.stroke_s <= 3.0:
             raise ValueError(f'a stroke (back-swing to follow-through) takes 1.5-3 s like a slow drag, '
                              f'got {self.stroke_s:.2f} s')
@@ -332,6 +349,15 @@ class ViaPoint:
         return np.array([0.0, 0.0, self.yaw_rate_rad_s]) + pitch_axis_rate
 
 
+def turned_about_base(points_m: np.ndarray, turn_rad: float) -> np.ndarray:
+    """World points [K, 3] turned by turn_rad about the vertical through the robot base (the shoulder pan's
+    axis: world_spec places the base upright)."""
+    if turn_rad == 0.0:
+        return np.asarray(points_m, dtype=float)   # bit for bit: the unturned takes recorded before the turn
+    base = np.array(ws.ROBOT_BASE_POSITION_M)
+    return base + (np.asarray(points_m, dtype=float) - base) @ ws.yaw_rotation(turn_rad).T
+
+
 class StrokePath:
     """Via-point of the paddle centre over time for one take of a stroke, starting at the ready (home) pose."""
 
@@ -346,9 +372,11 @@ class StrokePath:
         self.backswing_s = config.backswing_s * variation.backswing_scale
         self.forward_swing_s = config.forward_swing_s * variation.forward_swing_scale
         self.ready = np.asarray(home_position_m, dtype=float)
-        swing_points_m = self.ready + np.array([shape.back_offset_m, shape.hit_offset_m, shape.follow_offset_m])
+        turn_rad = SIDE_TURN_SIGN[swing] * config.side_turn_rad
+        swing_points_m = turned_about_base(self.ready + np.array([shape.back_offset_m, shape.hit_offset_m,
+                                                                  shape.follow_offset_m]), turn_rad)
         self.back, self.hit, self.follow = swing_points_m
-        self.yaws = (0.0, shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad)
+        self.yaws = (0.0, shape.back_yaw_rad + turn_rad, shape.hit_yaw_rad + turn_rad, shape.follow_yaw_rad + turn_rad)
         # The forward swing is the quadratic through back (u=0), hit (u=h) and follow-through (u=1) in its
         # path parameter u; its coefficients (rows: 1, u, u^2) are built once, since `at` runs several
         # times per 500 Hz tick. Lagrange basis: (u-h)(u-1)/h, u(u-1)/(h(h-1)), u(u-h)/(1-h).

@@ -30,7 +30,7 @@ from std_srvs.srv import Trigger
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model as rm
 from stylepong_msgs.srv import StartClip
-from stylepong_sim.teacher import SWINGS, TeacherConfig, VirtualTeacher, sample_variation
+from stylepong_sim.teacher import MAX_SIDE_TURN_RAD, SWINGS, TeacherConfig, VirtualTeacher, sample_variation
 
 PROGRAM = 'virtual_teacher'
 WARN_PERIOD_S = 1.0
@@ -63,6 +63,8 @@ PARAMETERS = (
     Param('max_force_n', _DEFAULTS.max_force_n, 'the hardest the hand pushes'),
     Param('blade_pitch_rad', _DEFAULTS.blade_pitch_rad, 'how far the blade is opened (face turned up) through '
           'the stroke (0: upright, the shipped clips)', low=0.0, high=1.0),
+    Param('side_turn_rad', _DEFAULTS.side_turn_rad, 'how far a leftward or rightward stroke is turned towards its '
+          'side about the shoulder pan (0: the nominal stroke)', low=0.0, high=MAX_SIDE_TURN_RAD),
 )
 
 

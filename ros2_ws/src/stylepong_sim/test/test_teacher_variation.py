@@ -192,3 +192,27 @@ def test_every_take_stays_within_the_joint_limits_clear_of_the_shoulder_singular
         assert clearance_m > MIN_SHOULDER_CLEARANCE_M, f'{take}: wrist {clearance_m:.3f} m from the shoulder plane'
         elbow_rad = float(np.min(np.abs(q[:, 2])))
         assert elbow_rad > MIN_ELBOW_BEND_RAD, f'{take}: elbow bent only {elbow_rad:.2f} rad'
+
+
+@pytest.mark.parametrize('swing', SWINGS)
+def test_a_turned_stroke_is_the_same_joint_path_with_the_shoulder_pan_moved_towards_its_side(swing):
+    """TeacherConfig.side_turn_rad swings a sideways stroke round the shoulder pan's axis: from the end of
+    the back-swing on only the pan joint differs, by the turn towards the stroke's side (the back-swing
+    goes straight from home to the turned pose); forward strokes are not turned."""
+    turn_rad = 0.5
+    take = sample_variation(swing, 3)
+    plain = StrokePath(swing, TeacherConfig(), HOME_CENTRE, take)
+    turned = StrokePath(swing, TeacherConfig(side_turn_rad=turn_rad), HOME_CENTRE, take)
+    q_plain, q_turned = joint_path(plain), joint_path(turned)
+    side = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}[swing]
+    assert np.allclose(q_turned[0], q_plain[0], atol=1e-9)
+    swing_start = int(np.ceil((plain.config.lead_in_s + plain.backswing_s) / 0.02))
+    np.testing.assert_allclose(q_turned[swing_start:, 0] - q_plain[swing_start:, 0], side * turn_rad, atol=1e-6)
+    np.testing.assert_allclose(q_turned[swing_start:, 1:], q_plain[swing_start:, 1:], atol=1e-6)
+    limits = rm.joint_limits()
+    assert np.all(q_turned > limits.lower_rad) and np.all(q_turned < limits.upper_rad)
+    assert np.max(np.abs(np.diff(q_turned, axis=0))) < MAX_JOINT_STEP_RAD
+    assert min(shoulder_clearance_m(a) for a in q_turned) > MIN_SHOULDER_CLEARANCE_M
+    assert side * (turned.hit[1] - plain.hit[1]) >= (0.1 if side else 0.0)
+    with pytest.raises(ValueError, match='side_turn_rad'):
+        TeacherConfig(side_turn_rad=1.5).validate()
