@@ -43,6 +43,7 @@ from dataclasses import asdict, dataclass, field, fields
 import torch
 
 from stylepong_policy import spec
+from stylepong_policy import strokes as st
 from stylepong_policy.rl import env as env_contract
 from stylepong_sim import batched_launcher as bl
 from stylepong_sim import batched_world as bw
@@ -160,7 +161,22 @@ class _Episode:
     ball_delay_steps: torch.Tensor          # in policy steps (fractional)
     joint_delay_steps: torch.Tensor
     action_delay_physics_steps: torch.Tensor  # long
+    direction: torch.Tensor                 # long: index into strokes.DIRECTIONS of the stroke the ball asks for
     reward_sums: dict = field(default_factory=dict)
+
+
+def launch_directions(position_m: torch.Tensor, velocity_m_s: torch.Tensor, plane_x_m: float,
+                      paddle_home_y_m: float) -> torch.Tensor:
+    """Index into strokes.DIRECTIONS [K] of balls launched at position_m, velocity_m_s [3, K]: where they
+    will cross the paddle's home plane (x = plane_x_m), by strokes.direction_of's thresholds. In this world
+    a ball's heading over the table never turns (drag acts along the velocity, no spin) and a bounce scales
+    both horizontal components alike, so the crossing lies on the launch heading: the label `evaluate`
+    gives the ball afterwards, known from its launch."""
+    arrival_y_m = position_m[1] + (plane_x_m - position_m[0]) * velocity_m_s[1] / velocity_m_s[0]
+    offset_m = arrival_y_m - paddle_home_y_m
+    index = st.DIRECTIONS.index
+    return torch.where(offset_m > st.LEFTWARD_ABOVE_M, index('leftward'),
+                       torch.where(offset_m < st.RIGHTWARD_BELOW_M, index('rightward'), index('forward')))
 
 
 class TableTennisEnv:
@@ -207,12 +223,18 @@ class TableTennisEnv:
         self.episode = _Episode(goal_xy_m=torch.zeros(n, 2, **kw), noise_std=torch.zeros(n, 4, **kw),
                                 ball_delay_steps=torch.zeros(n, **kw), joint_delay_steps=torch.zeros(n, **kw),
                                 action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
+                                direction=torch.zeros(n, dtype=torch.long, device=self.device),
                                 reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS})
         self.launch_velocity_m_s = torch.zeros(n, 3, **kw)   # this episode's ball at launch
         # Policy steps since the ball was struck (0 before, and again from the next ball, whose hit flag is clear).
         self._steps_since_hit = torch.zeros(n, dtype=torch.long, device=self.device)
         self._style_weight_steps = round(cfg.style_weight_after_hit_s / self.policy_dt_s)
         self.num_style_features = ARM_STATE_SIZE
+        # The kinds of motion a step may ask the motion prior for (rl.env's style labels): the stroke each
+        # ball needs, labelled as the demonstrations are.
+        self.style_labels = st.DIRECTIONS
+        paddle_home_m = st.paddle_home_position_m()
+        self._plane_x_m, self._paddle_home_y_m = paddle_home_m[0], paddle_home_m[1]
 
     # --- what the outside reads -------------------------------------------------------------------
     @property
@@ -251,6 +273,7 @@ class TableTennisEnv:
                             self._uniform(k, (-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r))), dim=1)
         self.episode.goal_xy_m[env_ids] = goal
         self.launch_velocity_m_s[env_ids] = velocity.T.to(torch.float32)
+        self.episode.direction[env_ids] = launch_directions(position, velocity, self._plane_x_m, self._paddle_home_y_m)
         if cfg.randomize:
             self.episode.noise_std[env_ids] = self._uniform((k, 1), (0.0, 1.0)) * self._max_noise_std
             self.episode.ball_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_ball_delay_s)) / self.policy_dt_s
@@ -378,7 +401,9 @@ class TableTennisEnv:
                    'reason': events.reason.clamp_min(0)}
         extras = {env_contract.EXTRAS_TIME_OUTS: dones & (events.reason == rf.REASON_INDEX[rf.REASON_TIMEOUT]),
                   env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
-                  env_contract.EXTRAS_STYLE_STATE: arm_state, 'outcome': outcome, 'paddle_hit': events.paddle_hit,
+                  env_contract.EXTRAS_STYLE_STATE: arm_state,
+                  env_contract.EXTRAS_STYLE_LABEL: self.episode.direction.clone(),
+                  'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}
         if self.cfg.style_weight_after_hit != 1.0:   # the counter only serves the factor: none, no cost

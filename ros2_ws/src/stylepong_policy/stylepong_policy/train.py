@@ -168,11 +168,13 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     path = reference_dataset_path(cfg.amp, run_dir)
     dataset = ReferenceDataset.load(path)
+    label_names = tuple(getattr(env, 'style_labels', ())) if cfg.amp.condition_on_label else ()
     reference = ReferenceMotion.from_dataset(dataset, cfg.amp.sequence_length, cfg.amp.speed_factors, device,
-                                             cfg.amp.frame_features)
+                                             cfg.amp.frame_features, label_names)
     print(f'train: reference motions {path}: {reference.num_windows} windows of {cfg.amp.sequence_length} frames '
           f'({cfg.amp.frame_features}) '
-          f'from clips with speed factors {cfg.amp.speed_factors or "all"}', flush=True)
+          f'from clips with speed factors {cfg.amp.speed_factors or "all"}'
+          + (f', conditioned on the labels {list(label_names)}' if label_names else ''), flush=True)
     return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed), path
 
 

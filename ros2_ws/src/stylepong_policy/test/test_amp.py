@@ -231,3 +231,58 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
         obs, _ = env.reset()
         velocity = runner.actor_critic.act_deterministic(obs).clamp(-1, 1) * env.step_size
     assert velocity[:, 0].mean() > 0.03 and velocity[:, 1].abs().mean() < 0.03, velocity.mean(0)
+
+
+def test_a_discriminator_conditioned_on_labels_tells_a_motion_under_its_own_label_from_it_under_another():
+    """condition_on_label: two kinds of demonstrated motion (label 0 rises, label 1 falls). The policy's
+    windows are the same motions with the labels swapped: every window is a demonstrated one, only asked
+    for in the wrong situation. A conditioned D learns to put each motion above 0 under its own label and
+    below 0 under the other; the unconditioned D cannot tell the two sets apart."""
+    torch.manual_seed(0)
+    ramp = np.linspace(0.0, 1.0, 30)[:, None] * np.ones((1, 2))
+    frames = np.concatenate([ramp, ramp[::-1]])                   # clip 0 rises, clip 1 falls
+    labels = ('up', 'down')
+    reference = ReferenceMotion(frames, [0, 30], [30, 30], 4, clip_labels=[0, 1], label_names=labels)
+    assert reference.labels.tolist() == [0] * 27 + [1] * 27
+    outputs = {}
+    for conditioned in (True, False):
+        cfg = AMPConfig(sequence_length=4, hidden_dims=[32, 32], batch_size=256, updates_per_iteration=1,
+                        grad_penalty=0.1, learning_rate=1e-3, condition_on_label=conditioned)
+        prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
+        everything = torch.arange(reference.num_windows)
+        swapped = 1 - reference.labels[everything]
+        for _ in range(300):
+            prior.replay.size = 0
+            prior.replay.insert(reference.windows(everything), swapped)
+            prior.update()
+        with torch.no_grad():
+            own = prior.discriminator.score(reference.windows(everything), reference.labels if conditioned else None)
+            other = prior.discriminator.score(reference.windows(everything), swapped if conditioned else None)
+        outputs[conditioned] = (own, other)
+    own, other = outputs[True]
+    assert (own > 0).float().mean() > 0.9 and (other < 0).float().mean() > 0.9, (own, other)
+    own, other = outputs[False]
+    assert float((own - other).abs().max()) == 0.0 and abs(float(own.mean())) < 0.3
+
+
+def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_path):
+    frames = np.random.default_rng(0).normal(size=(20, 2))
+    cfg = AMPConfig(sequence_length=2, hidden_dims=[8], batch_size=8, condition_on_label=True)
+    with pytest.raises(ValueError, match='needs reference windows with labels'):
+        MotionPrior(cfg, ReferenceMotion(frames, [0], [20], 2), frame_size=2, num_envs=1, device='cpu')
+    prior = MotionPrior(cfg, ReferenceMotion(frames, [0], [20], 2, clip_labels=[1], label_names=('a', 'b')),
+                        frame_size=2, num_envs=2, device='cpu')
+    prior.start(torch.zeros(2, 2))
+    with pytest.raises(ValueError, match='style_label'):
+        prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2))
+    prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2), torch.tensor([0, 1]))
+    assert prior.replay.labels[:2].tolist() == [0, 1]
+    dataset = ReferenceDataset(t=np.arange(20) / 60.0, q=frames[:, :1], qd=frames[:, 1:], clip_start=np.array([0]),
+                               clip_length=np.array([20]), label=np.array(['sideways']), speed_factor=np.array([1]),
+                               source=np.array(['toy']), original=np.array([0]), time_source=np.array(['header']),
+                               velocity_source=np.array(['bag']), rate_hz=60.0, joint_names=np.array(['a']))
+    with pytest.raises(ValueError, match="labelled \\['sideways'\\]"):
+        ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'leftward'))
+    assert ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'sideways')).labels.unique().tolist() == [1]
+    with pytest.raises(ValueError, match='condition_on_label'):
+        AMPConfig(condition_on_label='yes').validate()

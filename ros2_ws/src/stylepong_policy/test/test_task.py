@@ -300,3 +300,41 @@ def test_bad_actions_are_refused_with_a_clear_error():
     with pytest.raises(ValueError, match='shape'):
         env.step(torch.zeros(2, 5))
     env.step(torch.zeros(2, 6))   # and the env still works
+
+
+def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
+    """'style_label' (rl.env): the index into strokes.DIRECTIONS of where the ball will reach the robot, known
+    from its launch. Balls that fly past an arm held at home cross the paddle's home plane at the y that
+    strokes.direction_of labels the same way, in the nominal and in the randomised world (drag, gravity and
+    restitution change the flight, not its heading)."""
+    from stylepong_policy import strokes as st
+    plane_x_m, home_y_m, _ = st.paddle_home_position_m()
+    for randomize in (False, True):
+        env = _env(256, seed=3, randomize=randomize, reset_joint_noise_rad=0.0)
+        env.reset()
+        assert env.style_labels == st.DIRECTIONS
+        asked = env.episode.direction.clone()
+        crossed = torch.full((256,), math.nan, dtype=torch.float64)
+        touched = torch.zeros(256, dtype=torch.bool)
+        done = torch.zeros(256, dtype=torch.bool)
+        previous = env.ball_position_m.clone().double()
+        for _ in range(150):
+            _, _, _, dones, extras = env.step(torch.zeros(256, 6))
+            label = extras['style_label']
+            live = ~done
+            assert torch.equal(label[live], asked[live])       # the episode's label, before its reset
+            now = extras['ball_state'][:, :3].double()
+            through = live & torch.isnan(crossed) & (previous[:, 0] > plane_x_m) & (now[:, 0] <= plane_x_m)
+            share = (previous[:, 0] - plane_x_m) / (previous[:, 0] - now[:, 0])
+            crossed = torch.where(through, previous[:, 1] + share * (now[:, 1] - previous[:, 1]), crossed)
+            touched |= live & extras['paddle_hit']
+            done |= dones
+            previous = env.ball_position_m.clone().double()
+            if done.all():
+                break
+        checked = ~torch.isnan(crossed) & ~touched
+        assert int(checked.sum()) > 150
+        expected = [st.DIRECTIONS.index(st.direction_of(float(y), home_y_m)) for y in crossed[checked]]
+        agree = (asked[checked] == torch.tensor(expected)).float().mean()
+        assert agree > 0.98, (randomize, float(agree))    # a ball a hair from a threshold may fall either side
+        assert set(asked.tolist()) == {0, 1, 2}

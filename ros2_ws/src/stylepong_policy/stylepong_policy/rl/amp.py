@@ -12,6 +12,13 @@ dragged demonstration changes little from one frame to the next, and a two-frame
 sees the motion's shape.
 
 Nothing here knows the task: the runner hands over the env's per-step style frames (rl.env contract).
+
+Labelled motions (`amp.condition_on_label`): demonstrations of several kinds of motion (the clips'
+labels) teach one unconditioned D what any of them looks like, so a policy may answer every situation with
+the kind easiest for it and still look like a demonstration. Conditioned, D also sees the label (one-hot)
+of the kind each window should be: a reference window its clip's label, a policy window the label the env
+asks for at that step (rl.env's 'style_label', in the order of its `style_labels`). D then learns each
+kind of motion apart, and a window earns the style reward only as the kind its situation asks for.
 The pieces:
   ReferenceMotion   windows of the demonstrations, uniform over all windows inside one clip
   StyleHistory      each environment's last L frames, restarted at its episode's first frame
@@ -55,12 +62,14 @@ def feature_columns(features: str, frame_size: int) -> slice:
 class ReferenceMotion:
     """Every window of `length` consecutive frames lying inside one clip, drawn uniformly.
 
-    frames [F, D] (all clips concatenated), clip_starts / clip_lengths [C]. The window start indices are
-    built once; a draw is one random index per window and a gather.
+    frames [F, D] (all clips concatenated), clip_starts / clip_lengths [C], and optionally clip_labels [C]
+    (label indices) with the names they index. The window start indices and each window's label are built
+    once; a draw is one random index per window and a gather.
     """
 
     def __init__(self, frames: np.ndarray | torch.Tensor, clip_starts: Sequence[int], clip_lengths: Sequence[int],
-                 length: int, device: torch.device | str = 'cpu'):
+                 length: int, device: torch.device | str = 'cpu', clip_labels: Sequence[int] | None = None,
+                 label_names: Sequence[str] = ()):
         self.device = torch.device(device)
         self.frames = torch.as_tensor(np.asarray(frames), dtype=torch.float32, device=self.device)
         starts = window_start_indices(clip_starts, clip_lengths, length)
@@ -69,18 +78,33 @@ class ReferenceMotion:
         self.starts = torch.as_tensor(starts, dtype=torch.long, device=self.device)
         self.offsets = torch.arange(length, device=self.device)
         self.length = int(length)
+        self.label_names = tuple(label_names)
+        # Each window's label: its clip's (windows are built clip by clip, in order).
+        windows_per_clip = [max(int(n) - self.length + 1, 0) for n in clip_lengths]
+        per_clip = np.zeros(len(windows_per_clip), dtype=np.int64) if clip_labels is None else np.asarray(clip_labels)
+        self.labels = torch.as_tensor(np.repeat(per_clip, windows_per_clip), dtype=torch.long, device=self.device)
 
     @classmethod
     def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
-                     device: torch.device | str = 'cpu', features: str = 'q_qdot') -> 'ReferenceMotion':
+                     device: torch.device | str = 'cpu', features: str = 'q_qdot',
+                     label_names: Sequence[str] = ()) -> 'ReferenceMotion':
         """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
-        of the clips with these speed factors (None: all, originals and speed-ups)."""
+        of the clips with these speed factors (None: all, originals and speed-ups). With label_names, each
+        window also carries the index of its clip's label among them (a clip with another label: an error)."""
         clips = dataset.select(speed_factors=speed_factors)
         if not len(clips):
             raise ValueError(f'the dataset has no clip with speed factor in {list(speed_factors or [])}')
         states = dataset.states()
         frames = states[:, feature_columns(features, states.shape[1])]
-        return cls(frames, dataset.clip_start[clips], dataset.clip_length[clips], length, device)
+        clip_labels = None
+        if label_names:
+            unknown = sorted({str(dataset.label[c]) for c in clips} - set(label_names))
+            if unknown:
+                raise ValueError(f'the dataset has clips labelled {unknown}, which the env does not ask for '
+                                 f'(it asks for {list(label_names)})')
+            clip_labels = [list(label_names).index(str(dataset.label[c])) for c in clips]
+        return cls(frames, dataset.clip_start[clips], dataset.clip_length[clips], length, device,
+                   clip_labels, label_names)
 
     @property
     def num_windows(self) -> int:
@@ -90,9 +114,12 @@ class ReferenceMotion:
         """Windows [B, L, D] starting at self.starts[indices]."""
         return self.frames[self.starts[indices][:, None] + self.offsets[None, :]]
 
+    def draw(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Indices of `count` windows drawn uniformly (for windows() and labels)."""
+        return torch.randint(self.num_windows, (count,), generator=generator, device=self.device)
+
     def sample(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        index = torch.randint(self.num_windows, (count,), generator=generator, device=self.device)
-        return self.windows(index)
+        return self.windows(self.draw(count, generator))
 
 
 class StyleHistory:
@@ -114,37 +141,45 @@ class StyleHistory:
 
 
 class ReplayBuffer:
-    """The last `capacity` policy windows (first in, first out); uniform draws among those held."""
+    """The last `capacity` policy windows and their labels (first in, first out); uniform draws among those held."""
 
     def __init__(self, capacity: int, window_shape: tuple[int, int], device: torch.device | str):
         self.data = torch.zeros((int(capacity), *window_shape), device=device)
+        self.labels = torch.zeros(int(capacity), dtype=torch.long, device=device)
         self.size = 0
         self.next = 0
 
-    def insert(self, windows: torch.Tensor) -> None:
+    def insert(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> None:
+        """Store windows [B, L, D] with their label indices [B] (None: label 0, an unlabelled prior's)."""
         capacity = self.data.shape[0]
         windows = windows[-capacity:]
         count = windows.shape[0]
         index = (self.next + torch.arange(count, device=self.data.device)) % capacity
         self.data[index] = windows
+        self.labels[index] = 0 if labels is None else labels[-capacity:]
         self.next = (self.next + count) % capacity
         self.size = min(self.size + count, capacity)
 
-    def sample(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+    def draw(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Indices of `count` stored windows drawn uniformly (for data and labels)."""
         if self.size == 0:
             raise RuntimeError('the replay buffer is empty')
-        return self.data[torch.randint(self.size, (count,), generator=generator, device=self.data.device)]
+        return torch.randint(self.size, (count,), generator=generator, device=self.data.device)
+
+    def sample(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return self.data[self.draw(count, generator)]
 
 
 class Discriminator(nn.Module):
-    """D(window): normalise each frame with one running mean/std, flatten, MLP trunk, linear head."""
+    """D(window[, label]): normalise each frame with one running mean/std, flatten, append the label's
+    one-hot when there are labels, MLP trunk, linear head."""
 
     def __init__(self, frame_size: int, length: int, hidden_dims: Sequence[int], activation: str = 'elu',
-                 normalizer_clip: float = 5.0):
+                 normalizer_clip: float = 5.0, num_labels: int = 0):
         super().__init__()
-        self.frame_size, self.length = int(frame_size), int(length)
+        self.frame_size, self.length, self.num_labels = int(frame_size), int(length), int(num_labels)
         self.normalizer = RunningNormalizer(self.frame_size, clip=normalizer_clip)
-        mlp = make_mlp(self.frame_size * self.length, hidden_dims, 1, activation)
+        mlp = make_mlp(self.frame_size * self.length + self.num_labels, hidden_dims, 1, activation)
         self.trunk = mlp[:-1]
         self.head = mlp[-1]
 
@@ -152,12 +187,16 @@ class Discriminator(nn.Module):
         """Normalised windows [B, L * D]: the input of both the loss and the gradient penalty."""
         return self.normalizer(windows).flatten(1)
 
-    def forward(self, normalized: torch.Tensor) -> torch.Tensor:
+    def forward(self, normalized: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+        if self.num_labels:
+            if labels is None:
+                raise ValueError('this discriminator is conditioned on labels: give each window its label')
+            normalized = torch.cat((normalized, nn.functional.one_hot(labels, self.num_labels).to(normalized)), dim=1)
         return self.head(self.trunk(normalized)).squeeze(-1)
 
-    def score(self, windows: torch.Tensor) -> torch.Tensor:
-        """D of raw windows [B, L, D] -> [B]."""
-        return self(self.normalize(windows))
+    def score(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+        """D of raw windows [B, L, D] (with their label indices [B] when conditioned) -> [B]."""
+        return self(self.normalize(windows), labels)
 
 
 def style_reward(d: torch.Tensor, kind: str = 'lsgan') -> torch.Tensor:
@@ -201,9 +240,12 @@ class MotionPrior:
         if reference.frames.shape[1] != frame_size:
             raise ValueError(f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
                              f'{frame_size} ({cfg.frame_features!r} of {self.columns.stop} values)')
+        if cfg.condition_on_label and not reference.label_names:
+            raise ValueError('amp.condition_on_label needs reference windows with labels (label_names)')
         self.reference = reference
+        self.num_labels = len(reference.label_names) if cfg.condition_on_label else 0
         self.discriminator = Discriminator(frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation,
-                                           cfg.normalizer_clip).to(self.device)
+                                           cfg.normalizer_clip, self.num_labels).to(self.device)
         self.optimizer = _adam_with_decay(self.discriminator, cfg)
         self.replay = ReplayBuffer(cfg.replay_size, (cfg.sequence_length, frame_size), self.device)
         self.generator = torch.Generator(device=self.device)
@@ -218,14 +260,19 @@ class MotionPrior:
         """Every environment begins a new episode with these frames [N, D]."""
         self.history = StyleHistory(first_frames[:, self.columns], self.cfg.sequence_length)
 
-    def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor) -> torch.Tensor:
-        """One policy step: frames [N, D] reached by this step (before resets), dones [N], and the frames
-        every environment is in now (after resets). Stores the windows; returns the style reward [N]."""
+    def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor,
+                labels: torch.Tensor | None = None) -> torch.Tensor:
+        """One policy step: frames [N, D] reached by this step (before resets), dones [N], the frames
+        every environment is in now (after resets), and, for a conditioned prior, the label index [N] of the
+        motion each step should be (before resets). Stores the windows; returns the style reward [N]."""
         if self.history is None:
             raise RuntimeError('call start() with the first frames before observe()')
+        if self.num_labels and labels is None:
+            raise ValueError("amp.condition_on_label: the env must give each step's 'style_label'")
+        labels = labels if self.num_labels else None
         windows = self.history.push(frames[:, self.columns])
-        reward = style_reward(self.discriminator.score(windows), self.cfg.style_reward)
-        self.replay.insert(windows)
+        reward = style_reward(self.discriminator.score(windows, labels), self.cfg.style_reward)
+        self.replay.insert(windows, labels)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
             self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
@@ -243,12 +290,17 @@ class MotionPrior:
         cfg, disc = self.cfg, self.discriminator
         totals = {'loss': 0.0, 'grad_penalty': 0.0, 'd_reference': 0.0, 'd_policy': 0.0, 'accuracy': 0.0}
         for _ in range(cfg.updates_per_iteration):
-            reference = self.reference.sample(cfg.batch_size, self.generator)
-            policy = self.replay.sample(cfg.batch_size, self.generator)
+            drawn_reference = self.reference.draw(cfg.batch_size, self.generator)
+            drawn_policy = self.replay.draw(cfg.batch_size, self.generator)
+            reference = self.reference.windows(drawn_reference)
+            policy = self.replay.data[drawn_policy]
+            reference_labels = self.reference.labels[drawn_reference] if self.num_labels else None
+            policy_labels = self.replay.labels[drawn_policy] if self.num_labels else None
             norm_reference = disc.normalize(reference).requires_grad_(True)
             norm_policy = disc.normalize(policy)
-            d_reference = disc(norm_reference)
-            d_policy = disc(norm_policy)
+            # The penalty is on the windows' gradient: a label is not a direction D can be smooth along.
+            d_reference = disc(norm_reference, reference_labels)
+            d_policy = disc(norm_policy, policy_labels)
             lsgan = 0.5 * ((d_reference - 1.0).square().mean() + (d_policy + 1.0).square().mean())
             gradient, = torch.autograd.grad(d_reference.sum(), norm_reference, create_graph=True)
             penalty = gradient.square().sum(-1).mean()

@@ -21,7 +21,10 @@ episodes are already reset, so obs are the new episodes' first observations. `ex
                  before any reset (so the last frame of an ended episode is still its own).
 and may hold
   'style_weight' [N] float: a factor on this step's style weight, for an env that knows where in an
-                 episode the motion matters more (absent: 1 everywhere).
+                 episode the motion matters more (absent: 1 everywhere);
+  'style_label'  [N] int64: which kind of motion each step should be, an index into the env's
+                 `style_labels` (the demonstrations' labels it knows), before any reset; a motion prior
+                 conditioned on labels (amp.condition_on_label) needs it.
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -39,6 +42,7 @@ EXTRAS_LOG = 'log'
 EXTRAS_LOG_WEIGHT = 'log_weight'
 EXTRAS_STYLE_STATE = 'style_state'
 EXTRAS_STYLE_WEIGHT = 'style_weight'
+EXTRAS_STYLE_LABEL = 'style_label'
 
 
 class VecEnv(Protocol):
