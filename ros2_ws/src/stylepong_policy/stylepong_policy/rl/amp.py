@@ -19,6 +19,7 @@ the kind easiest for it and still look like a demonstration. Conditioned, D also
 of the kind each window should be: a reference window its clip's label, a policy window the label the env
 asks for at that step (rl.env's 'style_label', in the order of its `style_labels`). D then learns each
 kind of motion apart, and a window earns the style reward only as the kind its situation asks for.
+
 The pieces:
   ReferenceMotion   windows of the demonstrations, uniform over all windows inside one clip
   StyleHistory      each environment's last L frames, restarted at its episode's first frame
