@@ -246,11 +246,12 @@ class TeacherConfig:
     blade_pitch_rad: float = 0.0
     # How far a leftward or rightward stroke is turned towards its side about the shoulder pan's axis (the
     # robot base's vertical): a person reaching for a wide ball swings the whole stroke round at the
-    # shoulder. The key poses and the blade's yaw turn together, so the joint path is the unturned one with
-    # the shoulder pan moved by this much (every reach, clearance and wrist check of the unturned stroke
-    # holds). 0 gives the nominal strokes, whose hits lie within 0.18 m of home; 0.4 rad meets the ball
-    # 0.13-0.15 m further out and 0.8 rad 0.19-0.27 m, towards where most balls reach the robot
-    # (docs/DESIGN.md Known limits).
+    # shoulder. The key poses and the blade's yaw turn together, so from the end of the back-swing on the
+    # joint path is the unturned one with the shoulder pan moved by this much (every reach, clearance and
+    # wrist check of the unturned stroke holds; the back-swing goes straight from home to its turned pose).
+    # 0 gives the nominal strokes, whose hits lie within 0.18 m of home; 0.4 rad meets the ball 0.13-0.15 m
+    # further out and 0.8 rad 0.19-0.27 m, towards where most balls reach the robot (docs/DESIGN.md Known
+    # limits).
     side_turn_rad: float = 0.0
     # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
     # when the paddle is further than this from the via-point, and stops beyond the second distance.
