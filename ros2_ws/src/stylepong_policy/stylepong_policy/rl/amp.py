@@ -63,7 +63,7 @@ def feature_columns(features: str, frame_size: int) -> slice:
 class ReferenceMotion:
     """Every window of `length` consecutive frames lying inside one clip, drawn uniformly.
 
-    frames [F, D] (all clips concatenated), clip_starts / clip_lengths [C], and optionally clip_labels [C]
+    frames [F, D] (all clips concatenated, in order), clip_starts / clip_lengths [C], and optionally clip_labels [C]
     (label indices) with the names they index. The window start indices and each window's label are built
     once; a draw is one random index per window and a gather.
     """
@@ -80,10 +80,10 @@ class ReferenceMotion:
         self.offsets = torch.arange(length, device=self.device)
         self.length = int(length)
         self.label_names = tuple(label_names)
-        # Each window's label: its clip's (windows are built clip by clip, in order).
-        windows_per_clip = [max(int(n) - self.length + 1, 0) for n in clip_lengths]
-        per_clip = np.zeros(len(windows_per_clip), dtype=np.int64) if clip_labels is None else np.asarray(clip_labels)
-        self.labels = torch.as_tensor(np.repeat(per_clip, windows_per_clip), dtype=torch.long, device=self.device)
+        # Each window's label is its clip's: the clip whose start is the last one at or before the window's.
+        per_clip = np.zeros(len(clip_starts), dtype=np.int64) if clip_labels is None else np.asarray(clip_labels)
+        clip_of_window = np.searchsorted(np.asarray(clip_starts), starts, side='right') - 1
+        self.labels = torch.as_tensor(per_clip[clip_of_window], dtype=torch.long, device=self.device)
 
     @classmethod
     def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
