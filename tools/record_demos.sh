@@ -9,7 +9,7 @@
 # Each clip is another take: clip N (1-based, in the order recorded) gets the virtual teacher's seed
 # N + SEED_OFFSET (default 0), so the shipped set is seeds 1-7 (forward 1, 4, 7; leftward 2, 5;
 # rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
-# BLADE_PITCH_RAD (default 0.0, the shipped clips' upright blade) is how far the teacher opens the blade
+# BLADE_PITCH_RAD (default 0.6, the shipped clips; 0.0 keeps the blade upright) is how far the teacher opens the blade
 # through each stroke (teacher.TeacherConfig.blade_pitch_rad), SIDE_TURN_RAD (default 0.0) how far it turns
 # the leftward and rightward strokes further to their side (teacher.TeacherConfig.side_turn_rad).
 #
@@ -38,7 +38,7 @@ export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
 SEED_OFFSET=${SEED_OFFSET:-0}
-BLADE_PITCH_RAD=${BLADE_PITCH_RAD:-0.0}
+BLADE_PITCH_RAD=${BLADE_PITCH_RAD:-0.6}
 SIDE_TURN_RAD=${SIDE_TURN_RAD:-0.0}
 mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)

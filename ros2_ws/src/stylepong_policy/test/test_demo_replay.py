@@ -34,9 +34,10 @@ def test_an_arm_held_at_home_returns_nothing():
     assert sum(outcome.hit_verdicts.values()) >= outcome.hit
 
 
-def test_an_upright_blade_strikes_the_ball_down_and_an_opened_one_returns_it(tmp_path):
+def test_the_shipped_opened_blade_returns_the_ball_and_an_upright_one_seldom_does(tmp_path):
     """The shipped forward clip at x5 (the nearest to the policies' strokes) against 60 balls, as recorded
-    and with the blade opened by turning wrist_1 0.6 rad (what teacher.TeacherConfig.blade_pitch_rad does)."""
+    (the teacher opened the blade 0.6 rad: teacher.TeacherConfig.blade_pitch_rad) and with the blade turned
+    upright again by turning wrist_1 back by 0.6 rad."""
     bags = pathlib.Path(__file__).resolve().parents[3] / 'bags'
     if not any(bags.glob('*/metadata.yaml')):
         pytest.skip('no shipped clips in ros2_ws/bags')
@@ -44,10 +45,15 @@ def test_an_upright_blade_strikes_the_ball_down_and_an_opened_one_returns_it(tmp
     assert build_dataset.run([str(bags), '-o', str(tmp_path / 'dataset.npz')]) == 0
     dataset = ReferenceDataset.load(tmp_path / 'dataset.npz')
     clip = dataset.clip(int(dataset.select(labels=['forward'], speed_factors=[5])[0])).q
-    upright = demo_replay.replay_clip(clip, 60, HIT_STEPS, 900, ALL_SPEEDS)
-    opened_q = clip.copy()
-    opened_q[:, WRIST_1] -= 0.6
-    opened = demo_replay.replay_clip(opened_q, 60, HIT_STEPS, 900, ALL_SPEEDS)
-    assert upright.hit >= 5 and upright.returned == 0
-    assert max(upright.hit_verdicts, key=upright.hit_verdicts.get) == 'own_side'
-    assert opened.returned >= 5
+    opened = demo_replay.replay_clip(clip, 60, HIT_STEPS, 900, ALL_SPEEDS)
+    upright_q = clip.copy()
+    upright_q[:, WRIST_1] += 0.6
+    upright = demo_replay.replay_clip(upright_q, 60, HIT_STEPS, 900, ALL_SPEEDS)
+    # Of the (ball, start) pairs that hit, the opened blade returns a third (34 of 99 here), the upright
+    # one a twentieth (3 of 55): it strikes the ball down onto the robot's own half or out.
+    assert opened.returned >= 5 and returned_share(opened) > 0.25
+    assert upright.hit >= 5 and returned_share(upright) < 0.1
+
+
+def returned_share(outcome: demo_replay.ReplayOutcome) -> float:
+    return outcome.hit_verdicts.get('returned', 0) / sum(outcome.hit_verdicts.values())

@@ -239,11 +239,11 @@ class TeacherConfig:
     max_force_n: float = 35.0
     max_torque_nm: float = 3.5
     # How far the person opens the blade (turns its face up, about its horizontal axis) during the back-swing
-    # and holds it open through the hit and the follow-through. 0, the blade upright as at home, gives the
-    # shipped clips; an upright blade strikes a ball down onto the robot's own half, and about 0.6 rad
-    # returns it (tools/demo_returns.py, docs/DESIGN.md Known limits). Beyond 1 rad it faces the ceiling
-    # more than the opponent.
-    blade_pitch_rad: float = 0.0
+    # and holds it open through the hit and the follow-through. 0.6 rad gives the shipped clips, whose
+    # strokes return balls; at 0 the blade stays upright as at home and strikes a ball down onto the robot's
+    # own half (tools/demo_returns.py, docs/DESIGN.md Known limits). Beyond 1 rad it faces the ceiling more
+    # than the opponent.
+    blade_pitch_rad: float = 0.6
     # How far a leftward or rightward stroke is turned towards its side about the shoulder pan's axis (the
     # robot base's vertical): a person reaching for a wide ball swings the whole stroke round at the
     # shoulder. The key poses and the blade's yaw turn together, so from the end of the back-swing on the

@@ -62,7 +62,7 @@ PARAMETERS = (
           'how heavy the person expects the arm to feel'),
     Param('max_force_n', _DEFAULTS.max_force_n, 'the hardest the hand pushes'),
     Param('blade_pitch_rad', _DEFAULTS.blade_pitch_rad, 'how far the blade is opened (face turned up) through '
-          'the stroke (0: upright, the shipped clips)', low=0.0, high=1.0),
+          'the stroke (0.6: the shipped clips; 0: upright, the ball goes down)', low=0.0, high=1.0),
     Param('side_turn_rad', _DEFAULTS.side_turn_rad, 'how far a leftward or rightward stroke is turned towards its '
           'side about the shoulder pan (0: the nominal stroke)', low=0.0, high=MAX_SIDE_TURN_RAD),
 )
