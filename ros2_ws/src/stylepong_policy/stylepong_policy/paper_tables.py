@@ -354,6 +354,45 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
             *table(['Actor'] + list(offsets), offset_rows), '']
 
 
+@dataclass(frozen=True)
+class PairedDifference:
+    """amp's success rate minus amp-noaug's in one band, seed by seed (both meet the same balls)."""
+    mean_points: float                  # percentage points
+    standard_error_points: float | None  # of the mean difference; None with one seed
+    seeds: int
+
+    def verdict(self) -> str:
+        """What the speed-ups did, judged against two standard errors of the paired difference."""
+        if self.standard_error_points is None:
+            return 'one seed, no spread to judge it by'
+        if abs(self.mean_points) <= 2.0 * self.standard_error_points:
+            return 'no difference beyond two standard errors'
+        return 'the speed-ups helped' if self.mean_points > 0 else 'the speed-ups hurt'
+
+
+def augmentation_effect(summaries: dict[str, dict[str, dict]], band: str) -> PairedDifference:
+    """What training on the x2/x3/x5 speed-ups changed (amp against amp-noaug) in one speed band."""
+    with_speed_ups = np.asarray(summaries['amp'][band]['per_seed'], dtype=float)
+    originals_only = np.asarray(summaries['amp-noaug'][band]['per_seed'], dtype=float)
+    difference = 100.0 * (with_speed_ups - originals_only)
+    seeds = len(difference)
+    error = float(difference.std(ddof=1) / np.sqrt(seeds)) if seeds > 1 else None
+    return PairedDifference(float(difference.mean()), error, seeds)
+
+
+def augmentation_lines(summaries: dict[str, dict[str, dict]]) -> list[str]:
+    """One sentence per band on the speed-ups, measured; why they do or do not help is docs/DESIGN.md's."""
+    parts = []
+    for band in ('low', 'high'):
+        effect = augmentation_effect(summaries, band)
+        error = (f' ± {effect.standard_error_points:.2f} standard error'
+                 if effect.standard_error_points is not None else '')
+        parts.append(f'{effect.mean_points:+.2f} points at {band} speeds{error} over {effect.seeds} seeds '
+                     f'({effect.verdict()})')
+    return ['What the x2/x3/x5 speed-ups changed, `amp` minus `amp-noaug` seed by seed (both meet the same '
+            'balls): ' + '; '.join(parts) + '. Why they do or do not help here: docs/DESIGN.md, Known limits.', '']
+
+
 def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
     """Table III: success at low and high incoming speeds, the paper's and ours."""
     rows = []
@@ -370,7 +409,7 @@ def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> li
             f'Setting: {protocol.bands_setting()}: low {band_text("low")}, high {band_text("high")} m/s.', '',
             *table(['Method', 'Speed', 'Attempts per seed (paper / ours)', 'Mean (paper)', 'Mean (ours)',
                     'Success rate (paper)', 'Success rate (ours, ± std over seeds)'], rows), '',
-            '![Table III](table3_speed.png)', '']
+            *augmentation_lines(summaries), '![Table III](table3_speed.png)', '']
 
 
 def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[str, dict | None],

@@ -79,3 +79,19 @@ def test_actor_overrides_are_checked():
         paper_tables.parse_actor_overrides('dqn=a.pt')
     with pytest.raises(ValueError):
         paper_tables.parse_actor_overrides('ppo')
+
+
+def test_the_speed_ups_effect_is_the_paired_difference_judged_by_its_standard_error():
+    def summaries(amp, noaug):
+        return {'amp': {'high': {'per_seed': amp}}, 'amp-noaug': {'high': {'per_seed': noaug}}}
+
+    helped = paper_tables.augmentation_effect(summaries([0.95, 0.96, 0.94], [0.90, 0.92, 0.89]), 'high')
+    assert helped.mean_points == pytest.approx(4.6667, abs=1e-3) and helped.seeds == 3
+    assert helped.verdict() == 'the speed-ups helped'
+    # The same gap on one seed and its reverse on another: the seeds disagree, so nothing is concluded.
+    noisy = paper_tables.augmentation_effect(summaries([0.95, 0.90], [0.90, 0.95]), 'high')
+    assert noisy.mean_points == pytest.approx(0.0) and noisy.verdict() == 'no difference beyond two standard errors'
+    hurt = paper_tables.augmentation_effect(summaries([0.90, 0.91, 0.89], [0.95, 0.95, 0.94]), 'high')
+    assert hurt.verdict() == 'the speed-ups hurt'
+    single = paper_tables.augmentation_effect(summaries([0.9], [0.8]), 'high')
+    assert single.standard_error_points is None and single.verdict() == 'one seed, no spread to judge it by'
