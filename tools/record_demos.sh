@@ -9,9 +9,10 @@
 # Each clip is another take: clip N (1-based, in the order recorded) gets the virtual teacher's seed
 # N + SEED_OFFSET (default 0), so the shipped set is seeds 1-7 (forward 1, 4, 7; leftward 2, 5;
 # rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
-# BLADE_PITCH_RAD (default 0.6, the shipped clips; 0.0 keeps the blade upright) is how far the teacher opens the blade
-# through each stroke (teacher.TeacherConfig.blade_pitch_rad), SIDE_TURN_RAD (default 0.0) how far it turns
-# the leftward and rightward strokes further to their side (teacher.TeacherConfig.side_turn_rad).
+# BLADE_PITCH_RAD (default 0.6, the shipped clips; 0.0 keeps the blade upright) is how far the teacher
+# opens the blade through each stroke (teacher.TeacherConfig.blade_pitch_rad), SIDE_TURN_RAD (default 0.0)
+# how far it turns the leftward and rightward strokes further to their side (side_turn_rad). Write both
+# with a decimal point: they are double parameters.
 #
 # The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
 # clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
