@@ -1,13 +1,14 @@
 """The virtual teacher dragging drag_teach's FDCC controller on a perfect servo (no ROS, no MuJoCo)."""
 import numpy as np
 import pinocchio as pin
+import pytest
 
 from stylepong_description import robot_model as rm
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
 from stylepong_sim import world_spec as ws
-from stylepong_sim.teacher import CellKinematics, VirtualTeacher
+from stylepong_sim.teacher import CellKinematics, TeacherConfig, VirtualTeacher
 
 HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()
@@ -47,8 +48,8 @@ class DragLoop:
             self.qdot, self.q = (command - self.q) / self.dt, command
         self.t += self.dt
 
-    def teach(self, swing: str):
-        teacher = VirtualTeacher(swing)
+    def teach(self, swing: str, config: TeacherConfig):
+        teacher = VirtualTeacher(swing, config)
         record, start = [], None
         while self.t < 20.0:
             wrench = teacher.update(self.t, self.q, self.qdot)
@@ -66,20 +67,32 @@ class DragLoop:
         raise AssertionError(f'the {swing} stroke did not finish (phase {teacher.phase})')
 
 
-def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits():
+# Per blade pitch: how far the paddle centre may lag its via-point, and the wrist's least distance from the
+# base's axis, where the shoulder is singular. The upright strokes keep 0.1 m from the axis and lag under
+# 0.03 m. The opened blade (the default, the shipped clips) brings the wrist back towards the base: the
+# forward and leftward strokes pass within 0.016 m of the axis and the leftward one lags up to 0.037 m
+# there (docs/DESIGN.md, Known limits). Tracked without a flip, as the other checks show, but with little
+# to spare.
+TRACKING_M = {0.0: 0.03, 0.6: 0.045}
+WRIST_CLEARANCE_M = {0.0: 0.1, 0.6: 0.01}
+
+
+@pytest.mark.parametrize('blade_pitch_rad', sorted(WRIST_CLEARANCE_M))
+def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits(blade_pitch_rad):
     loop = DragLoop()
+    config = TeacherConfig(blade_pitch_rad=blade_pitch_rad)
     centre_id = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
     limits = rm.joint_limits()
     for swing in ('forward', 'leftward', 'rightward', 'forward'):   # each starts where the last one ended
-        teacher, record, duration_s = loop.teach(swing)
+        teacher, record, duration_s = loop.teach(swing, config)
         assert 1.5 <= duration_s <= 3.5
         errors = [np.linalg.norm(KIN.pose(q, centre_id).translation - via.position_m) for q, via, _ in record]
-        assert max(errors) < 0.03, swing
+        assert max(errors) < TRACKING_M[blade_pitch_rad], swing
         assert max(speed for _, _, speed in record) < 1.0
         joints = np.array([q for q, _, _ in record])
         assert np.all(joints > limits.lower_rad + 0.05) and np.all(joints < limits.upper_rad - 0.05)
         # Clear of the singularities where a dragged arm flips: elbow bent, wrist away from the base axis.
         assert np.min(np.abs(joints[:, 2])) > 1.0, swing
-        assert min(singularity_margins(q)[1] for q in joints[::10]) > 0.1, swing
+        assert min(singularity_margins(q)[1] for q in joints[::10]) > WRIST_CLEARANCE_M[blade_pitch_rad], swing
         # The paddle ends the stroke where the follow-through is.
         assert np.linalg.norm(KIN.pose(loop.q, centre_id).translation - teacher.path.follow) < 0.03

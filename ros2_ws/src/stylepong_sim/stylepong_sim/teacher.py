@@ -25,8 +25,10 @@ world +y is the robot's left) and in where the blade sweeps and faces.
 A person never drags the same stroke twice, and a style is learned from a distribution of takes: a
 SwingVariation (drawn from a seed by `sample_variation`) moves the key poses by a few cm, turns the blade
 by a few degrees, scales the stroke's amplitude and durations and moves the hit before or after the top
-speed, all within the ranges below (VARIATION_RANGES), which keep every take clear of the shoulder
-singularity, inside the joint limits and unmistakably forward, leftward or rightward.
+speed, all within the ranges below (VARIATION_RANGES), which keep every take inside the joint limits and
+unmistakably forward, leftward or rightward, and, with the blade upright, 0.1 m clear of the shoulder
+singularity (the wrist from the base's axis). The opened blade brings the wrist back towards the base:
+forward and leftward strokes pass within about 2 cm of the axis (docs/DESIGN.md, Known limits).
 
 World frame (world_spec): x from the robot's end towards the opponent, y to the robot's left, z up.
 """
