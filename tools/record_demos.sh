@@ -11,8 +11,9 @@
 # rightward 3, 6) and a re-recording gives the same strokes. Another SEED_OFFSET gives other takes.
 # BLADE_PITCH_RAD (default 0.6, the shipped clips; 0.0 keeps the blade upright) is how far the teacher
 # opens the blade through each stroke (teacher.TeacherConfig.blade_pitch_rad), SIDE_TURN_RAD (default 0.0)
-# how far it turns the leftward and rightward strokes further to their side (side_turn_rad). Write both
-# with a decimal point: they are double parameters.
+# how far it turns the leftward and rightward strokes further to their side (side_turn_rad), SIDE_REACH_M
+# (default 0.0) how far it carries them further to their side with the arm reaching out (side_reach_m; at
+# most 0.1 leftward, 0.3 rightward). Write them with a decimal point: they are double parameters.
 #
 # The cell runs at a quarter of real time (REAL_TIME_FACTOR) and drag_teach and the teacher follow its
 # clock (/clock): on a busy machine the Python nodes still get their turn every 2 ms of simulated time,
@@ -41,6 +42,7 @@ REAL_TIME_FACTOR=${REAL_TIME_FACTOR:-0.25}
 SEED_OFFSET=${SEED_OFFSET:-0}
 BLADE_PITCH_RAD=${BLADE_PITCH_RAD:-0.6}
 SIDE_TURN_RAD=${SIDE_TURN_RAD:-0.0}
+SIDE_REACH_M=${SIDE_REACH_M:-0.0}
 mkdir -p "$OUT"
 LOGS=$(mktemp -d -t stylepong_record.XXXXXX)
 say() { printf '[record] %s\n' "$*"; }
@@ -62,7 +64,8 @@ for swing in "${SWINGS[@]}"; do
   log=$LOGS/virtual_teacher_${clip}_$swing.log
   say "teaching a $swing stroke (clip $clip, seed $seed)"
   if ! ros2 run stylepong_sim virtual_teacher --ros-args -p swing:="$swing" -p seed:="$seed" -p use_sim_time:=true \
-      -p blade_pitch_rad:="$BLADE_PITCH_RAD" -p side_turn_rad:="$SIDE_TURN_RAD" >"$log" 2>&1; then
+      -p blade_pitch_rad:="$BLADE_PITCH_RAD" -p side_turn_rad:="$SIDE_TURN_RAD" -p side_reach_m:="$SIDE_REACH_M" \
+      >"$log" 2>&1; then
     say "the $swing stroke failed; its log:"
     tail -n 20 "$log" >&2
     exit 1

@@ -13,7 +13,8 @@ vertical by a yaw:
 The blade stays upright unless TeacherConfig.blade_pitch_rad opens it (turns its face up) during the
 back-swing and holds it open to the end: an upright blade strikes a ball down onto the robot's own half.
 TeacherConfig.side_turn_rad swings a leftward or rightward stroke round the shoulder pan's axis towards
-its side, to meet a ball wider than the nominal hitting points.
+its side, to meet a ball wider than the nominal hitting points; TeacherConfig.side_reach_m carries the
+whole stroke further to its side, the arm reaching out for the ball.
 
 The back-swing is a minimum-jerk move from rest to rest. The forward swing runs from the back-swing
 through the hitting point to the follow-through along the quadratic through those three points, timed
@@ -49,6 +50,11 @@ SIDE_TURN_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
 # The turn swings the stroke round a point 0.35 m behind home, so it also takes the hit back from the end
 # line: at 1 rad a leftward hit is 0.47 m behind it and hardly further to the side than at 0.8 rad.
 MAX_SIDE_TURN_RAD = 1.0
+# A reach carries the back-swing, hit and follow-through sideways with the arm stretching out: 0.3 m to the
+# right leaves the elbow bent by 0.6 rad at the follow-through's end, clear of the elbow singularity (a
+# straight arm), and 0.4 m is out of the arm's reach there. The left's reach ends sooner (the nominal
+# leftward follow-through is already further out), so each side has its own limit.
+MAX_SIDE_REACH_M = {'leftward': 0.1, 'rightward': 0.3}
 
 
 @dataclass(frozen=True)
@@ -255,6 +261,12 @@ class TeacherConfig:
     # further out and 0.8 rad 0.19-0.27 m, towards where most balls reach the robot (docs/DESIGN.md Known
     # limits).
     side_turn_rad: float = 0.0
+    # How far a leftward or rightward stroke is carried further to its side (world y), the back-swing, hit
+    # and follow-through together, with the arm reaching out rather than turning at the shoulder: where the
+    # rightward balls reach the robot (up to 0.9 m right of home), a person stretches. 0 gives the nominal
+    # strokes; the most for each side is MAX_SIDE_REACH_M (TeacherConfig.validate only bounds it by the
+    # larger; check_side_reach the side's).
+    side_reach_m: float = 0.0
     # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
     # when the paddle is further than this from the via-point, and stops beyond the second distance.
     lag_slowdown_m: float = 0.03
@@ -273,6 +285,9 @@ class TeacherConfig:
             raise ValueError(f'blade_pitch_rad must be within 0-1 rad, got {self.blade_pitch_rad!r}')
         if self.side_turn_rad > MAX_SIDE_TURN_RAD:
             raise ValueError(f'side_turn_rad must be within 0-{MAX_SIDE_TURN_RAD} rad, got {self.side_turn_rad!r}')
+        if self.side_reach_m > max(MAX_SIDE_REACH_M.values()):
+            raise ValueError(f'side_reach_m must be within 0-{max(MAX_SIDE_REACH_M.values())} m, got '
+                             f'{self.side_reach_m!r}')
         if not 1.5 <= self.stroke_s <= 3.0:
             raise ValueError(f'a stroke (back-swing to follow-through) takes 1.5-3 s like a slow drag, '
                              f'got {self.stroke_s:.2f} s')
@@ -361,6 +376,15 @@ def turned_about_base(points_m: np.ndarray, turn_rad: float) -> np.ndarray:
     return base + (np.asarray(points_m, dtype=float) - base) @ ws.yaw_rotation(turn_rad).T
 
 
+def check_side_reach(swing: str, config: TeacherConfig) -> None:
+    """A leftward or rightward stroke reaches at most MAX_SIDE_REACH_M further to its side (a forward one
+    is never carried sideways)."""
+    limit_m = MAX_SIDE_REACH_M.get(swing)
+    if limit_m is not None and config.side_reach_m > limit_m:
+        raise ValueError(f'side_reach_m: a {swing} stroke reaches at most {limit_m} m further to its side, '
+                         f'got {config.side_reach_m!r}')
+
+
 class StrokePath:
     """Via-point of the paddle centre over time for one take of a stroke, starting at the ready (home) pose."""
 
@@ -376,8 +400,10 @@ class StrokePath:
         self.forward_swing_s = config.forward_swing_s * variation.forward_swing_scale
         self.ready = np.asarray(home_position_m, dtype=float)
         turn_rad = SIDE_TURN_SIGN[swing] * config.side_turn_rad
-        swing_points_m = turned_about_base(self.ready + np.array([shape.back_offset_m, shape.hit_offset_m,
-                                                                  shape.follow_offset_m]), turn_rad)
+        reach_m = np.array([0.0, SIDE_TURN_SIGN[swing] * config.side_reach_m, 0.0])
+        check_side_reach(swing, config)
+        swing_points_m = turned_about_base(self.ready + reach_m + np.array([shape.back_offset_m, shape.hit_offset_m,
+                                                                            shape.follow_offset_m]), turn_rad)
         self.back, self.hit, self.follow = swing_points_m
         self.yaws = (0.0, shape.back_yaw_rad + turn_rad, shape.hit_yaw_rad + turn_rad, shape.follow_yaw_rad + turn_rad)
         # The forward swing is the quadratic through back (u=0), hit (u=h) and follow-through (u=1) in its

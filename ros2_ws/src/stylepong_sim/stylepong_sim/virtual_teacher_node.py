@@ -30,7 +30,15 @@ from std_srvs.srv import Trigger
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model as rm
 from stylepong_msgs.srv import StartClip
-from stylepong_sim.teacher import MAX_SIDE_TURN_RAD, SWINGS, TeacherConfig, VirtualTeacher, sample_variation
+from stylepong_sim.teacher import (
+    MAX_SIDE_REACH_M,
+    MAX_SIDE_TURN_RAD,
+    SWINGS,
+    TeacherConfig,
+    VirtualTeacher,
+    check_side_reach,
+    sample_variation,
+)
 
 PROGRAM = 'virtual_teacher'
 WARN_PERIOD_S = 1.0
@@ -65,6 +73,8 @@ PARAMETERS = (
           'the stroke (0.6: the shipped clips; 0: upright, the ball goes down)', low=0.0, high=1.0),
     Param('side_turn_rad', _DEFAULTS.side_turn_rad, 'how far a leftward or rightward stroke is turned towards its '
           'side about the shoulder pan (0: the nominal stroke)', low=0.0, high=MAX_SIDE_TURN_RAD),
+    Param('side_reach_m', _DEFAULTS.side_reach_m, 'how far a leftward or rightward stroke is carried further to its '
+          'side, the arm reaching out (0: the nominal stroke)', low=0.0, high=max(MAX_SIDE_REACH_M.values())),
 )
 
 
@@ -73,6 +83,7 @@ def teacher_from(p: dict) -> VirtualTeacher:
     try:
         config = TeacherConfig(**{k: p[k] for k in TeacherConfig.__dataclass_fields__ if k in p})
         config.validate()
+        check_side_reach(p['swing'], config)
     except ValueError as error:   # its messages name the field, and the fields are the parameters
         raise ParameterError(str(error)) from error
     variation = sample_variation(p['swing'], p['seed'], p['variation'])

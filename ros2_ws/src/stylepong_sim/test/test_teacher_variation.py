@@ -13,6 +13,7 @@ import pytest
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
 from stylepong_sim.teacher import (
+    MAX_SIDE_REACH_M,
     STROKES,
     SWINGS,
     VARIATION_RANGES,
@@ -34,6 +35,7 @@ SHIPPED_SEEDS = {'forward': (1, 4, 7), 'leftward': (2, 5), 'rightward': (3, 6)} 
 # Margins the tests hold every take to (the reasons are beside VARIATION_RANGES in teacher.py).
 MIN_SHOULDER_CLEARANCE_M = 0.22   # nominal strokes: 0.23 m at the back-swing; takes only make it shallower
 MIN_ELBOW_BEND_RAD = 1.0          # follow-throughs stay short of the arm's reach
+MIN_REACHING_ELBOW_BEND_RAD = 0.5  # a stroke reaching out (side_reach_m) stretches the arm further, never straight
 MAX_JOINT_STEP_RAD = 0.15         # per 20 ms of the path: more would be a flip of the shoulder or wrist
 SIDE_HIT_MIN_Y_M = 0.09           # a leftward (rightward) hit this far to the left (right) of home, at least
 FORWARD_HIT_MAX_Y_M = 0.03        # a forward hit this close to straight ahead
@@ -216,3 +218,29 @@ def test_a_turned_stroke_is_the_same_joint_path_with_the_shoulder_pan_moved_towa
     assert side * (turned.hit[1] - plain.hit[1]) >= (0.1 if side else 0.0)
     with pytest.raises(ValueError, match='side_turn_rad'):
         TeacherConfig(side_turn_rad=1.5).validate()
+
+
+@pytest.mark.parametrize('swing', ['leftward', 'rightward'])
+def test_a_reaching_stroke_is_carried_to_its_side_within_the_arms_reach(swing):
+    """TeacherConfig.side_reach_m carries a sideways stroke's key poses further to its side, as far as
+    MAX_SIDE_REACH_M allows: the arm stays inside its joint limits, clear of the shoulder singularity and
+    short of a straight elbow, and moves smoothly. Further than the limit, or for a forward stroke, the
+    config is refused or ignored."""
+    reach_m = MAX_SIDE_REACH_M[swing]
+    take = sample_variation(swing, 3)
+    plain = StrokePath(swing, TeacherConfig(), HOME_CENTRE, take)
+    reached = StrokePath(swing, TeacherConfig(side_reach_m=reach_m), HOME_CENTRE, take)
+    side = {'leftward': 1.0, 'rightward': -1.0}[swing]
+    for key in ('back', 'hit', 'follow'):
+        np.testing.assert_allclose(getattr(reached, key) - getattr(plain, key), [0.0, side * reach_m, 0.0], atol=1e-12)
+    q = joint_path(reached)
+    limits = rm.joint_limits()
+    assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
+    assert np.max(np.abs(np.diff(q, axis=0))) < MAX_JOINT_STEP_RAD
+    assert min(shoulder_clearance_m(a) for a in q) > MIN_SHOULDER_CLEARANCE_M
+    assert float(np.min(np.abs(q[:, 2]))) > MIN_REACHING_ELBOW_BEND_RAD
+    with pytest.raises(ValueError, match='side_reach_m'):
+        StrokePath(swing, TeacherConfig(side_reach_m=reach_m + 0.05), HOME_CENTRE, take)
+    forward = StrokePath('forward', TeacherConfig(side_reach_m=0.1), HOME_CENTRE, sample_variation('forward', 3))
+    np.testing.assert_array_equal(forward.hit, StrokePath('forward', TeacherConfig(), HOME_CENTRE,
+                                                          sample_variation('forward', 3)).hit)

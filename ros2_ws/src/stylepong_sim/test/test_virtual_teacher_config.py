@@ -60,3 +60,20 @@ def test_a_bad_parameter_is_refused_in_one_line_naming_it(override):
         assert override.split(':=')[0] in str(error.value) and '\n' not in str(error.value)
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_a_reach_beyond_the_sides_limit_is_refused_naming_it():
+    """side_reach_m's bound depends on the swing (the left's reach ends sooner): checked with the swing."""
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', '-p', 'swing:=leftward', '-p', 'side_reach_m:=0.2'], context=context)
+    try:
+        with pytest.raises(ParameterError, match='side_reach_m') as error:
+            VirtualTeacherNode(context=context)
+        assert '\n' not in str(error.value)
+    finally:
+        rclpy.try_shutdown(context=context)
+    node, context = _node('-p', 'swing:=rightward', '-p', 'side_reach_m:=0.2')
+    try:
+        assert node.teacher.path.config.side_reach_m == 0.2
+    finally:
+        _close(node, context)
