@@ -51,8 +51,8 @@ SIDE_TURN_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
 # line: at 1 rad a leftward hit is 0.47 m behind it and hardly further to the side than at 0.8 rad.
 MAX_SIDE_TURN_RAD = 1.0
 # A reach carries the back-swing, hit and follow-through sideways with the arm stretching out: 0.3 m to the
-# right leaves the elbow bent by 0.6 rad at the follow-through's end, clear of the elbow singularity (a
-# straight arm), and 0.4 m is out of the arm's reach there. The left's reach ends sooner (the nominal
+# right leaves the elbow bent by 0.6 rad at the upright blade's follow-through (1.4 rad in the recorded
+# opened-blade takes), clear of the elbow singularity (a straight arm); 0.4 m is out of the arm's reach. The left's reach ends sooner (the nominal
 # leftward follow-through is already further out), so each side has its own limit.
 MAX_SIDE_REACH_M = {'leftward': 0.1, 'rightward': 0.3}
 
