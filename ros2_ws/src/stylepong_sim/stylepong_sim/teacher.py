@@ -52,8 +52,9 @@ SIDE_TURN_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
 MAX_SIDE_TURN_RAD = 1.0
 # A reach carries the back-swing, hit and follow-through sideways with the arm stretching out: 0.3 m to the
 # right leaves the elbow bent by 0.6 rad at the upright blade's follow-through (1.4 rad in the recorded
-# opened-blade takes), clear of the elbow singularity (a straight arm); 0.4 m is out of the arm's reach. The left's reach ends sooner (the nominal
-# leftward follow-through is already further out), so each side has its own limit.
+# opened-blade takes), clear of the elbow singularity (a straight arm); 0.4 m is out of the arm's reach.
+# The left's reach ends sooner (the nominal leftward follow-through is already further out), so each side
+# has its own limit.
 MAX_SIDE_REACH_M = {'leftward': 0.1, 'rightward': 0.3}
 
 
@@ -400,8 +401,8 @@ class StrokePath:
         self.forward_swing_s = config.forward_swing_s * variation.forward_swing_scale
         self.ready = np.asarray(home_position_m, dtype=float)
         turn_rad = SIDE_TURN_SIGN[swing] * config.side_turn_rad
-        reach_m = np.array([0.0, SIDE_TURN_SIGN[swing] * config.side_reach_m, 0.0])
         check_side_reach(swing, config)
+        reach_m = np.array([0.0, SIDE_TURN_SIGN[swing] * config.side_reach_m, 0.0])
         swing_points_m = turned_about_base(self.ready + reach_m + np.array([shape.back_offset_m, shape.hit_offset_m,
                                                                             shape.follow_offset_m]), turn_rad)
         self.back, self.hit, self.follow = swing_points_m
