@@ -97,6 +97,14 @@ def _slowed(windows: torch.Tensor, reference: ReferenceMotion) -> torch.Tensor:
     return torch.cat((frames[..., :half], 0.5 * frames[..., half:]), dim=-1)
 
 
+MOVING_RAD_S = 0.3     # a window's mean joint speed (norm over joints); 80 % of the shipped clips' windows
+
+
+def _mean_joint_speed(windows: torch.Tensor) -> torch.Tensor:
+    """[B, L, 12] (q, qdot) windows -> [B]: the norm of qdot, averaged over the window's frames."""
+    return windows[..., windows.shape[-1] // 2:].norm(dim=-1).mean(dim=1)
+
+
 @pytest.mark.parametrize('negative', ['shuffled', 'slowed'])
 def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_ones(tmp_path, negative):
     """LSGAN training against windows whose frames are shuffled among the demonstrations (every pose is
@@ -134,14 +142,6 @@ def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_o
     accuracy = 0.5 * ((d_reference > 0).float().mean() + (d_fake < 0).float().mean())
     assert accuracy > 0.85, (negative, float(accuracy), stats)
     assert d_reference.mean() > 0.2 and d_fake.mean() < -0.2    # on their sides of 0, towards the targets +-1
-
-
-MOVING_RAD_S = 0.3     # a window's mean joint speed (norm over joints); 80 % of the shipped clips' windows
-
-
-def _mean_joint_speed(windows: torch.Tensor) -> torch.Tensor:
-    """[B, L, 12] (q, qdot) windows -> [B]: the norm of qdot, averaged over the window's frames."""
-    return windows[..., windows.shape[-1] // 2:].norm(dim=-1).mean(dim=1)
 
 
 def test_position_features_keep_only_the_joint_positions_of_reference_and_policy_frames():

@@ -45,8 +45,9 @@ from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
 
 SWINGS = ('forward', 'leftward', 'rightward')
-# Which way TeacherConfig.side_turn_rad turns each swing about the vertical (+: to the robot's left).
-SIDE_TURN_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
+# Which side each swing goes to (+: the robot's left, world +y): the sign of TeacherConfig.side_turn_rad's
+# turn about the vertical and of side_reach_m's carry along y.
+SIDE_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}
 # The turn swings the stroke round a point 0.35 m behind home, so it also takes the hit back from the end
 # line: at 1 rad a leftward hit is 0.47 m behind it and hardly further to the side than at 0.8 rad.
 MAX_SIDE_TURN_RAD = 1.0
@@ -400,9 +401,9 @@ class StrokePath:
         self.backswing_s = config.backswing_s * variation.backswing_scale
         self.forward_swing_s = config.forward_swing_s * variation.forward_swing_scale
         self.ready = np.asarray(home_position_m, dtype=float)
-        turn_rad = SIDE_TURN_SIGN[swing] * config.side_turn_rad
+        turn_rad = SIDE_SIGN[swing] * config.side_turn_rad
         check_side_reach(swing, config)
-        reach_m = np.array([0.0, SIDE_TURN_SIGN[swing] * config.side_reach_m, 0.0])
+        reach_m = np.array([0.0, SIDE_SIGN[swing] * config.side_reach_m, 0.0])
         swing_points_m = turned_about_base(self.ready + reach_m + np.array([shape.back_offset_m, shape.hit_offset_m,
                                                                             shape.follow_offset_m]), turn_rad)
         self.back, self.hit, self.follow = swing_points_m
