@@ -162,6 +162,35 @@ def idle_trim(qd: np.ndarray, idle_speed_rad_s: float) -> slice | None:
     return slice(first, last + 1)
 
 
+# A demonstration's stroke: the arm leaves home, swings back, nearly stops, then swings through the
+# hit into its follow-through. Joint-speed norms (rad/s) relative to the clip's fastest frame mark these:
+# the motion has begun once the speed passes SWING_MOVING_SHARE of the top, and the pause before the
+# forward swing is the first frame after that slower than SWING_PAUSE_SHARE of it.
+SWING_MOVING_SHARE = 0.3
+SWING_PAUSE_SHARE = 0.15
+
+
+def hit_frame(qd_rad_s: np.ndarray) -> int:
+    """The frame of a clip where a ball would be met: the fastest frame of its last swing.
+
+    A ball-less demonstration marks no hit. The forward swing is the one after the pause that ends the
+    back-swing, so the hit is the fastest frame from that pause on (the back-swing may be the faster of
+    the two); a clip that does not swing again after slowing down is one swing, and its fastest frame is
+    the hit."""
+    speed = np.linalg.norm(np.asarray(qd_rad_s, dtype=float), axis=1)
+    if not len(speed):
+        raise ValueError('an empty clip has no hit')
+    top = float(speed.max())
+    moving = np.flatnonzero(speed > SWING_MOVING_SHARE * top)
+    if not len(moving):
+        return int(np.argmax(speed))
+    paused = np.flatnonzero(speed[moving[0]:] < SWING_PAUSE_SHARE * top)
+    pause = int(moving[0] + paused[0]) if len(paused) else len(speed)
+    if not (speed[pause:] > SWING_MOVING_SHARE * top).any():    # the slow end of a single swing
+        return int(np.argmax(speed))
+    return pause + int(np.argmax(speed[pause:]))
+
+
 def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, position_rad: np.ndarray,
                velocity_rad_s: np.ndarray, options: ClipOptions = ClipOptions()) -> ClipResult:
     """Clips from one recording's samples (rows in recording order; velocity NaN where absent)."""
@@ -328,6 +357,14 @@ class ReferenceDataset:
     def states(self) -> np.ndarray:
         """(N, 2J) arm states [q, qd] per frame, the discriminator's per-frame input."""
         return np.concatenate([self.q, self.qd], axis=1)
+
+    def after_hit(self) -> np.ndarray:
+        """(N,) bool per frame: the frame lies at or after its clip's hit (`hit_frame`)."""
+        after = np.zeros(len(self.q), dtype=bool)
+        for start, length in zip(self.clip_start, self.clip_length):
+            start, length = int(start), int(length)
+            after[start + hit_frame(self.qd[start:start + length]):start + length] = True
+        return after
 
     def select(self, labels: Sequence[str] | None = None, speed_factors: Sequence[int] | None = None) -> np.ndarray:
         """Indices of the clips with one of these labels and speed factors (None: any)."""

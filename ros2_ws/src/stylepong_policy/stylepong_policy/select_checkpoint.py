@@ -2,7 +2,8 @@
 
     select_checkpoint --run RUN_DIR [--seeds 10] [--first-seed 900] [--balls 200] [--speed all]
                       [--high-first-seed 950] [--high-seeds N] [--high-balls N]
-                      [--dtw DATASET.npz [--min-success RATE]]
+                      [--dtw DATASET.npz [--min-success RATE [--relative-to BASELINE_ACTOR.pt]]]
+                      [--from-iteration N]
                       [--export ACTOR.pt] [--device cpu] [--num-threads 2]
 
 Every numbered checkpoint of the run (RUN_DIR/checkpoints/model_*.pt, written by the training runner
@@ -31,7 +32,11 @@ the rule becomes the style rule (STYLE_RULE): among the checkpoints that return 
 validation balls, the one whose strokes lie closest to the demonstrations (the mean of the three
 directions' distances); when none returns that many, the success rule above. A success-only choice
 takes the latest checkpoint that returns a few more balls, however far its strokes have drifted from
-the demonstrations while it learned to.
+the demonstrations while it learned to. With `--relative-to ACTOR.pt` (a baseline, PPO's actor) that
+actor's strokes on the same validation balls are measured too, and the style rule becomes the worst-
+direction rule (WORST_RATIO_RULE): the checkpoint whose largest ratio of a direction's distance to the
+baseline's is the lowest, the form of the style target (each direction within a fraction of PPO's).
+`--from-iteration N` validates and chooses among the checkpoints of iteration N and later only.
 """
 from __future__ import annotations
 
@@ -72,6 +77,9 @@ RULE = ('highest mean success rate over the validation seeds at the validation s
         'ties: higher val_success_high when validated, then the earlier iteration')
 STYLE_RULE = ('lowest mean DTW distance to the demonstrations over the three directions (val_dtw_*) among '
               'the checkpoints with val_success_all >= {min_success}; when there is none, ' + RULE)
+WORST_RATIO_RULE = ('lowest largest ratio, over the three directions, of the DTW distance to the demonstrations '
+                    '(val_dtw_*) to that of {baseline} on the same validation balls, among the checkpoints with '
+                    'val_success_all >= {min_success}; when there is none, ' + RULE)
 
 
 @dataclass(frozen=True)
@@ -202,12 +210,15 @@ def _rate(text: str | None) -> float:
     return float(text) if text not in (None, '') else float('-inf')
 
 
-def choose(rows: list[dict[str, str]], min_success: float | None = None) -> dict[str, str]:
-    """The row the rule picks: RULE, or STYLE_RULE with a success floor (rows with their DTW columns)."""
+def choose(rows: list[dict[str, str]], min_success: float | None = None,
+           baseline_dtw: dict[str, float] | None = None) -> dict[str, str]:
+    """The row the rule picks: RULE, or with a success floor STYLE_RULE (rows with their DTW columns), or
+    WORST_RATIO_RULE when the baseline's DTW distance per direction is given."""
     if min_success is not None:
         qualified = [r for r in rows if _rate(r['val_success_all']) >= min_success and mean_dtw(r) is not None]
+        style = mean_dtw if baseline_dtw is None else (lambda r: worst_ratio(r, baseline_dtw))
         if qualified:
-            return min(qualified, key=lambda r: (mean_dtw(r), -_rate(r['val_success_all']), int(r['iteration'])))
+            return min(qualified, key=lambda r: (style(r), -_rate(r['val_success_all']), int(r['iteration'])))
     return max(rows, key=lambda r: (_rate(r['val_success_all']), _rate(r.get('val_success_high')),
                                     -int(r['iteration'])))
 
@@ -221,6 +232,26 @@ def mean_dtw(row: dict[str, str]) -> float | None:
     """The mean of a row's three directions' DTW distances (rad); None unless all three were measured."""
     values = list(dtw_by_direction(row).values())
     return None if None in values else sum(values) / len(values)
+
+
+def dtw_ratios(row: dict[str, str], baseline_dtw: dict[str, float]) -> dict[str, float]:
+    """A row's DTW distance per direction as a fraction of the baseline's on the same balls."""
+    return {d: value / baseline_dtw[d] for d, value in dtw_by_direction(row).items()}
+
+
+def worst_ratio(row: dict[str, str], baseline_dtw: dict[str, float]) -> float:
+    """The largest of a row's three ratios to the baseline (dtw_ratios)."""
+    return max(dtw_ratios(row, baseline_dtw).values())
+
+
+def baseline_distances(actor: pathlib.Path, setting: Setting, device: str) -> dict[str, float]:
+    """The baseline actor's mean DTW distance (rad) per direction on the setting's validation balls."""
+    result = run_evaluation(actor, seeds=setting.seeds, first_seed=setting.first_seed, balls=setting.balls,
+                            speed=setting.speed, device=device, dtw_dataset=setting.dtw_dataset)
+    missing = [d for d in DIRECTIONS if (result.get('dtw') or {}).get(d, {}).get('mean_rad') is None]
+    if missing:
+        raise ValueError(f'{actor} made no {", ".join(missing)} stroke on the validation balls')
+    return {d: float(result['dtw'][d]['mean_rad']) for d in DIRECTIONS}
 
 
 def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Setting, path: pathlib.Path) -> None:
@@ -274,6 +305,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="also measure the strokes' DTW distance to this reference dataset's clips")
     parser.add_argument('--min-success', type=float, metavar='RATE',
                         help='with --dtw: choose by the style rule, among checkpoints returning at least RATE')
+    parser.add_argument('--relative-to', type=pathlib.Path, metavar='BASELINE_ACTOR.pt',
+                        help='with --min-success: choose by the worst-direction rule, ratios to this actor')
+    parser.add_argument('--from-iteration', type=int, default=0, metavar='N',
+                        help='validate and choose among the checkpoints of iteration N and later only')
     parser.add_argument('--export', type=pathlib.Path, metavar='ACTOR.pt', help="write the chosen checkpoint's actor")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
@@ -288,6 +323,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         ranges.append(('--high-first-seed', args.high_first_seed, args.high_seeds))
     if args.min_success is not None and (args.dtw is None or not 0.0 <= args.min_success <= 1.0):
         parser.error('--min-success needs --dtw and a rate between 0 and 1')
+    if args.relative_to is not None and args.min_success is None:
+        parser.error('--relative-to needs --min-success (and --dtw)')
+    if args.relative_to is not None and not args.relative_to.is_file():
+        parser.error(f'--relative-to {args.relative_to}: no such actor')
     if args.dtw is not None and not pathlib.Path(args.dtw).is_file():
         parser.error(f'--dtw {args.dtw}: no such reference dataset')
     for flag, first, count in ranges:
@@ -303,9 +342,10 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the select_checkpoint executable."""
     args = parse_args(argv)
     run_dir: pathlib.Path = args.run
-    checkpoints = numbered_checkpoints(run_dir)
+    checkpoints = [(i, p) for i, p in numbered_checkpoints(run_dir) if i >= args.from_iteration]
     if not checkpoints:
-        print(f'select_checkpoint: no numbered checkpoints in {run_dir / CHECKPOINT_DIR} (model_*.pt)', file=sys.stderr)
+        print(f'select_checkpoint: no numbered checkpoints of iteration {args.from_iteration} or later in '
+              f'{run_dir / CHECKPOINT_DIR} (model_*.pt)', file=sys.stderr)
         return 2
     torch.set_num_threads(args.num_threads)
     setting = Setting(args.speed, args.first_seed, args.seeds, args.balls, args.high_first_seed, args.high_seeds,
@@ -337,8 +377,13 @@ def main(argv: list[str] | None = None) -> int:
               + (f', DTW {" / ".join(row[c] or "-" for c in DTW_COLUMN.values())} rad' if args.dtw else '')
               + f', {row["wall_time_s"]} s', flush=True)
 
-    candidates = [r for r in rows if same_setting(r, setting)]
-    chosen = choose(candidates, args.min_success)
+    candidates = [r for r in rows if same_setting(r, setting) and int(r['iteration']) >= args.from_iteration]
+    baseline = None
+    if args.relative_to is not None:
+        baseline = baseline_distances(args.relative_to, setting, args.device)
+        distances = ' / '.join(f'{baseline[d]:.3f}' for d in DIRECTIONS)
+        print(f'baseline {args.relative_to}: DTW {distances} rad', flush=True)
+    chosen = choose(candidates, args.min_success, baseline)
     plot_curve(candidates, chosen, setting, run_dir / CURVE_NAME)
     selection = {
         'iteration': int(chosen['iteration']), 'samples': int(chosen['samples']), 'checkpoint': chosen['checkpoint'],
@@ -346,7 +391,12 @@ def main(argv: list[str] | None = None) -> int:
         'val_success_high': float(chosen['val_success_high']) if chosen['val_success_high'] else None,
         'val_hit_rate_all': float(chosen['val_hit_rate_all']),
         **({'val_dtw_rad': dtw_by_direction(chosen), 'dtw_dataset': args.dtw} if args.dtw else {}),
-        'rule': STYLE_RULE.format(min_success=args.min_success) if args.min_success is not None else RULE,
+        **({'baseline': {'actor': str(args.relative_to), 'val_dtw_rad': baseline},
+            'val_dtw_ratio': {d: round(r, 4) for d, r in dtw_ratios(chosen, baseline).items()}}
+           if baseline is not None and mean_dtw(chosen) is not None else {}),
+        'rule': (RULE if args.min_success is None else
+                 STYLE_RULE.format(min_success=args.min_success) if baseline is None else
+                 WORST_RATIO_RULE.format(min_success=args.min_success, baseline=args.relative_to)),
         'validation': {'speed': setting.speed,
                        'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
                        'balls_per_seed': setting.balls,

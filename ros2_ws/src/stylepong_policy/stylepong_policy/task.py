@@ -359,7 +359,8 @@ class TableTennisEnv:
         actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_policy.spec).
         Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, extras) as
         the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
-        'style_state', and 'style_weight' when style_weight_after_hit is not 1). 'log' holds success_rate,
+        'style_state', 'style_label' (the ball's direction), 'style_phase' (the paddle has touched the
+        ball), and 'style_weight' when style_weight_after_hit is not 1). 'log' holds success_rate,
         hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each referee verdict) and
         reward/<term> (the episodes' sums of each reward term).
         The task's own extras, after the step and before any reset:
@@ -403,6 +404,7 @@ class TableTennisEnv:
                   env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
                   env_contract.EXTRAS_STYLE_STATE: arm_state,
                   env_contract.EXTRAS_STYLE_LABEL: self.episode.direction.clone(),
+                  env_contract.EXTRAS_STYLE_PHASE: w.hit.long(),
                   'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}

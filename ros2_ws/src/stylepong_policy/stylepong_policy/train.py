@@ -170,11 +170,12 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
     dataset = ReferenceDataset.load(path)
     label_names = tuple(getattr(env, 'style_labels', ())) if cfg.amp.condition_on_label else ()
     reference = ReferenceMotion.from_dataset(dataset, cfg.amp.sequence_length, cfg.amp.speed_factors, device,
-                                             cfg.amp.frame_features, label_names)
+                                             cfg.amp.frame_features, label_names, cfg.amp.condition_on_phase)
     print(f'train: reference motions {path}: {reference.num_windows} windows of {cfg.amp.sequence_length} frames '
           f'({cfg.amp.frame_features}) '
           f'from clips with speed factors {cfg.amp.speed_factors or "all"}'
-          + (f', conditioned on the labels {list(label_names)}' if label_names else ''), flush=True)
+          + (f', conditioned on the labels {list(label_names)}' if label_names else '')
+          + (', and on the phase (before / after the hit)' if cfg.amp.condition_on_phase else ''), flush=True)
     return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed), path
 
 

@@ -300,3 +300,83 @@ def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_pa
     assert ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'sideways')).labels.unique().tolist() == [1]
     with pytest.raises(ValueError, match='condition_on_label'):
         AMPConfig(condition_on_label='yes').validate()
+
+
+def test_a_reference_window_s_phase_is_its_last_frame_s_and_the_condition_pairs_label_and_phase():
+    frames = np.arange(12, dtype=float)[:, None] * np.ones((1, 2))
+    after = np.zeros(12, dtype=bool)
+    after[[4, 5, 9, 10, 11]] = True                     # clip 0 (frames 0-5) hits at 4, clip 1 (6-11) at 9
+    reference = ReferenceMotion(frames, [0, 6], [6, 6], 3, clip_labels=[0, 1], label_names=('a', 'b'),
+                                frame_after_hit=after)
+    assert reference.phases.tolist() == [0, 0, 1, 1] + [0, 1, 1, 1]   # windows ending at 2-5 and 8-11
+    with pytest.raises(ValueError, match='one flag per frame'):
+        ReferenceMotion(frames, [0], [12], 3, frame_after_hit=after[:-1])
+    labels, phases = torch.tensor([0, 0, 1, 1]), torch.tensor([0, 1, 0, 1])
+    both = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True, condition_on_phase=True),
+                       reference, frame_size=2, num_envs=1, device='cpu')
+    assert both.num_conditions == 4 and both.condition(labels, phases).tolist() == [0, 1, 2, 3]
+    phase_only = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_phase=True), reference,
+                             frame_size=2, num_envs=1, device='cpu')
+    assert phase_only.num_conditions == 2 and phase_only.condition(None, phases).tolist() == [0, 1, 0, 1]
+    label_only = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True), reference,
+                             frame_size=2, num_envs=1, device='cpu')
+    assert label_only.condition(labels, phases).tolist() == [0, 0, 1, 1]
+    phase_only.start(torch.zeros(1, 2))
+    with pytest.raises(ValueError, match='style_phase'):
+        phase_only.observe(torch.ones(1, 2), torch.tensor([False]), torch.ones(1, 2))
+    with pytest.raises(ValueError, match='condition_on_phase'):
+        AMPConfig(condition_on_phase=1).validate()
+
+
+def test_a_discriminator_conditioned_on_the_phase_tells_a_follow_through_from_a_swing():
+    """condition_on_phase: a clip rises to its hit and falls after it. The policy's windows are the same
+    rising and falling windows asked for in the other phase (rising after the hit, falling before it).
+    D conditioned on the phase puts each above 0 in its own phase and below 0 in the other."""
+    torch.manual_seed(0)
+    ramp = np.linspace(0.0, 1.0, 30)[:, None] * np.ones((1, 2))
+    frames = np.concatenate([ramp, ramp[::-1]])
+    after = np.arange(60) >= 30
+    reference = ReferenceMotion(frames, [0], [60], 4, frame_after_hit=after)
+    rising = reference.phases == 0
+    cfg = AMPConfig(sequence_length=4, hidden_dims=[32, 32], batch_size=256, updates_per_iteration=1,
+                    grad_penalty=0.1, learning_rate=1e-3, condition_on_phase=True)
+    prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
+    everything = torch.arange(reference.num_windows)
+    straddling = (everything + 3 >= 30) & (everything < 30)      # windows that hold both phases' frames
+    keep = everything[~straddling]
+    wrong = 1 - reference.phases[keep]
+    for _ in range(300):
+        prior.replay.size = 0
+        prior.replay.insert(reference.windows(keep), wrong)
+        prior.update()
+    with torch.no_grad():
+        own = prior.discriminator.score(reference.windows(keep), reference.phases[keep])
+        other = prior.discriminator.score(reference.windows(keep), wrong)
+    assert rising[keep].any() and (~rising[keep]).any()
+    assert (own > 0).float().mean() > 0.9 and (other < 0).float().mean() > 0.9, (own, other)
+
+
+def test_a_prior_saved_without_phases_resumes_with_them_and_starts_as_it_was():
+    """split_phases: a discriminator conditioned on labels, widened to (label, phase), gives every window
+    in either phase the output it gave under its label; the resumed prior trains on from there."""
+    frames = np.random.default_rng(1).normal(size=(40, 2))
+    after = np.arange(40) % 20 >= 12
+    reference = ReferenceMotion(frames, [0, 20], [20, 20], 3, clip_labels=[0, 1], label_names=('a', 'b'),
+                                frame_after_hit=after)
+    base = dict(sequence_length=3, hidden_dims=[16, 8], batch_size=32, condition_on_label=True)
+    saved = MotionPrior(AMPConfig(**base), reference, frame_size=2, num_envs=1, device='cpu', seed=0)
+    saved.replay.insert(reference.sample(64), torch.randint(2, (64,)))
+    saved.update()
+    resumed = MotionPrior(AMPConfig(**base, condition_on_phase=True), reference, frame_size=2, num_envs=1,
+                          device='cpu', seed=0)
+    resumed.load_state_dict(saved.state_dict())
+    windows, labels = reference.windows(torch.arange(reference.num_windows)), reference.labels
+    with torch.no_grad():
+        before = saved.discriminator.score(windows, labels)
+        for phase in (0, 1):
+            now = resumed.discriminator.score(windows, resumed.condition(labels, torch.full_like(labels, phase)))
+            assert torch.allclose(now, before, atol=1e-6)
+    resumed.replay.insert(reference.sample(64), torch.randint(4, (64,)))
+    assert math.isfinite(resumed.update()['disc/loss'])
+    with pytest.raises(RuntimeError, match='size mismatch'):     # a phase-conditioned D does not shrink back
+        saved.load_state_dict(resumed.state_dict())

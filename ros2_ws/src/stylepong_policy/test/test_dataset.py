@@ -12,6 +12,7 @@ from stylepong_policy.dataset import (
     SourceClip,
     assemble_dataset,
     discriminator_windows,
+    hit_frame,
     make_clips,
     parse_speedups,
     speed_up,
@@ -250,3 +251,31 @@ def test_every_shipped_clip_has_velocities_that_match_its_positions_at_the_playb
         error = np.sqrt(np.mean((from_positions[1:-1] - clip.qd[1:-1]) ** 2))
         scale = np.sqrt(np.mean(clip.qd ** 2))
         assert error <= 0.25 * scale, (c, int(dataset.speed_factor[c]), error, scale)
+
+
+def _speed_bumps(*bumps: tuple[int, float]) -> np.ndarray:
+    """Joint velocities (frames, 2) whose speed norm is a half-sine bump of each (frames, peak rad/s), in turn."""
+    speed = np.concatenate([peak * np.sin(np.linspace(0.0, np.pi, frames)) for frames, peak in bumps])
+    return np.stack([speed, np.zeros_like(speed)], axis=1)
+
+
+def test_a_clip_s_hit_is_the_fastest_frame_of_its_last_swing_even_when_the_back_swing_is_faster():
+    # idle lead-in, a fast back-swing, a pause, a slower forward swing, a slow follow-through
+    qd = _speed_bumps((5, 0.0), (21, 3.0), (4, 0.0), (21, 2.0), (11, 0.5))
+    assert hit_frame(qd) == 5 + 21 + 4 + 10
+    assert hit_frame(_speed_bumps((31, 2.0))) == 15        # one swing: its fastest frame
+    assert hit_frame(np.zeros((6, 2))) == 0
+    with pytest.raises(ValueError, match='empty'):
+        hit_frame(np.zeros((0, 2)))
+
+
+def test_frames_after_each_clip_s_hit_are_flagged_clip_by_clip():
+    swing = _speed_bumps((11, 3.0), (4, 0.0), (11, 2.0))   # hit at frame 20 of 26
+    qd = np.concatenate([swing, swing[::2]])                 # an original and its x2 (hit at frame 10 of 13)
+    dataset = ReferenceDataset(
+        t=np.arange(len(qd)) / 60.0, q=np.zeros_like(qd), qd=qd, clip_start=np.array([0, 26]),
+        clip_length=np.array([26, 13]), label=np.array(['forward'] * 2), speed_factor=np.array([1, 2]),
+        source=np.array(['toy'] * 2), original=np.array([0, 0]), time_source=np.array(['header'] * 2),
+        velocity_source=np.array(['bag'] * 2), rate_hz=60.0, joint_names=np.array(['a', 'b']))
+    after = dataset.after_hit()
+    assert np.flatnonzero(after).tolist() == list(range(20, 26)) + list(range(36, 39))

@@ -155,6 +155,42 @@ def test_the_style_rule_takes_the_closest_strokes_among_checkpoints_that_return_
     assert sc.mean_dtw(rows[1]) == pytest.approx(47 / 3) and sc.mean_dtw(rows[3]) is None
 
 
+def test_the_worst_direction_rule_takes_the_checkpoint_whose_furthest_direction_is_closest_to_the_baseline():
+    def row(iteration, success, dtw):
+        return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': '',
+                **{f'val_dtw_{d}': v for d, v in zip(sc.DIRECTIONS, dtw)}}
+    baseline = dict(zip(sc.DIRECTIONS, (40.0, 50.0, 50.0)))
+    rows = [row(1, '0.95', ('8', '15', '21')),        # mean 14.7, worst 21 / 50 = 0.42
+            row(2, '0.95', ('14', '19', '19')),       # mean 17.3, worst 14 / 40 = 0.38 (forward)
+            row(3, '0.90', ('4', '10', '10'))]        # the closest, but returns too few
+    assert sc.choose(rows, 0.93)['iteration'] == '1'              # the style rule: the lowest mean
+    assert sc.choose(rows, 0.93, baseline)['iteration'] == '2'    # the worst-direction rule
+    assert sc.worst_ratio(rows[1], baseline) == pytest.approx(0.38)
+    assert sc.dtw_ratios(rows[0], baseline)['rightward'] == pytest.approx(0.42)
+
+
+def test_the_worst_direction_rule_measures_the_baseline_on_the_same_balls(run_dir, tmp_path, capsys):
+    run = tmp_path / 'run'
+    shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')
+    reference = str(write_reference(tmp_path / 'reference.npz'))
+    baseline = tmp_path / 'baseline.pt'
+    sc.export_checkpoint(sc.read_checkpoint(run / 'checkpoints' / 'model_000001.pt'), baseline, onnx=False)
+    setting = ['--seeds', '1', '--first-seed', '901', '--balls', '40', '--dtw', reference]
+    assert sc.main(['--run', str(run), *setting, '--min-success', '0.0', '--relative-to', str(baseline),
+                    '--from-iteration', '2']) == 0
+    rows = read_csv(run / sc.CSV_NAME)
+    assert [r['iteration'] for r in rows] == ['2']                 # --from-iteration: 1 is not validated
+    selection = json.loads((run / sc.SELECTION_NAME).read_text())
+    # The baseline is checkpoint 1's actor, measured on the same balls as the rows.
+    measured = sc.baseline_distances(baseline, sc.Setting('all', 901, 1, 40, None, 1, 40, reference), 'cpu')
+    assert selection['baseline'] == {'actor': str(baseline), 'val_dtw_rad': measured}
+    assert selection['iteration'] == 2 and selection['rule'].startswith('lowest largest ratio')
+    assert selection['val_dtw_ratio'] == {d: round(r, 4) for d, r in sc.dtw_ratios(rows[0], measured).items()}
+    with pytest.raises(SystemExit):
+        sc.main(['--run', str(run), *setting, '--relative-to', str(baseline)])    # needs --min-success
+    assert '--relative-to needs --min-success' in capsys.readouterr().err
+
+
 def test_a_csv_from_before_the_dtw_columns_is_extended_without_dtw_and_refused_with_it(tmp_path, run_dir, capsys):
     run = tmp_path / 'run'
     shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')

@@ -338,3 +338,20 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
         agree = (asked[checked] == torch.tensor(expected)).float().mean()
         assert agree > 0.98, (randomize, float(agree))    # a ball a hair from a threshold may fall either side
         assert set(asked.tolist()) == {0, 1, 2}
+
+
+def test_each_step_s_phase_turns_at_the_paddle_s_first_touch_of_its_ball():
+    """'style_phase' (rl.env): 0 until the paddle first touches the episode's ball, 1 from that step to the
+    verdict, before the reset; a new episode starts at 0 again."""
+    env = _env(256, seed=4, reset_joint_noise_rad=0.0)
+    env.reset()
+    touched = torch.zeros(256, dtype=torch.bool)
+    ended_after_touch = 0
+    for _ in range(150):
+        _, _, _, dones, extras = env.step(torch.zeros(256, 6))
+        touched |= extras['paddle_hit']
+        assert torch.equal(extras['style_phase'], touched.long())
+        ended_after_touch += int((dones & touched).sum())
+        touched &= ~dones
+    # an arm held at home meets enough balls for this to say something
+    assert ended_after_touch > 10, ended_after_touch

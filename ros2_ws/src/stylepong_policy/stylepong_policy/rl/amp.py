@@ -20,6 +20,14 @@ of the kind each window should be: a reference window its clip's label, a policy
 asks for at that step (rl.env's 'style_label', in the order of its `style_labels`). D then learns each
 kind of motion apart, and a window earns the style reward only as the kind its situation asks for.
 
+Phases (`amp.condition_on_phase`): a stroke is a swing to the ball and a follow-through after it, and an
+unconditioned D judges a window after the hit against every demonstrated window, home and back-swing
+included, so an arm that returns home or waits after its hit looks as demonstrated as one that follows
+through. Conditioned on the phase, D also sees whether a window's last frame (the frame its reward is for)
+lies before or after the hit: a reference window from its clip (`dataset.hit_frame`, the fastest frame of
+the last swing), a policy window from the env (rl.env's 'style_phase': the paddle has touched the ball).
+With labels too, the condition is the pair (label, phase), one one-hot of labels x 2.
+
 The pieces:
   ReferenceMotion   windows of the demonstrations, uniform over all windows inside one clip
   StyleHistory      each environment's last L frames, restarted at its episode's first frame
@@ -44,6 +52,8 @@ from .networks import make_mlp
 from .normalizer import RunningNormalizer
 
 STYLE_REWARDS = ('lsgan', 'log')
+# A conditioned stroke's phases: before the hit (0) and after it (1).
+PHASES = 2
 # The bounded -log form: a discriminator "probability" of 1 - 1e-4 or more earns the full reward.
 LOG_REWARD_FLOOR = 1e-4
 
@@ -64,13 +74,14 @@ class ReferenceMotion:
     """Every window of `length` consecutive frames lying inside one clip, drawn uniformly.
 
     frames [F, D] (all clips concatenated, in order), clip_starts / clip_lengths [C], and optionally clip_labels [C]
-    (label indices) with the names they index. The window start indices and each window's label are built
-    once; a draw is one random index per window and a gather.
+    (label indices) with the names they index and frame_after_hit [F] (bool per frame). The window start
+    indices, each window's label and its phase (1 when its last frame is after the hit) are built once; a
+    draw is one random index per window and a gather.
     """
 
     def __init__(self, frames: np.ndarray | torch.Tensor, clip_starts: Sequence[int], clip_lengths: Sequence[int],
                  length: int, device: torch.device | str = 'cpu', clip_labels: Sequence[int] | None = None,
-                 label_names: Sequence[str] = ()):
+                 label_names: Sequence[str] = (), frame_after_hit: np.ndarray | None = None):
         self.device = torch.device(device)
         self.frames = torch.as_tensor(np.asarray(frames), dtype=torch.float32, device=self.device)
         starts = window_start_indices(clip_starts, clip_lengths, length)
@@ -84,14 +95,19 @@ class ReferenceMotion:
         per_clip = np.zeros(len(clip_starts), dtype=np.int64) if clip_labels is None else np.asarray(clip_labels)
         clip_of_window = np.searchsorted(np.asarray(clip_starts), starts, side='right') - 1
         self.labels = torch.as_tensor(per_clip[clip_of_window], dtype=torch.long, device=self.device)
+        after = np.zeros(len(self.frames), dtype=bool) if frame_after_hit is None else np.asarray(frame_after_hit)
+        if after.shape != (len(self.frames),):
+            raise ValueError(f'frame_after_hit needs one flag per frame ({len(self.frames)}), got shape {after.shape}')
+        self.phases = torch.as_tensor(after[starts + length - 1], dtype=torch.long, device=self.device)
 
     @classmethod
     def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
                      device: torch.device | str = 'cpu', features: str = 'q_qdot',
-                     label_names: Sequence[str] = ()) -> 'ReferenceMotion':
+                     label_names: Sequence[str] = (), phases: bool = False) -> 'ReferenceMotion':
         """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
         of the clips with these speed factors (None: all, originals and speed-ups). With label_names, each
-        window also carries the index of its clip's label among them (a clip with another label: an error)."""
+        window also carries the index of its clip's label among them (a clip with another label: an error);
+        with phases, whether its last frame is at or after its clip's hit."""
         clips = dataset.select(speed_factors=speed_factors)
         if not len(clips):
             raise ValueError(f'the dataset has no clip with speed factor in {list(speed_factors or [])}')
@@ -105,7 +121,7 @@ class ReferenceMotion:
                                  f'(it asks for {list(label_names)})')
             clip_labels = [list(label_names).index(str(dataset.label[c])) for c in clips]
         return cls(frames, dataset.clip_start[clips], dataset.clip_length[clips], length, device,
-                   clip_labels, label_names)
+                   clip_labels, label_names, dataset.after_hit() if phases else None)
 
     @property
     def num_windows(self) -> int:
@@ -142,7 +158,8 @@ class StyleHistory:
 
 
 class ReplayBuffer:
-    """The last `capacity` policy windows and their labels (first in, first out); uniform draws among those held."""
+    """The last `capacity` policy windows and their conditions (first in, first out); uniform draws among
+    those held."""
 
     def __init__(self, capacity: int, window_shape: tuple[int, int], device: torch.device | str):
         self.data = torch.zeros((int(capacity), *window_shape), device=device)
@@ -151,7 +168,7 @@ class ReplayBuffer:
         self.next = 0
 
     def insert(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> None:
-        """Store windows [B, L, D] with their label indices [B] (None: label 0, an unlabelled prior's)."""
+        """Store windows [B, L, D] with their condition indices [B] (None: 0, an unconditioned prior's)."""
         capacity = self.data.shape[0]
         windows = windows[-capacity:]
         count = windows.shape[0]
@@ -172,8 +189,9 @@ class ReplayBuffer:
 
 
 class Discriminator(nn.Module):
-    """D(window[, label]): normalise each frame with one running mean/std, flatten, append the label's
-    one-hot when there are labels, MLP trunk, linear head."""
+    """D(window[, condition]): normalise each frame with one running mean/std, flatten, append the
+    condition's one-hot when there are conditions (num_labels of them: labels, or labels x phases), MLP
+    trunk, linear head."""
 
     def __init__(self, frame_size: int, length: int, hidden_dims: Sequence[int], activation: str = 'elu',
                  normalizer_clip: float = 5.0, num_labels: int = 0):
@@ -191,12 +209,12 @@ class Discriminator(nn.Module):
     def forward(self, normalized: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
         if self.num_labels:
             if labels is None:
-                raise ValueError('this discriminator is conditioned on labels: give each window its label')
+                raise ValueError('this discriminator is conditioned: give each window its condition index')
             normalized = torch.cat((normalized, nn.functional.one_hot(labels, self.num_labels).to(normalized)), dim=1)
         return self.head(self.trunk(normalized)).squeeze(-1)
 
     def score(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
-        """D of raw windows [B, L, D] (with their label indices [B] when conditioned) -> [B]."""
+        """D of raw windows [B, L, D] (with their condition indices [B] when conditioned) -> [B]."""
         return self(self.normalize(windows), labels)
 
 
@@ -245,8 +263,11 @@ class MotionPrior:
             raise ValueError('amp.condition_on_label needs reference windows with labels (label_names)')
         self.reference = reference
         self.num_labels = len(reference.label_names) if cfg.condition_on_label else 0
+        self.num_phases = PHASES if cfg.condition_on_phase else 1
+        conditioned = cfg.condition_on_label or cfg.condition_on_phase
+        self.num_conditions = max(self.num_labels, 1) * self.num_phases if conditioned else 0
         self.discriminator = Discriminator(frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation,
-                                           cfg.normalizer_clip, self.num_labels).to(self.device)
+                                           cfg.normalizer_clip, self.num_conditions).to(self.device)
         self.optimizer = _adam_with_decay(self.discriminator, cfg)
         self.replay = ReplayBuffer(cfg.replay_size, (cfg.sequence_length, frame_size), self.device)
         self.generator = torch.Generator(device=self.device)
@@ -256,24 +277,37 @@ class MotionPrior:
         # The normaliser starts from the demonstrations, so the first rewards are not on raw radians.
         self.discriminator.normalizer.update(reference.frames)
 
+    def condition(self, labels: torch.Tensor | None, phases: torch.Tensor | None) -> torch.Tensor | None:
+        """The discriminator's condition index [B] of label and phase indices [B] (None when unconditioned):
+        label * phases + phase, so that a prior conditioned on labels alone keeps the labels' indices."""
+        if not self.num_conditions:
+            return None
+        condition = labels * self.num_phases if self.num_labels else None
+        if self.num_phases > 1:
+            condition = phases if condition is None else condition + phases
+        return condition
+
     # --- during rollouts ---------------------------------------------------------------------------
     def start(self, first_frames: torch.Tensor) -> None:
         """Every environment begins a new episode with these frames [N, D]."""
         self.history = StyleHistory(first_frames[:, self.columns], self.cfg.sequence_length)
 
     def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor,
-                labels: torch.Tensor | None = None) -> torch.Tensor:
+                labels: torch.Tensor | None = None, phases: torch.Tensor | None = None) -> torch.Tensor:
         """One policy step: frames [N, D] reached by this step (before resets), dones [N], the frames
         every environment is in now (after resets), and, for a conditioned prior, the label index [N] of the
-        motion each step should be (before resets). Stores the windows; returns the style reward [N]."""
+        motion each step should be and its phase [N] (0 before the hit, 1 after; before resets). Stores the
+        windows; returns the style reward [N]."""
         if self.history is None:
             raise RuntimeError('call start() with the first frames before observe()')
         if self.num_labels and labels is None:
             raise ValueError("amp.condition_on_label: the env must give each step's 'style_label'")
-        labels = labels if self.num_labels else None
+        if self.num_phases > 1 and phases is None:
+            raise ValueError("amp.condition_on_phase: the env must give each step's 'style_phase'")
+        condition = self.condition(labels, phases)
         windows = self.history.push(frames[:, self.columns])
-        reward = style_reward(self.discriminator.score(windows, labels), self.cfg.style_reward)
-        self.replay.insert(windows, labels)
+        reward = style_reward(self.discriminator.score(windows, condition), self.cfg.style_reward)
+        self.replay.insert(windows, condition)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
             self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
@@ -295,8 +329,9 @@ class MotionPrior:
             drawn_policy = self.replay.draw(cfg.batch_size, self.generator)
             reference = self.reference.windows(drawn_reference)
             policy = self.replay.data[drawn_policy]
-            reference_labels = self.reference.labels[drawn_reference] if self.num_labels else None
-            policy_labels = self.replay.labels[drawn_policy] if self.num_labels else None
+            reference_labels = self.condition(self.reference.labels[drawn_reference],
+                                              self.reference.phases[drawn_reference])
+            policy_labels = self.replay.labels[drawn_policy] if self.num_conditions else None
             norm_reference = disc.normalize(reference).requires_grad_(True)
             norm_policy = disc.normalize(policy)
             # The penalty is on the windows' gradient: a label is not a direction D can be smooth along.
@@ -324,6 +359,35 @@ class MotionPrior:
                 'generator': self.generator.get_state()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.discriminator.load_state_dict(state['discriminator'])
-        self.optimizer.load_state_dict(state['optimizer'])
+        """Restore a checkpoint's prior. One saved without phases continues with them: its D is widened
+        (`split_phases`), so it starts as it was and learns the phases from there, with a fresh optimiser
+        (the widened layer has no Adam moments to resume)."""
+        saved = state['discriminator']
+        wanted = self.discriminator.state_dict()[FIRST_LAYER_WEIGHT].shape[1]
+        if self.num_phases > 1 and saved[FIRST_LAYER_WEIGHT].shape[1] != wanted:
+            saved_labels = saved[FIRST_LAYER_WEIGHT].shape[1] - (wanted - self.num_conditions)
+            self.discriminator.load_state_dict(split_phases(saved, saved_labels, self.num_phases))
+        else:
+            self.discriminator.load_state_dict(saved)
+            self.optimizer.load_state_dict(state['optimizer'])
         self.generator.set_state(state['generator'].cpu())   # generator states are CPU byte tensors
+
+
+# The discriminator's first linear layer (trunk[0]) in its state dict: the one the conditions enter.
+FIRST_LAYER_WEIGHT = 'trunk.0.weight'
+
+
+def split_phases(state: dict[str, torch.Tensor], num_labels: int, num_phases: int) -> dict[str, torch.Tensor]:
+    """A discriminator state conditioned on num_labels labels (or none: 0), widened to condition on
+    (label, phase) pairs that give every phase the label's old weights: D's outputs are unchanged until
+    training tells the phases apart."""
+    weight = state[FIRST_LAYER_WEIGHT]
+    window_size = weight.shape[1] - num_labels
+    if window_size <= 0:
+        raise ValueError(f'a first layer of {weight.shape[1]} inputs cannot hold {num_labels} labels')
+    window_columns, label_columns = weight[:, :window_size], weight[:, window_size:]
+    if not num_labels:        # unconditioned: one label whose one-hot had no weight
+        label_columns = torch.zeros_like(weight[:, :1])
+    widened = dict(state)
+    widened[FIRST_LAYER_WEIGHT] = torch.cat((window_columns, label_columns.repeat_interleave(num_phases, dim=1)), dim=1)
+    return widened

@@ -93,6 +93,7 @@ class AMPConfig:
     replay_size: int = 200000            # policy windows kept for the discriminator's negatives
     style_reward: str = 'lsgan'          # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
     condition_on_label: bool = False     # D also sees each window's label (the clip's; the env's 'style_label')
+    condition_on_phase: bool = False     # D also sees if a window ends before or after the hit ('style_phase')
     w_task: float = 1.0
     w_style: float = 0.05
 
@@ -111,8 +112,9 @@ class AMPConfig:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
-        if not isinstance(self.condition_on_label, bool):
-            raise ValueError(f'amp.condition_on_label must be true or false, got {self.condition_on_label!r}')
+        for name in ('condition_on_label', 'condition_on_phase'):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):
             raise ValueError(f'amp.speed_factors must be null or a list of factors >= 1, got {self.speed_factors}')
 

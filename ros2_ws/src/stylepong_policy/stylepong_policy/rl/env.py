@@ -24,7 +24,10 @@ and may hold
                  episode the motion matters more (absent: 1 everywhere);
   'style_label'  [N] int64: which kind of motion each step should be, an index into the env's
                  `style_labels` (the demonstrations' labels it knows), before any reset; a motion prior
-                 conditioned on labels (amp.condition_on_label) needs it.
+                 conditioned on labels (amp.condition_on_label) needs it;
+  'style_phase'  [N] int64: 0 before the event that splits each episode's motion in two (the task: the
+                 paddle's first touch of the ball), 1 from it on, before any reset; a motion prior
+                 conditioned on phases (amp.condition_on_phase) needs it.
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -43,6 +46,7 @@ EXTRAS_LOG_WEIGHT = 'log_weight'
 EXTRAS_STYLE_STATE = 'style_state'
 EXTRAS_STYLE_WEIGHT = 'style_weight'
 EXTRAS_STYLE_LABEL = 'style_label'
+EXTRAS_STYLE_PHASE = 'style_phase'
 
 
 class VecEnv(Protocol):

@@ -276,7 +276,8 @@ class OnPolicyRunner:
                 if self.motion_prior is not None:
                     style = self.motion_prior.observe(extras[env_contract.EXTRAS_STYLE_STATE], dones,
                                                       self.env.style_state(),
-                                                      extras.get(env_contract.EXTRAS_STYLE_LABEL))
+                                                      extras.get(env_contract.EXTRAS_STYLE_LABEL),
+                                                      extras.get(env_contract.EXTRAS_STYLE_PHASE))
                     parts = {'task': rewards, 'style': style}
                     rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT))
                     self._sync()
