@@ -54,6 +54,8 @@ from .normalizer import RunningNormalizer
 STYLE_REWARDS = ('lsgan', 'log')
 # A conditioned stroke's phases: before the hit (0) and after it (1).
 PHASES = 2
+# The discriminator's first linear layer (trunk[0]) in its state dict: the one the conditions enter.
+FIRST_LAYER_WEIGHT = 'trunk.0.weight'
 # The bounded -log form: a discriminator "probability" of 1 - 1e-4 or more earns the full reward.
 LOG_REWARD_FLOOR = 1e-4
 
@@ -190,15 +192,15 @@ class ReplayBuffer:
 
 class Discriminator(nn.Module):
     """D(window[, condition]): normalise each frame with one running mean/std, flatten, append the
-    condition's one-hot when there are conditions (num_labels of them: labels, or labels x phases), MLP
-    trunk, linear head."""
+    condition's one-hot when there are conditions (num_conditions of them: labels, or labels x phases),
+    MLP trunk, linear head."""
 
     def __init__(self, frame_size: int, length: int, hidden_dims: Sequence[int], activation: str = 'elu',
-                 normalizer_clip: float = 5.0, num_labels: int = 0):
+                 normalizer_clip: float = 5.0, num_conditions: int = 0):
         super().__init__()
-        self.frame_size, self.length, self.num_labels = int(frame_size), int(length), int(num_labels)
+        self.frame_size, self.length, self.num_conditions = int(frame_size), int(length), int(num_conditions)
         self.normalizer = RunningNormalizer(self.frame_size, clip=normalizer_clip)
-        mlp = make_mlp(self.frame_size * self.length + self.num_labels, hidden_dims, 1, activation)
+        mlp = make_mlp(self.frame_size * self.length + self.num_conditions, hidden_dims, 1, activation)
         self.trunk = mlp[:-1]
         self.head = mlp[-1]
 
@@ -206,16 +208,17 @@ class Discriminator(nn.Module):
         """Normalised windows [B, L * D]: the input of both the loss and the gradient penalty."""
         return self.normalizer(windows).flatten(1)
 
-    def forward(self, normalized: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
-        if self.num_labels:
-            if labels is None:
+    def forward(self, normalized: torch.Tensor, conditions: torch.Tensor | None = None) -> torch.Tensor:
+        if self.num_conditions:
+            if conditions is None:
                 raise ValueError('this discriminator is conditioned: give each window its condition index')
-            normalized = torch.cat((normalized, nn.functional.one_hot(labels, self.num_labels).to(normalized)), dim=1)
+            one_hot = nn.functional.one_hot(conditions, self.num_conditions).to(normalized)
+            normalized = torch.cat((normalized, one_hot), dim=1)
         return self.head(self.trunk(normalized)).squeeze(-1)
 
-    def score(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+    def score(self, windows: torch.Tensor, conditions: torch.Tensor | None = None) -> torch.Tensor:
         """D of raw windows [B, L, D] (with their condition indices [B] when conditioned) -> [B]."""
-        return self(self.normalize(windows), labels)
+        return self(self.normalize(windows), conditions)
 
 
 def style_reward(d: torch.Tensor, kind: str = 'lsgan') -> torch.Tensor:
@@ -329,14 +332,14 @@ class MotionPrior:
             drawn_policy = self.replay.draw(cfg.batch_size, self.generator)
             reference = self.reference.windows(drawn_reference)
             policy = self.replay.data[drawn_policy]
-            reference_labels = self.condition(self.reference.labels[drawn_reference],
-                                              self.reference.phases[drawn_reference])
-            policy_labels = self.replay.labels[drawn_policy] if self.num_conditions else None
+            reference_conditions = self.condition(self.reference.labels[drawn_reference],
+                                                  self.reference.phases[drawn_reference])
+            policy_conditions = self.replay.labels[drawn_policy] if self.num_conditions else None
             norm_reference = disc.normalize(reference).requires_grad_(True)
             norm_policy = disc.normalize(policy)
             # The penalty is on the windows' gradient: a label is not a direction D can be smooth along.
-            d_reference = disc(norm_reference, reference_labels)
-            d_policy = disc(norm_policy, policy_labels)
+            d_reference = disc(norm_reference, reference_conditions)
+            d_policy = disc(norm_policy, policy_conditions)
             lsgan = 0.5 * ((d_reference - 1.0).square().mean() + (d_policy + 1.0).square().mean())
             gradient, = torch.autograd.grad(d_reference.sum(), norm_reference, create_graph=True)
             penalty = gradient.square().sum(-1).mean()
@@ -372,9 +375,6 @@ class MotionPrior:
             self.optimizer.load_state_dict(state['optimizer'])
         self.generator.set_state(state['generator'].cpu())   # generator states are CPU byte tensors
 
-
-# The discriminator's first linear layer (trunk[0]) in its state dict: the one the conditions enter.
-FIRST_LAYER_WEIGHT = 'trunk.0.weight'
 
 
 def split_phases(state: dict[str, torch.Tensor], num_labels: int, num_phases: int) -> dict[str, torch.Tensor]:
