@@ -247,6 +247,16 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     assert velocity[:, 0].mean() > 0.03 and velocity[:, 1].abs().mean() < 0.03, velocity.mean(0)
 
 
+def _train_against_the_wrong_conditions(prior: MotionPrior, windows: torch.Tensor, wrong: torch.Tensor,
+                                        steps: int = 300) -> None:
+    """Train D with the demonstrated windows as its positives and the same windows under the wrong
+    condition as the policy's (the replay buffer holds only those)."""
+    for _ in range(steps):
+        prior.replay.size = 0
+        prior.replay.insert(windows, wrong)
+        prior.update()
+
+
 def test_a_discriminator_conditioned_on_labels_tells_a_motion_under_its_own_label_from_it_under_another():
     """condition_on_label: two kinds of demonstrated motion (label 0 rises, label 1 falls). The policy's
     windows are the same motions with the labels swapped: every window is a demonstrated one, only asked
@@ -265,10 +275,7 @@ def test_a_discriminator_conditioned_on_labels_tells_a_motion_under_its_own_labe
         prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
         everything = torch.arange(reference.num_windows)
         swapped = 1 - reference.labels[everything]
-        for _ in range(300):
-            prior.replay.size = 0
-            prior.replay.insert(reference.windows(everything), swapped)
-            prior.update()
+        _train_against_the_wrong_conditions(prior, reference.windows(everything), swapped)
         with torch.no_grad():
             own = prior.discriminator.score(reference.windows(everything), reference.labels if conditioned else None)
             other = prior.discriminator.score(reference.windows(everything), swapped if conditioned else None)
@@ -345,10 +352,7 @@ def test_a_discriminator_conditioned_on_the_phase_tells_a_follow_through_from_a_
     straddling = (everything + 3 >= 30) & (everything < 30)      # windows that hold both phases' frames
     keep = everything[~straddling]
     wrong = 1 - reference.phases[keep]
-    for _ in range(300):
-        prior.replay.size = 0
-        prior.replay.insert(reference.windows(keep), wrong)
-        prior.update()
+    _train_against_the_wrong_conditions(prior, reference.windows(keep), wrong)
     with torch.no_grad():
         own = prior.discriminator.score(reference.windows(keep), reference.phases[keep])
         other = prior.discriminator.score(reference.windows(keep), wrong)
