@@ -26,6 +26,7 @@ setup(
             'train = stylepong_policy.train:main',
             'evaluate = stylepong_policy.evaluate:main',
             'select_checkpoint = stylepong_policy.select_checkpoint:main',
+            'average_checkpoints = stylepong_policy.average_checkpoints:main',
             'paper_tables = stylepong_policy.paper_tables:main',
             'player = stylepong_policy.player_node:main',
         ],

@@ -65,6 +65,8 @@ CURVE_NAME = 'validation_curve.png'
 SELECTION_NAME = 'selection.json'
 CONFIG_NAME = 'config.yaml'            # train writes the run's configuration under this name
 CHECKPOINT_PATTERN = re.compile(r'^model_(\d+)\.pt$')
+# An averaged checkpoint's (average_checkpoints) record of the iterations its network is the mean of.
+AVERAGED_KEY = 'averaged_iterations'
 COLUMNS = ('iteration', 'samples', 'val_success_all', 'val_success_high', 'val_hit_rate_all', 'val_hit_rate_high',
            'speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'checkpoint', 'wall_time_s')
 # With --dtw: the mean DTW distance (rad) of each direction's strokes and the reference dataset. Files
@@ -133,7 +135,8 @@ def training_info(checkpoint: dict) -> dict:
             'samples': int(checkpoint['env_steps']), 'seed': (config.get('runner') or {}).get('seed'),
             'wall_time_s': round(float(checkpoint['wall_time_s']), 1),
             'devices': sorted({s.get('device') for s in checkpoint.get('sessions') or [] if s.get('device')}),
-            'task': config.get('task') or {}}
+            'task': config.get('task') or {},
+            **({AVERAGED_KEY: checkpoint[AVERAGED_KEY]} if checkpoint.get(AVERAGED_KEY) else {})}
 
 
 def export_checkpoint(checkpoint: dict, path: pathlib.Path, onnx: bool, extra: dict | None = None) -> pathlib.Path:

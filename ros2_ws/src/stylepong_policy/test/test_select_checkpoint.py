@@ -1,5 +1,6 @@
 """select_checkpoint on a tiny real run: 2 PPO iterations (64 envs, small networks, a numbered checkpoint
-every iteration), then validation, append-only validation.csv, selection.json and the chosen actor."""
+every iteration), then validation, append-only validation.csv, selection.json and the chosen actor; and
+average_checkpoints on the same run."""
 import csv
 import json
 import shutil
@@ -7,8 +8,10 @@ import subprocess
 import sys
 
 import pytest
+import torch
 from synthetic_reference import write_reference  # beside this file: conftest.py
 
+from stylepong_policy import average_checkpoints as ac
 from stylepong_policy import select_checkpoint as sc
 from stylepong_policy.rl.export import load_actor
 
@@ -210,3 +213,37 @@ def test_the_style_rule_needs_a_dataset_and_a_rate(run_dir, args, capsys):
     with pytest.raises(SystemExit) as refused:
         sc.main(['--run', str(run_dir), *args])
     assert refused.value.code == 2 and '--' in capsys.readouterr().err
+
+
+# --- average_checkpoints: the weight average of a run's end, validated and shipped like a run ----------
+def test_the_averaged_network_is_the_mean_of_the_checkpoints_with_the_last_ones_records(run_dir):
+    first, last = (sc.read_checkpoint(path) for _, path in sc.numbered_checkpoints(run_dir))
+    averaged = ac.average_checkpoints([first, last])
+    for key, value in averaged['model'].items():
+        assert torch.allclose(value, (first['model'][key] + last['model'][key]) / 2, atol=1e-6), key
+    # The observation normaliser's statistics are averaged too: they are part of the policy.
+    assert not torch.equal(averaged['model']['obs_normalizer.mean'], last['model']['obs_normalizer.mean'])
+    assert (averaged['iteration'], averaged['env_steps'], averaged['wall_time_s']) == \
+        (last['iteration'], last['env_steps'], last['wall_time_s'])
+    assert averaged['optimizer'] is None and averaged['motion_prior'] is None
+    assert averaged[sc.AVERAGED_KEY] == [1, 2]
+
+
+def test_an_averaged_run_is_validated_and_exported_like_a_run_and_its_actor_names_what_it_averages(run_dir, tmp_path):
+    out = tmp_path / 'averaged'
+    assert ac.main(['--run', str(run_dir), '--from-iteration', '1', '--out', str(out)]) == 0
+    assert [i for i, _ in sc.numbered_checkpoints(out)] == [2]
+    assert json.loads((out / ac.SUMMARY_NAME).read_text())['averaged_from'] == {'run': str(run_dir),
+                                                                               'iterations': [1, 2]}
+    assert (out / sc.CONFIG_NAME).read_text() == (run_dir / sc.CONFIG_NAME).read_text()
+    assert sc.main(['--run', str(out), *SELECT, '--export', str(out / 'actor.pt')]) == 0
+    assert [r['iteration'] for r in read_csv(out / sc.CSV_NAME)] == ['2']
+    assert load_actor(out / 'actor.pt').metadata['training'][sc.AVERAGED_KEY] == [1, 2]
+
+
+def test_averaging_refuses_an_empty_range_and_an_occupied_directory(run_dir, tmp_path, capsys):
+    assert ac.main(['--run', str(run_dir), '--from-iteration', '3', '--out', str(tmp_path / 'none')]) == 2
+    assert 'no numbered checkpoint between iterations 3 and its end' in capsys.readouterr().err
+    assert ac.main(['--run', str(run_dir), '--from-iteration', '2', '--out', str(tmp_path / 'one')]) == 0
+    assert ac.main(['--run', str(run_dir), '--from-iteration', '1', '--out', str(tmp_path / 'one')]) == 2
+    assert 'already holds checkpoints' in capsys.readouterr().err
