@@ -54,9 +54,9 @@ def average_checkpoints(checkpoints: list[dict]) -> dict:
     with the last checkpoint's records; ValueError if their networks differ."""
     if not checkpoints:
         raise ValueError('nothing to average')
-    shapes = {repr(c['architecture']) for c in checkpoints}
-    if len(shapes) > 1:
-        raise ValueError(f'the checkpoints hold different networks: {sorted(shapes)}')
+    architectures = {repr(c['architecture']) for c in checkpoints}
+    if len(architectures) > 1:
+        raise ValueError(f'the checkpoints hold different networks: {sorted(architectures)}')
     networks = [actor_critic_of(c) for c in checkpoints]
     averaged = AveragedModel(networks[0], use_buffers=True)
     for network in networks:
@@ -70,10 +70,10 @@ def write_averaged_run(run_dir: pathlib.Path, first: int, last: int | None,
                        out: pathlib.Path) -> tuple[pathlib.Path, list[int]]:
     """Average the run's checkpoints from `first` to `last` into the run directory `out`; returns the
     averaged checkpoint's path and the iterations averaged."""
-    chosen = checkpoints_between(run_dir, first, last)
-    checkpoint = average_checkpoints([read_checkpoint(path) for _, path in chosen])
     if (out / CHECKPOINT_DIR).is_dir() and any((out / CHECKPOINT_DIR).iterdir()):
         raise ValueError(f'{out} already holds checkpoints; choose another --out')
+    chosen = checkpoints_between(run_dir, first, last)
+    checkpoint = average_checkpoints([read_checkpoint(path) for _, path in chosen])
     path = out / CHECKPOINT_DIR / f'model_{checkpoint["iteration"]:06d}.pt'
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(checkpoint, path)

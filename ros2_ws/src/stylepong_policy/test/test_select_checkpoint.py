@@ -227,6 +227,9 @@ def test_the_averaged_network_is_the_mean_of_the_checkpoints_with_the_last_ones_
         (last['iteration'], last['env_steps'], last['wall_time_s'])
     assert averaged['optimizer'] is None and averaged['motion_prior'] is None
     assert averaged[sc.AVERAGED_KEY] == [1, 2]
+    wider = {**last, 'architecture': {**last['architecture'], 'actor_hidden_dims': [64, 64]}}
+    with pytest.raises(ValueError, match='different networks'):
+        ac.average_checkpoints([first, wider])
 
 
 def test_an_averaged_run_is_validated_and_exported_like_a_run_and_its_actor_names_what_it_averages(run_dir, tmp_path):
