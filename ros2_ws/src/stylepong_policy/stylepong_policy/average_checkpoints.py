@@ -5,8 +5,9 @@
 A policy trained against a moving target (the discriminator of a style run) does not settle: from one
 saved checkpoint to the next it trades a few returned balls for a little style and back, and which
 checkpoint a validation set favours is partly luck. The mean of the weights of the checkpoints along
-the end of a run lies inside that wandering and holds up better than any one of them (stochastic weight
-averaging: "Averaging Weights Leads to Wider Optima and Better Generalization", Izmailov et al.).
+the end of a run lies inside that wandering (stochastic weight averaging: "Averaging Weights Leads to
+Wider Optima and Better Generalization", Izmailov et al.); for the shipped `amp` actor it returned more
+validation balls than any of the checkpoints it averages (docs/DESIGN.md, Known limits).
 
 The mean is taken by torch's own stochastic-weight-averaging tool, `torch.optim.swa_utils.AveragedModel`,
 over the parameters and the buffers (the observation normalisers' running mean and variance) of every
