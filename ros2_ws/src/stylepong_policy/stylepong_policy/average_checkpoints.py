@@ -33,17 +33,18 @@ import sys
 import torch
 from torch.optim.swa_utils import AveragedModel
 
+from stylepong_policy.rl.logger import CSV_NAME
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
 from stylepong_policy.select_checkpoint import AVERAGED_KEY, actor_critic_of, numbered_checkpoints
+from stylepong_policy.train import CONFIG_NAME, CURVE_NAME, SUMMARY_NAME
 
-SUMMARY_NAME = 'summary.json'
 # What the averaged run directory takes over unchanged from the run (when the run has it).
-COPIED = ('config.yaml', 'progress.csv', 'learning_curve.png')
+COPIED = (CONFIG_NAME, CSV_NAME, CURVE_NAME)
 
 
 def checkpoints_between(run_dir: pathlib.Path, first: int, last: int | None) -> list[tuple[int, pathlib.Path]]:
     """(iteration, path) of the run's numbered checkpoints with first <= iteration <= last (None: no end)."""
-    chosen = [(i, p) for i, p in numbered_checkpoints(run_dir) if i >= first and (last is None or i <= last)]
+    chosen = numbered_checkpoints(run_dir, first, last)
     if not chosen:
         raise ValueError(f'{run_dir / CHECKPOINT_DIR} has no numbered checkpoint between iterations {first} '
                          f'and {"its end" if last is None else last}')

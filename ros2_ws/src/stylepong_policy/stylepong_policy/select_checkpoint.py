@@ -111,12 +111,14 @@ def seed_range(first: int, count: int) -> str:
     return f'{first}-{first + count - 1}'
 
 
-def numbered_checkpoints(run_dir: pathlib.Path) -> list[tuple[int, pathlib.Path]]:
-    """(iteration, path) of every checkpoints/model_<iteration>.pt, in iteration order."""
+def numbered_checkpoints(run_dir: pathlib.Path, first: int = 0, last: int | None = None
+                         ) -> list[tuple[int, pathlib.Path]]:
+    """(iteration, path) of every checkpoints/model_<iteration>.pt with first <= iteration <= last (None: no
+    end), in iteration order."""
     found = []
     for path in (run_dir / CHECKPOINT_DIR).glob('model_*.pt'):
         match = CHECKPOINT_PATTERN.match(path.name)
-        if match:
+        if match and first <= int(match.group(1)) and (last is None or int(match.group(1)) <= last):
             found.append((int(match.group(1)), path))
     return sorted(found)
 
@@ -345,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the select_checkpoint executable."""
     args = parse_args(argv)
     run_dir: pathlib.Path = args.run
-    checkpoints = [(i, p) for i, p in numbered_checkpoints(run_dir) if i >= args.from_iteration]
+    checkpoints = numbered_checkpoints(run_dir, args.from_iteration)
     if not checkpoints:
         print(f'select_checkpoint: no numbered checkpoints of iteration {args.from_iteration} or later in '
               f'{run_dir / CHECKPOINT_DIR} (model_*.pt)', file=sys.stderr)
