@@ -297,7 +297,7 @@ def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_pa
     with pytest.raises(ValueError, match='style_label'):
         prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2))
     prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2), torch.tensor([0, 1]))
-    assert prior.replay.labels[:2].tolist() == [0, 1]
+    assert prior.replay.conditions[:2].tolist() == [0, 1]
     dataset = ReferenceDataset(t=np.arange(20) / 60.0, q=frames[:, :1], qd=frames[:, 1:], clip_start=np.array([0]),
                                clip_length=np.array([20]), label=np.array(['sideways']), speed_factor=np.array([1]),
                                source=np.array(['toy']), original=np.array([0]), time_source=np.array(['header']),

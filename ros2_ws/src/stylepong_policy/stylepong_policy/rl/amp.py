@@ -165,23 +165,23 @@ class ReplayBuffer:
 
     def __init__(self, capacity: int, window_shape: tuple[int, int], device: torch.device | str):
         self.data = torch.zeros((int(capacity), *window_shape), device=device)
-        self.labels = torch.zeros(int(capacity), dtype=torch.long, device=device)
+        self.conditions = torch.zeros(int(capacity), dtype=torch.long, device=device)
         self.size = 0
         self.next = 0
 
-    def insert(self, windows: torch.Tensor, labels: torch.Tensor | None = None) -> None:
+    def insert(self, windows: torch.Tensor, conditions: torch.Tensor | None = None) -> None:
         """Store windows [B, L, D] with their condition indices [B] (None: 0, an unconditioned prior's)."""
         capacity = self.data.shape[0]
         windows = windows[-capacity:]
         count = windows.shape[0]
         index = (self.next + torch.arange(count, device=self.data.device)) % capacity
         self.data[index] = windows
-        self.labels[index] = 0 if labels is None else labels[-capacity:]
+        self.conditions[index] = 0 if conditions is None else conditions[-capacity:]
         self.next = (self.next + count) % capacity
         self.size = min(self.size + count, capacity)
 
     def draw(self, count: int, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Indices of `count` stored windows drawn uniformly (for data and labels)."""
+        """Indices of `count` stored windows drawn uniformly (for data and conditions)."""
         if self.size == 0:
             raise RuntimeError('the replay buffer is empty')
         return torch.randint(self.size, (count,), generator=generator, device=self.data.device)
@@ -334,7 +334,7 @@ class MotionPrior:
             policy = self.replay.data[drawn_policy]
             reference_conditions = self.condition(self.reference.labels[drawn_reference],
                                                   self.reference.phases[drawn_reference])
-            policy_conditions = self.replay.labels[drawn_policy] if self.num_conditions else None
+            policy_conditions = self.replay.conditions[drawn_policy] if self.num_conditions else None
             norm_reference = disc.normalize(reference).requires_grad_(True)
             norm_policy = disc.normalize(policy)
             # The penalty is on the windows' gradient: a label is not a direction D can be smooth along.
@@ -374,7 +374,6 @@ class MotionPrior:
             self.discriminator.load_state_dict(saved)
             self.optimizer.load_state_dict(state['optimizer'])
         self.generator.set_state(state['generator'].cpu())   # generator states are CPU byte tensors
-
 
 
 def split_phases(state: dict[str, torch.Tensor], num_labels: int, num_phases: int) -> dict[str, torch.Tensor]:
