@@ -17,9 +17,6 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from stylepong_policy.bag_errors import BagError, one_line
-from stylepong_policy.bag_reading import median_rate_hz, read_joint_states
-from stylepong_policy.bag_search import find_bags
 from stylepong_policy.dataset import (
     DEFAULT_RATE_HZ,
     DEFAULT_SPEEDUPS,
@@ -30,6 +27,9 @@ from stylepong_policy.dataset import (
     make_clips,
     parse_speedups,
 )
+from stylepong_recording.bag_errors import BagError, one_line
+from stylepong_recording.bag_reading import median_rate_hz, read_joint_states
+from stylepong_recording.bag_search import find_bags
 from stylepong_recording.clip_writer import label_from_bag_dir_name
 
 UNLABELLED = 'unlabelled'

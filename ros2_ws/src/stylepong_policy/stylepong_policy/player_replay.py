@@ -33,8 +33,8 @@ ARRIVED_RAD = 1e-6
 
 def load_clip(bag: pathlib.Path, speedup: float, rate_hz: float = spec.ACTION_RATE_HZ) -> np.ndarray:
     """Joint positions [T, 6] (URDF order) of the bag on a rate_hz grid, time compressed by `speedup`."""
-    from stylepong_policy.bag_reading import read_joint_states
     from stylepong_policy.dataset import choose_times_ns, drop_repeated, grid_times_s, interpolate_columns
+    from stylepong_recording.bag_reading import read_joint_states
     recording = read_joint_states(bag, joints=spec.JOINT_NAMES)
     times_ns, _, _ = choose_times_ns(recording.header_stamp_ns, recording.receive_time_ns)
     keep = drop_repeated(times_ns)

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_policy.bag_errors import one_line
-from stylepong_policy.joint_state_cdr import NS_PER_S, CdrLayoutError, JointStateCdrReader
+from stylepong_recording.bag_errors import one_line
+from stylepong_recording.joint_state_cdr import NS_PER_S, CdrLayoutError, JointStateCdrReader
 
 JOINT_STATE_TYPES = ('sensor_msgs/msg/JointState', 'sensor_msgs/JointState')
 

@@ -1,14 +1,14 @@
-"""Reading JointState out of rosbag2 bags of every kind (stylepong_policy.bag_reading)."""
+"""Reading JointState out of rosbag2 bags of every kind (stylepong_recording.bag_reading)."""
 import shutil
 
 import numpy as np
 import pytest
 
-from stylepong_policy.bag_errors import BagError
-from stylepong_policy.bag_reading import read_joint_states
-from stylepong_policy.bag_search import find_bags
-from stylepong_policy.joint_state_cdr import JointStateCdrReader
+from stylepong_recording.bag_errors import BagError
+from stylepong_recording.bag_reading import read_joint_states
+from stylepong_recording.bag_search import find_bags
 from stylepong_recording.clip_writer import TopicSpec, open_clip
+from stylepong_recording.joint_state_cdr import JointStateCdrReader
 from stylepong_recording.msg_definitions import MessageDefinitions
 from stylepong_recording.recover_bag import recover_bag
 from tests.joint_state_bags import (

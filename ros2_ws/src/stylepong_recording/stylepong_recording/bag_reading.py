@@ -28,10 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stylepong_policy.bag_errors import BagError, one_line
-from stylepong_policy.bag_metadata import check_mcap_ends, check_storage_files, metadata_label, read_metadata
-from stylepong_policy.bag_search import storage_files
-from stylepong_policy.joint_state_decoding import JOINT_STATE_TYPES, JointStateCollector, is_standard_joint_state
+from stylepong_recording.bag_errors import BagError, one_line
 from stylepong_recording.bag_layout import (
     COMPRESSED_STORAGE_SUFFIXES,
     IN_PROGRESS_NAME,
@@ -39,6 +36,9 @@ from stylepong_recording.bag_layout import (
     METADATA_NAME,
     STORAGE_IDENTIFIER_KEY,
 )
+from stylepong_recording.bag_metadata import check_mcap_ends, check_storage_files, metadata_label, read_metadata
+from stylepong_recording.bag_search import storage_files
+from stylepong_recording.joint_state_decoding import JOINT_STATE_TYPES, JointStateCollector, is_standard_joint_state
 
 
 @dataclass

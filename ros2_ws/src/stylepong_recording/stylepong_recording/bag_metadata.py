@@ -9,7 +9,7 @@ import pathlib
 
 import yaml
 
-from stylepong_policy.bag_errors import BagError, one_line
+from stylepong_recording.bag_errors import BagError, one_line
 from stylepong_recording.bag_layout import (
     CUSTOM_DATA_KEY,
     LABEL_KEY,
