@@ -12,6 +12,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/config/styles', glob('config/styles/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -25,6 +26,7 @@ setup(
             'ur5_sim = stylepong_sim.ur5_sim_node:main',
             'virtual_teacher = stylepong_sim.virtual_teacher_node:main',
             'rally_eval = stylepong_sim.rally_eval:main',
+            'robot_state_publisher = stylepong_sim.robot_state_publisher_node:main',
         ],
     },
 )

@@ -151,6 +151,20 @@ def urdf_xml(paddle: PaddleSpec = PADDLE) -> str:
     return ET.tostring(robot, encoding='unicode')
 
 
+MESH_PACKAGE_URI = 'package://example-robot-data/'
+
+
+@functools.lru_cache(maxsize=None)
+def urdf_xml_for_display(paddle: PaddleSpec = PADDLE) -> str:
+    """urdf_xml() with its mesh URIs as absolute file:// URIs: what /robot_description carries.
+
+    The upstream URDF names its meshes package://example-robot-data/..., which RViz, Foxglove and rerun
+    can only resolve where example-robot-data is a ROS package; here it is a Python wheel, so the
+    published description points at the wheel's files instead. Nothing else differs from urdf_xml().
+    """
+    return urdf_xml(paddle).replace(MESH_PACKAGE_URI, example_robot_data_dir().as_uri() + '/')
+
+
 def pinocchio_model():
     """A fresh Pinocchio model of the UR5 + paddle (joint order = JOINT_NAMES), gravity as URDF default."""
     import pinocchio as pin

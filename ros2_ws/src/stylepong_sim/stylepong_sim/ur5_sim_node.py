@@ -18,6 +18,12 @@ Publishes (QoS reliable, depth 10, as ros2_control's broadcasters; events depth 
                                                                       while no ball is in play
   /rally/events                            stylepong_msgs/RallyEvent  on event, stamp = when it happened
   /clock                                   rosgraph_msgs/Clock        clock_rate_hz (1000: every physics step)
+  /robot_description, /tf_static          std_msgs/String, tf2_msgs/TFMessage: once, transient local (as
+                                                                      robot_state_publisher: the URDF, fixed joints,
+                                                                      world -> base_link)
+  /tf                                      tf2_msgs/TFMessage         tf_rate_hz (100): the six joint transforms
+  /cell/markers                            visualization_msgs/MarkerArray marker_rate_hz (30), transient local:
+                                                                      table, net, ball (DELETE when none), frame world
 Subscribes (reliable, depth 10):
   /forward_position_controller/commands    std_msgs/Float64MultiArray 6 joint positions (URDF order); wrong
                                                                       length, NaN/inf or outside the joint limits:
@@ -52,6 +58,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node, typed_value
 from stylepong_description import robot_model as rm
@@ -59,6 +66,8 @@ from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import world_spec as ws
 from stylepong_sim.cell import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, Cell, InputError
+from stylepong_sim.cell_markers import cell_markers
+from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
 from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
 
 PROGRAM = 'ur5_sim'
@@ -81,6 +90,8 @@ PARAMETERS = (
     Param('wrench_rate_hz', 500.0, 'F/T wrench rate', low=1.0, high=MAX_RATE_HZ),
     Param('ball_state_rate_hz', 120.0, '/ball/state rate (camera)', low=1.0, high=MAX_RATE_HZ),
     Param('clock_rate_hz', MAX_RATE_HZ, '/clock rate', low=1.0, high=MAX_RATE_HZ),
+    Param('tf_rate_hz', 100.0, '/tf rate (the joint transforms, as robot_state_publisher)', low=1.0, high=MAX_RATE_HZ),
+    Param('marker_rate_hz', 30.0, '/cell/markers rate (table, net, ball)', low=1.0, high=MAX_RATE_HZ),
     Param('hand_wrench_timeout_s', 0.1, 'A hand wrench is dropped this long after it arrived', low=0.001, high=10.0),
     Param('ball_position_noise_std_m', 0.0, 'Camera: position noise (std, per axis)', low=0.0, high=1.0),
     Param('ball_velocity_noise_std_m_s', 0.0, 'Camera: velocity noise (std, per axis)', low=0.0, high=10.0),
@@ -128,6 +139,8 @@ class Ur5SimNode(Node):
         self._wrench_clock = SampleClock(value['wrench_rate_hz'])
         self._ball_clock = SampleClock(value['ball_state_rate_hz'])
         self._clock_clock = SampleClock(value['clock_rate_hz'])
+        self._tf_clock = SampleClock(value['tf_rate_hz'])
+        self._marker_clock = SampleClock(value['marker_rate_hz'])
         self._hand_timeout_s = value['hand_wrench_timeout_s']
         self._ft_include_inertia = value['ft_include_inertia']
         self._max_lag_s = value['max_lag_s']
@@ -151,6 +164,10 @@ class Ur5SimNode(Node):
         self._ball_pub = self.create_publisher(BallState, '/ball/state', qos)
         self._event_pub = self.create_publisher(RallyEvent, '/rally/events', QoSProfile(depth=100))
         self._clock_pub = self.create_publisher(Clock, '/clock', qos)
+        # What robot_state_publisher would publish for this arm, so that RViz and Foxglove show the cell.
+        self._robot_state = RobotStateOutputs(self)
+        self._robot_state.publish_description_and_static(_stamp(self._cell.time_s))
+        self._marker_pub = self.create_publisher(MarkerArray, '/cell/markers', LATCHED_QOS)
         self.create_subscription(Float64MultiArray, '/forward_position_controller/commands', self._on_command, qos)
         self.create_subscription(WrenchStamped, '/sim/hand_wrench', self._on_hand_wrench, qos)
         self.create_service(LaunchBall, '/sim/launch_ball', self._on_launch_ball)
@@ -234,6 +251,11 @@ class Ur5SimNode(Node):
         if self._clock_clock.due(time_s):
             self._clock_msg.clock = stamp or _stamp(time_s)
             self._clock_pub.publish(self._clock_msg)
+        if self._tf_clock.due(time_s):
+            self._robot_state.publish_joint_positions(cell.data.qpos[:6], stamp or _stamp(time_s))
+        if self._marker_clock.due(time_s):
+            ball = cell.ball_position_m if cell.ball_in_play else None
+            self._marker_pub.publish(cell_markers(ball, stamp or _stamp(time_s)))
         if self._ball_clock.due(time_s) and cell.ball_in_play:   # the camera's frames keep their grid
             self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
         for observation in self._camera.delivered(time_s):
