@@ -18,7 +18,7 @@ setup(
     zip_safe=True,
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
-    description='Training bridge (bags to reference motions), PPO + AMP training, evaluation and the 60 Hz player.',
+    description='Training bridge (bags to reference motions), PPO + AMP training, evaluation and the paper figures.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
@@ -28,7 +28,6 @@ setup(
             'select_checkpoint = stylepong_policy.select_checkpoint:main',
             'average_checkpoints = stylepong_policy.average_checkpoints:main',
             'paper_tables = stylepong_policy.paper_tables:main',
-            'player = stylepong_policy.player_node:main',
         ],
     },
 )

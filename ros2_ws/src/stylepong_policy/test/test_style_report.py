@@ -1,0 +1,147 @@
+"""style_report on a tiny real evaluation: the shipped actors on one seed and a few balls, DTW against the
+shipped clips (the shipped style actor stands in for a new one)."""
+import json
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+
+from stylepong_policy import evaluate
+from stylepong_policy import strokes as st
+from stylepong_policy import style_metrics as sm
+from stylepong_policy import style_report as report
+from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.demo_check import check_demonstrations
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+MODELS = PACKAGE / 'models'
+SHIPPED_BAGS = PACKAGE.parents[1] / 'bags'
+BALLS = 6
+
+
+def run_evaluate(actor: str, files: report.EvalFiles, dataset: pathlib.Path, speed: str) -> None:
+    first_seed = 1000 if speed == 'all' else 2000
+    args = ['--actor', str(MODELS / actor), '--seeds', '1', '--first-seed', str(first_seed), '--balls', str(BALLS),
+            '--speed', speed, '--dtw', str(dataset), '--num-threads', '1']
+    if speed == 'all':
+        args += ['--json', str(files.all_speeds_json), '--save-strokes', str(files.strokes_npz)]
+    else:
+        args += ['--json', str(files.high_speeds_json)]
+    assert evaluate.main(args) == 0
+
+
+@pytest.fixture(scope='module')
+def run_dir(tmp_path_factory):
+    """A run folder with the three actors' evaluation files, named as style_report reads them."""
+    run = tmp_path_factory.mktemp('run')
+    dataset = check_demonstrations(SHIPPED_BAGS, window_frames=8).reference_dataset().save(run / 'dataset.npz')
+    for name, actor in (('style', 'amp_actor.pt'), ('ppo', 'ppo_actor.pt')):
+        run_evaluate(actor, report.eval_files(run, name), dataset, 'all')
+    run_evaluate('amp_actor.pt', report.eval_files(run, 'style'), dataset, 'high')
+    shipped = report.eval_files(run, 'shipped')
+    shutil.copy(report.eval_files(run, 'style').all_speeds_json, shipped.all_speeds_json)
+    shutil.copy(report.eval_files(run, 'style').strokes_npz, shipped.strokes_npz)
+    return run
+
+
+def test_the_file_names_are_the_constants(tmp_path):
+    files = report.eval_files(tmp_path, 'ppo')
+    assert files.all_speeds_json == tmp_path / report.EVAL_DIR / 'ppo_all.json'
+    assert files.high_speeds_json == tmp_path / report.EVAL_DIR / 'ppo_high.json'
+    assert files.strokes_npz == tmp_path / report.EVAL_DIR / 'ppo_strokes.npz'
+
+
+def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
+    saved = st.load_strokes(report.eval_files(run_dir, 'style').strokes_npz).strokes
+    shown = saved[0].direction    # one strip: each takes seconds to draw
+    path = report.write_report(run_dir, dataset_path=run_dir / 'dataset.npz',
+                               timings_s={'check': 0.4, 'dataset': 0.3, 'stage 1': 1234.0},
+                               checkpoints={'stage 1': [2450, 2850]}, notes=['a label note'],
+                               strip_directions=[shown])
+    assert path == run_dir / report.REPORT_MD
+    text = path.read_text()
+    for heading in ('## Success', '## DTW to the demonstrations', '## Smoothness',
+                    '## Strokes beside the demonstrations', '## The run'):
+        assert heading in text
+    assert '- a label note' in text and '2450' in text and '| stage 1 | 1234 | 20.6 |' in text
+    assert 'on the same balls.' in text
+    record = json.loads((run_dir / report.REPORT_JSON).read_text())
+    # The figures are the evaluation files' own: success, and DTW ratios recomputed from them here.
+    style = json.loads(report.eval_files(run_dir, 'style').all_speeds_json.read_text())
+    ppo = json.loads(report.eval_files(run_dir, 'ppo').all_speeds_json.read_text())
+    high = json.loads(report.eval_files(run_dir, 'style').high_speeds_json.read_text())
+    assert record['success']['style'] == {'all': style['success_rate'], 'high': high['success_rate']}
+    assert record['success']['ppo']['high'] is None and 'not evaluated' in text
+    for d in st.DIRECTIONS:
+        expected = style['dtw'][d]['mean_rad'] / ppo['dtw'][d]['mean_rad'] if style['dtw'][d]['strokes'] else None
+        assert record['dtw_ratios']['style / ppo'][d] == pytest.approx(expected)
+        assert record['dtw_ratios']['style / shipped'][d] in (None, pytest.approx(1.0))
+    for name in ('success', 'dtw', 'smoothness'):
+        image = getattr(report, f'{name.upper()}_PNG')
+        assert (run_dir / image).stat().st_size > 10_000 and f']({image})' in text
+    # The strip and joint chart of the direction asked for, on the first ball from there.
+    (entry,) = record['strips']
+    stroke = next(s for s in saved if (s.seed, s.ball) == (entry['seed'], entry['ball']))
+    assert entry['direction'] == shown == stroke.direction
+    assert entry['strip'] == report.STRIP_PNG.format(direction=shown), entry['strip_missing']
+    assert (run_dir / entry['strip']).is_file() and (run_dir / entry['joints']).is_file()
+    assert f']({entry["strip"]})' in text and f']({entry["joints"]})' in text
+    # The demonstration beside it is the original clip of its label nearest to its stroke.
+    dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
+    originals = [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[shown], speed_factors=[1])]
+    nearest = sm.nearest_reference(stroke.joint_positions_rad, originals)
+    assert entry['demonstration_clip'] == nearest.clip and entry['dtw_to_it_rad'] == round(nearest.distance, 2)
+
+
+def test_overall_dtw_is_the_mean_over_every_stroke(run_dir):
+    """Recomputed stroke by stroke from the strokes file and the dataset, not from the summary."""
+    dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
+    saved = st.load_strokes(report.eval_files(run_dir, 'ppo').strokes_npz).strokes
+    distances = [sm.nearest_reference(s.joint_positions_rad, sm.reference_clips(dataset, s.direction)).distance
+                 for s in saved]
+    summary = json.loads(report.eval_files(run_dir, 'ppo').all_speeds_json.read_text())
+    assert report.dtw_by_direction(summary)[report.OVERALL] == pytest.approx(np.mean(distances))
+
+
+def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp_path):
+    forward_only = tmp_path / 'run'
+    shutil.copytree(run_dir / report.EVAL_DIR, forward_only / report.EVAL_DIR)
+    dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
+    keep = dataset.select(labels=['forward'])
+    for name in report.ACTORS:   # the summaries as evaluate --dtw writes them against forward clips only
+        files = report.eval_files(forward_only, name)
+        summary = json.loads(files.all_speeds_json.read_text())
+        for d in ('leftward', 'rightward'):
+            summary['dtw'][d].update(mean_rad=None, reference_clips=0)
+        summary['dtw']['forward']['reference_clips'] = len(keep)
+        files.all_speeds_json.write_text(json.dumps(summary))
+    subset = ReferenceDataset(t=dataset.t, q=dataset.q, qd=dataset.qd, clip_start=dataset.clip_start[keep],
+                              clip_length=dataset.clip_length[keep], label=dataset.label[keep],
+                              speed_factor=dataset.speed_factor[keep], source=dataset.source[keep],
+                              original=dataset.original[keep], time_source=dataset.time_source[keep],
+                              velocity_source=dataset.velocity_source[keep], rate_hz=dataset.rate_hz,
+                              joint_names=dataset.joint_names)
+    subset.save(forward_only / 'forward.npz')
+    report.write_report(forward_only, dataset_path=forward_only / 'forward.npz', timings_s={}, checkpoints=None,
+                        render_strips=False)
+    text = (forward_only / report.REPORT_MD).read_text()
+    assert 'No demonstration labelled leftward, rightward' in text
+    record = json.loads((forward_only / report.REPORT_JSON).read_text())
+    assert record['clips_per_label'] == {'forward': 3, 'leftward': 0, 'rightward': 0}
+    assert [entry['direction'] for entry in record['strips']] in ([], ['forward'])
+    assert all(entry['strip'] is None and 'turned off' in entry['strip_missing'] for entry in record['strips'])
+    forward_dtw = json.loads(report.eval_files(forward_only, 'style').all_speeds_json.read_text())['dtw']['forward']
+    assert record['dtw_rad']['style'][report.OVERALL] == forward_dtw['mean_rad']
+
+
+def test_a_missing_or_dtw_less_evaluation_is_named(run_dir, tmp_path):
+    with pytest.raises(ValueError, match='style_all.json: missing'):
+        report.write_report(tmp_path, dataset_path=run_dir / 'dataset.npz', timings_s={}, checkpoints=None)
+    shutil.copytree(run_dir / report.EVAL_DIR, tmp_path / report.EVAL_DIR)
+    files = report.eval_files(tmp_path, 'ppo')
+    summary = json.loads(files.all_speeds_json.read_text())
+    del summary['dtw']
+    files.all_speeds_json.write_text(json.dumps(summary))
+    with pytest.raises(ValueError, match='ppo_all.json: no DTW'):
+        report.write_report(tmp_path, dataset_path=run_dir / 'dataset.npz', timings_s={}, checkpoints=None)
