@@ -3,7 +3,7 @@
 
 1. The actor alone (no ROS): one observation per call, ONNX (onnxruntime, 1 thread) and TorchScript
    (torch, 1 thread), and one whole PlayerCore policy step (observation, ONNX actor, decoding, limiter).
-2. The node alone, wall clock: `ros2 run stylepong_policy player` (enabled) fed by this script with
+2. The node alone, wall clock: `ros2 run stylepong_player player` (enabled) fed by this script with
    /joint_states at 500 Hz and /ball/state at 120 Hz stamped with the wall clock, DURATION_S per backend;
    the figures are the player's own (/player/status): period between policy steps and its jitter
    (|period - 1/60 s|), latency from the ball message's header stamp to publishing the command, inference
@@ -33,8 +33,8 @@ RALLY_BALLS = 6
 
 
 def actor_alone() -> dict[str, np.ndarray]:
-    from stylepong_policy import player_core as pc
-    from stylepong_policy import spec
+    from stylepong_player import player_core as pc
+    from stylepong_player import spec
     rng = np.random.default_rng(0)
     obs = rng.normal(0, 1, (CALLS, 1, spec.NUM_OBS)).astype(np.float32)
     times = {}
@@ -96,9 +96,9 @@ def node_alone(backend: str) -> tuple[dict, float]:
     from std_msgs.msg import String
 
     from stylepong_msgs.msg import BallState
-    from stylepong_policy import spec
+    from stylepong_player import spec
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_'))
-    player = _start(['ros2', 'run', 'stylepong_policy', 'player', '--ros-args', '-p', 'start_enabled:=true',
+    player = _start(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'start_enabled:=true',
                      '-p', f'backend:={backend}', '-p', 'status_rate_hz:=1.0'], dict(os.environ), logs / 'player.log')
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -153,7 +153,7 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_sim_'))
     sim = _start(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
                  logs / 'ur5_sim.log')
-    player = _start(['ros2', 'run', 'stylepong_policy', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
+    player = _start(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
                     logs / 'player.log')
     try:
         time.sleep(3.0)
@@ -190,7 +190,7 @@ def main() -> int:
     print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). '
           f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole PlayerCore policy steps '
           '(observation, '
-          'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_policy player` (enabled, wall clock) fed by '
+          'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_player player` (enabled, wall clock) fed by '
           f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '
           'per backend; the figures are the node\'s own (/player/status): period between policy steps, jitter '
           '= |period - 16.667 ms|, latency = ball header stamp to the command published, inference = the '

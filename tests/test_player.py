@@ -1,4 +1,4 @@
-"""System tests of `ros2 run stylepong_policy player` (with the shipped actor, ONNX backend):
+"""System tests of `ros2 run stylepong_player player` (with the shipped actor, ONNX backend):
 
 (a) fuzzed /joint_states and /ball/state (NaN, inf, wrong lengths, missing joints, wrong frames, jumps of
     metres and radians, a stale joint stream, a 1 kHz burst): the player keeps running and every command
@@ -27,8 +27,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from stylepong_msgs.msg import BallState
-from stylepong_policy import player_core as pc
-from stylepong_policy import spec
+from stylepong_player import player_core as pc
+from stylepong_player import spec
 from tests.node_process import NodeProcess, wait_until
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -196,7 +196,7 @@ def test_the_command_check_judges_pairs_by_publish_time():
 
 def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
     rng = np.random.default_rng(11)
-    with NodeProcess('stylepong_policy', 'player', params={'start_enabled': True, 'status_rate_hz': 5.0}) as player:
+    with NodeProcess('stylepong_player', 'player', params={'start_enabled': True, 'status_rate_hz': 5.0}) as player:
         rig = FuzzRig()
         try:
             assert wait_until(lambda: rig.status is not None, 30.0, spin=lambda: rig.spin(0.05)), player.output()
@@ -249,7 +249,7 @@ def _mismatched_actor(tmp_path: pathlib.Path, key: str, value) -> pathlib.Path:
 
 
 def _run_player(*params: str, timeout_s: float = 45.0) -> subprocess.CompletedProcess:
-    return subprocess.run(['ros2', 'run', 'stylepong_policy', 'player', '--ros-args', *params],
+    return subprocess.run(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', *params],
                           capture_output=True, text=True, timeout=timeout_s)
 
 
@@ -278,7 +278,7 @@ def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
 def test_player_and_rally_eval_return_balls_in_ur5_sim(ros_env, tmp_path):
     out = tmp_path / 'rally.json'
     with NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim, \
-            NodeProcess('stylepong_policy', 'player', params={'use_sim_time': True}) as player:
+            NodeProcess('stylepong_player', 'player', params={'use_sim_time': True}) as player:
         result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '2', '--first-seed', '900',
                                  '--json', str(out)], capture_output=True, text=True, timeout=50)
         assert result.returncode == 0, result.stderr + sim.output() + player.output()

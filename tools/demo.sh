@@ -85,7 +85,7 @@ echo "[demo] playing $ACTOR through ROS: ur5_sim + player + rally_eval, $BALLS b
 # than catching up in bursts that the player's commands could not reach in time.
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
   -p video_width:=480 -p video_height:=352 -p video_fps:=25.0
-start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
+start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed 1000 --seeds 1 --speed all \
   --json "$DEMO_DIR/rally.json" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[demo]   /'
 stop_nodes

@@ -32,7 +32,7 @@ export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 source tools/node_group.sh
 echo "[sim2sim] $ACTOR through ROS: ur5_sim (realistic sensing) + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING"
-start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
+start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 mkdir -p "$(dirname "$JSON")"
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed "$FIRST_SEED" --seeds "$SEEDS" --speed all \
   --json "$JSON.part" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[sim2sim]   /'

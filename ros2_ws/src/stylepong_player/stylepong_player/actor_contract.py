@@ -1,8 +1,8 @@
 """The contract an exported actor carries and the checks a player makes before it runs one (no torch).
 
-An actor is exported (rl/export.py) as TorchScript `<name>.pt` with a sidecar `<name>.json`, and as ONNX
+An actor is exported (stylepong_policy.rl.export) as TorchScript `<name>.pt` with a sidecar `<name>.json`, and as ONNX
 `<name>.onnx` whose metadata_props hold the same contract: spec version, action rate, joint names,
-observation layout and action decoding (stylepong_policy.spec). Both files are refused unless that
+observation layout and action decoding (stylepong_player.spec). Both files are refused unless that
 contract equals the running code's spec, with one line that names every difference, so an actor trained
 for another robot, another joint order or another observation is never fed the wrong numbers.
 
@@ -41,8 +41,8 @@ def jsonable(value: Any) -> Any:
 
 
 def current_spec_contract() -> dict[str, Any]:
-    """The running code's observation/action contract, read from `stylepong_policy.spec`."""
-    from stylepong_policy import spec
+    """The running code's observation/action contract, read from `stylepong_player.spec`."""
+    from stylepong_player import spec
     layout = [[str(name), int(size)] for name, size in spec.OBS_LAYOUT]
     return jsonable({'spec_version': spec.SPEC_VERSION, 'action_rate_hz': float(spec.ACTION_RATE_HZ),
                      'joint_names': list(spec.JOINT_NAMES), 'obs_layout': layout,

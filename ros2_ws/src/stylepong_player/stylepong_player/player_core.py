@@ -5,7 +5,7 @@ player_node.py wires this to topics; tests drive it directly with made-up times 
 States
   disabled  publishes nothing (start-up, or /player/enable false)
   ready     moves the arm to home at a gentle speed (home_speed_rad_s, home_acceleration_rad_s2), then holds
-  playing   while a fresh ball is in play: observation (spec's layout, built here with numpy) -> actor ->
+  playing   while a fresh ball is in play: observation (spec.build_observation, on numpy arrays) -> actor ->
             joint position targets (spec's decoding) -> limiter; back to ready when no ball message has
             been accepted for ball_timeout_s (the ball is gone, or the camera lost it)
 No command at all while the joint states are stale (none accepted for joint_timeout_periods periods):
@@ -34,21 +34,23 @@ import functools
 import math
 import pathlib
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
-from stylepong_policy import spec
-from stylepong_policy.actor_contract import (
+from stylepong_description import robot_cell
+from stylepong_player import spec
+from stylepong_player.actor_contract import (
     ONNX_INPUT,
     ONNX_OUTPUT,
     ActorMismatchError,
     check_contract,
     onnx_path,
     parse_onnx_metadata,
+    read_sidecar,
 )
-from stylepong_sim import world_spec as ws
 
 FRAME_WORLD = 'world'
 # A ball message may drive a step when its stamp is this fraction of a period short of a full period
@@ -160,7 +162,8 @@ class CommandLimiter:
         return command.copy()
 
 
-# --- observation and action (numpy twins of spec.player_observation / spec.decode_action) -----------
+# --- observation and action ---------------------------------------------------------------------------
+# The observation is spec.build_observation's; the action's decoding is spec.decode_action's, in numpy.
 _HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD, dtype=np.float64)
 _HOME32 = _HOME.astype(np.float32)
 _SCALE32 = np.asarray(spec.ACTION_SCALE_RAD, dtype=np.float32)
@@ -168,13 +171,12 @@ _SCALE32 = np.asarray(spec.ACTION_SCALE_RAD, dtype=np.float32)
 
 def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: np.ndarray,
                       ball_velocity_m_s: np.ndarray, goal_xy_m: np.ndarray, last_action: np.ndarray) -> np.ndarray:
-    """The actor's observation [1, NUM_OBS] float32 in spec.OBS_LAYOUT order (joints in URDF order)."""
-    parts = (np.asarray(q_rad, dtype=np.float32) - _HOME32, qd_rad_s, ball_position_m,
-             ball_velocity_m_s, goal_xy_m, last_action)
+    """The actor's observation [1, NUM_OBS] float32 (joints in URDF order): spec.build_observation on one row."""
+    parts = (q_rad, qd_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action)
     for (name, size), part in zip(spec.OBS_LAYOUT, parts):
         if np.shape(part) != (size,):
             raise ValueError(f'{name} needs {size} values, got shape {np.shape(part)}')
-    return np.concatenate([np.asarray(p, dtype=np.float32) for p in parts])[None, :]
+    return spec.build_observation(*(np.asarray(part, dtype=np.float32)[None, :] for part in parts))
 
 
 def clip_action(action: np.ndarray) -> np.ndarray:
@@ -238,10 +240,7 @@ class OnnxActor:
         if [i.name for i in inputs] != [ONNX_INPUT] or [o.name for o in outputs] != [ONNX_OUTPUT]:
             raise ActorMismatchError(f'{self.path} has inputs {[i.name for i in inputs]} and outputs '
                                      f'{[o.name for o in outputs]}, expected [{ONNX_INPUT!r}] and [{ONNX_OUTPUT!r}]')
-        out = self(np.zeros((1, int(self.metadata['num_obs'])), dtype=np.float32))
-        if out.shape != (1, int(self.metadata['num_actions'])):
-            raise ActorMismatchError(f'{self.path} outputs shape {out.shape}, its metadata promises '
-                                     f'(1, {self.metadata["num_actions"]})')
+        check_output_shape(self)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         return self._session.run([ONNX_OUTPUT], {ONNX_INPUT: obs})[0]
@@ -253,16 +252,27 @@ class TorchScriptActor:
 
     def __init__(self, path: str | pathlib.Path, expected: dict | None = None):
         import torch
-
-        from stylepong_policy.rl.export import load_actor
         torch.set_num_threads(1)
         self._torch = torch
-        loaded = load_actor(path, expected)
-        self.path, self.metadata, self._module = loaded.path, loaded.metadata, loaded.module
+        self.path = pathlib.Path(path)
+        self.metadata = read_sidecar(self.path, expected)
+        with warnings.catch_warnings():
+            # torch flags torch.jit as deprecated; TorchScript is still what loads an actor in one call.
+            warnings.filterwarnings('ignore', message=r'`torch\.jit\.', category=DeprecationWarning)
+            self._module = torch.jit.load(str(self.path), map_location='cpu').eval()
+        check_output_shape(self)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         with self._torch.inference_mode():
             return self._module(self._torch.from_numpy(obs)).numpy()
+
+
+def check_output_shape(actor) -> None:
+    """ActorMismatchError unless the actor maps one observation row to one action row, as its contract says."""
+    out = actor(np.zeros((1, int(actor.metadata['num_obs'])), dtype=np.float32))
+    if tuple(out.shape) != (1, int(actor.metadata['num_actions'])):
+        raise ActorMismatchError(f'{actor.path} outputs shape {tuple(out.shape)}, its contract promises '
+                                 f'(1, {actor.metadata["num_actions"]})')
 
 
 BACKENDS = ('onnx', 'torchscript')
@@ -334,9 +344,10 @@ class PlayerConfig:
 def check_goal(goal_xy_m: Sequence[float]) -> None:
     """ValueError unless the goal is a finite point on the opponent's half (x > 0)."""
     x, y = (float(v) for v in goal_xy_m)
-    if not (math.isfinite(x) and math.isfinite(y) and 0.0 < x <= ws.HALF_LENGTH_M and abs(y) <= ws.HALF_WIDTH_M):
+    half_length_m, half_width_m = robot_cell.HALF_LENGTH_M, robot_cell.HALF_WIDTH_M
+    if not (math.isfinite(x) and math.isfinite(y) and 0.0 < x <= half_length_m and abs(y) <= half_width_m):
         raise ValueError(f"goal ({x}, {y}) m is not on the opponent's half "
-                         f'(0 < x <= {ws.HALF_LENGTH_M}, |y| <= {ws.HALF_WIDTH_M})')
+                         f'(0 < x <= {robot_cell.HALF_LENGTH_M}, |y| <= {robot_cell.HALF_WIDTH_M})')
 
 
 @dataclass
@@ -441,7 +452,8 @@ class PlayerCore:
         v = np.asarray(velocity_m_s, dtype=float)
         if p.shape != (3,) or v.shape != (3,) or not (np.isfinite(p).all() and np.isfinite(v).all()):
             return self._reject('ball_not_finite', 'ball state has NaN or inf')
-        if abs(p[0]) > ws.CELL_HALF_EXTENT_M[0] or abs(p[1]) > ws.CELL_HALF_EXTENT_M[1] or not 0.0 <= p[2] <= 5.0:
+        extent_x_m, extent_y_m = robot_cell.CELL_HALF_EXTENT_M
+        if abs(p[0]) > extent_x_m or abs(p[1]) > extent_y_m or not 0.0 <= p[2] <= 5.0:
             return self._reject('ball_outside_cell', f'ball position {np.round(p, 2).tolist()} m is outside the cell')
         if float(np.linalg.norm(v)) > self.config.max_ball_speed_m_s:
             return self._reject('ball_speed', f'ball speed {float(np.linalg.norm(v)):.1f} m/s is implausible')

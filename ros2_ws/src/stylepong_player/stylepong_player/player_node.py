@@ -1,4 +1,4 @@
-"""`ros2 run stylepong_policy player`: the trained actor at 60 Hz on a UR5 (real, or ur5_sim).
+"""`ros2 run stylepong_player player`: the trained actor at 60 Hz on a UR5 (real, or ur5_sim).
 
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
             frame world, stamp = instant observed), /player/goal (geometry_msgs/PointStamped, frame world),
@@ -26,11 +26,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
+from stylepong_description import robot_cell
 from stylepong_msgs.msg import BallState
-from stylepong_policy import player_core as core
-from stylepong_policy import spec
-from stylepong_policy.actor_contract import ActorMismatchError
-from stylepong_sim import world_spec as ws
+from stylepong_player import player_core as core
+from stylepong_player import spec
+from stylepong_player.actor_contract import ActorMismatchError
 
 COMMAND_TOPIC = '/forward_position_controller/commands'
 STATUS_TOPIC = '/player/status'
@@ -38,7 +38,8 @@ WARN_PERIOD_S = 2.0
 
 
 def _default_actor() -> str:
-    """The shipped actor, installed with the package (models/amp_actor.pt; the .onnx beside it)."""
+    """The shipped actor, models/amp_actor.pt (the .onnx beside it), where the training package that ships it
+    is installed; a robot computer without it names its actor."""
     try:
         from ament_index_python.packages import get_package_share_directory
         return str(pathlib.Path(get_package_share_directory('stylepong_policy')) / 'models' / 'amp_actor.pt')
@@ -52,7 +53,7 @@ PARAMETERS = (
     Param('backend', 'onnx', 'onnx (onnxruntime, no torch) or torchscript', choices=core.BACKENDS),
     Param('start_enabled', False, 'enabled at start-up (else wait for /player/enable true)'),
     Param('goal_xy_m', list(_D.goal_xy_m), "goal on the opponent's half until /player/goal says otherwise", length=2,
-          low=-ws.HALF_LENGTH_M, high=ws.HALF_LENGTH_M),
+          low=-robot_cell.HALF_LENGTH_M, high=robot_cell.HALF_LENGTH_M),
     Param('position_margin_rad', _D.position_margin_rad, 'commands stay this far inside the URDF position limits',
           low=0.0, high=0.5),
     Param('velocity_limit_scale', _D.velocity_limit_scale, "commands move at most this fraction of the URDF's "

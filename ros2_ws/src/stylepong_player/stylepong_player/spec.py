@@ -2,9 +2,10 @@
 
 The contract in words: docs/DESIGN.md, "Observation and action contract".
 
-The batched training env (stylepong_policy.task) and the `player` node both build the actor's
-observation and decode its action here and nowhere else: a train/deploy mismatch fails silently on the
-robot, so test_spec feeds both paths the same state and requires identical tensors. The exporter writes
+The batched training env (stylepong_policy.task, torch tensors) and the `player` node (numpy arrays) both
+build the actor's observation with `build_observation` and decode its action here and nowhere else: a
+train/deploy mismatch fails silently on the robot, so the tests feed both kinds of array the same state
+and require identical values. The exporter writes
 SPEC_VERSION, ACTION_RATE_HZ, JOINT_NAMES, OBS_LAYOUT and `action_decoding()` into the actor's sidecar
 JSON; a player refuses an actor whose contract differs from this module's. Change anything here and
 bump SPEC_VERSION.
@@ -30,16 +31,18 @@ Why absolute targets around home (the paper's choice) and this scale: a stroke's
 from __future__ import annotations
 
 import functools
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from stylepong_description import robot_cell
 from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
 
 SPEC_VERSION = 1
-ACTION_RATE_HZ = float(ws.POLICY_RATE_HZ)
+ACTION_RATE_HZ = float(robot_cell.POLICY_RATE_HZ)
 JOINT_NAMES: tuple[str, ...] = rm.JOINT_NAMES
 NUM_ACTIONS = len(JOINT_NAMES)
-HOME_JOINT_POSITIONS_RAD: tuple[float, ...] = tuple(float(x) for x in ws.HOME_JOINT_POSITIONS_RAD)
+HOME_JOINT_POSITIONS_RAD: tuple[float, ...] = tuple(float(x) for x in robot_cell.HOME_JOINT_POSITIONS_RAD)
 ACTION_SCALE_RAD: tuple[float, ...] = (1.5,) * NUM_ACTIONS
 ACTION_CLIP = 1.0
 
@@ -64,8 +67,7 @@ def observation_slice(name: str) -> slice:
     raise KeyError(f'no {name!r} in OBS_LAYOUT: {[entry for entry, _ in OBS_LAYOUT]}')
 
 # torch is imported inside the functions that use it: the constants above are the whole contract, and the
-# player's ONNX path reads them on a robot computer that has no torch (player_core builds the same
-# observation with numpy).
+# player's ONNX path reads them and builds its observation with numpy on a robot computer that has no torch.
 if TYPE_CHECKING:
     import torch
 
@@ -102,56 +104,24 @@ def decode_action(action: torch.Tensor) -> torch.Tensor:
     return torch.maximum(torch.minimum(target, upper), lower)
 
 
-def build_observation(joint_positions_rad: torch.Tensor, joint_velocities_rad_s: torch.Tensor,
-                      ball_position_m: torch.Tensor, ball_velocity_m_s: torch.Tensor, goal_xy_m: torch.Tensor,
-                      last_action: torch.Tensor) -> torch.Tensor:
-    """The actor's observation [N, NUM_OBS] from the sensed state (rows = environments, float32).
+def build_observation(joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m,
+                      last_action):
+    """The actor's observation [N, NUM_OBS] float32 from the sensed state (rows = environments), as torch
+    tensors when the joint positions are one (training), else as a numpy array (the player).
 
     joint_* [N, 6] in URDF order, ball_* [N, 3], goal_xy_m [N, 2], last_action [N, 6] (clipped).
     """
-    import torch
-    home = _rows_on(joint_positions_rad.device)[0]
-    parts = (joint_positions_rad.to(torch.float32) - home, joint_velocities_rad_s, ball_position_m,
-             ball_velocity_m_s, goal_xy_m, last_action)
+    parts = (joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m,
+             last_action)
     for (name, size), part in zip(OBS_LAYOUT, parts):
         if part.shape[-1] != size:
             raise ValueError(f'{name} needs {size} values per row, got shape {tuple(part.shape)}')
-    return torch.cat([p.to(torch.float32) for p in parts], dim=-1)
-
-
-def joints_in_urdf_order(names: Sequence[str], positions: Sequence[float], velocities: Sequence[float]
-                         ) -> tuple[list[float], list[float]]:
-    """Reorder a JointState's arrays (any order, extra joints allowed) into JOINT_NAMES order.
-
-    Raises ValueError when an arm joint is missing or the arrays' lengths do not match the names.
-    """
-    if len(positions) != len(names) or len(velocities) != len(names):
-        raise ValueError(f'joint state has {len(names)} names, {len(positions)} positions and '
-                         f'{len(velocities)} velocities')
-    index = {name: i for i, name in enumerate(names)}
-    missing = [name for name in JOINT_NAMES if name not in index]
-    if missing:
-        raise ValueError(f'joint state lacks {missing}')
-    return ([float(positions[index[n]]) for n in JOINT_NAMES], [float(velocities[index[n]]) for n in JOINT_NAMES])
-
-
-def player_observation(joint_names: Sequence[str], joint_positions_rad: Sequence[float],
-                       joint_velocities_rad_s: Sequence[float], ball_position_m: Sequence[float],
-                       ball_velocity_m_s: Sequence[float], goal_xy_m: Sequence[float],
-                       last_action: Sequence[float]) -> torch.Tensor:
-    """The deployment path: one observation [1, NUM_OBS] from a JointState's fields (any joint order)
-    and a BallState's position and velocity, the goal and the player's previous (clipped) action."""
+    if isinstance(joint_positions_rad, np.ndarray):
+        rows = [np.asarray(p, dtype=np.float32) for p in parts]
+        rows[0] = rows[0] - np.asarray(HOME_JOINT_POSITIONS_RAD, dtype=np.float32)
+        return np.concatenate(rows, axis=-1)
     import torch
-    q, qd = joints_in_urdf_order(joint_names, joint_positions_rad, joint_velocities_rad_s)
-
-    def row(values, size: int, what: str) -> torch.Tensor:
-        t = torch.tensor([float(v) for v in values], dtype=torch.float32)
-        if t.numel() != size:
-            raise ValueError(f'{what} needs {size} values, got {t.numel()}')
-        if not torch.isfinite(t).all():
-            raise ValueError(f'{what} is not finite: {t.tolist()}')
-        return t[None]
-
-    return build_observation(row(q, NUM_ACTIONS, 'joint positions'), row(qd, NUM_ACTIONS, 'joint velocities'),
-                             row(ball_position_m, 3, 'ball position'), row(ball_velocity_m_s, 3, 'ball velocity'),
-                             row(goal_xy_m, 2, 'goal'), row(last_action, NUM_ACTIONS, 'last action'))
+    home = _rows_on(joint_positions_rad.device)[0]
+    rows = [p.to(torch.float32) for p in parts]
+    rows[0] = rows[0] - home
+    return torch.cat(rows, dim=-1)

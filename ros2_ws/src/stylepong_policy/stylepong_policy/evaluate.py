@@ -39,10 +39,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import strokes as st
 from stylepong_policy import style_metrics as sm
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
-from stylepong_policy.spec import ACTION_RATE_HZ
 from stylepong_sim.referee import REASON_RETURNED
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 

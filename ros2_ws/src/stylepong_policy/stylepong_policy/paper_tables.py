@@ -37,13 +37,13 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import evaluate as ev
 from stylepong_policy import paper_charts as charts
 from stylepong_policy import paper_figures as paper
 from stylepong_policy import strokes as st
 from stylepong_policy import style_metrics as sm
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
-from stylepong_policy.spec import ACTION_RATE_HZ
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED, SPEED_RANGES_M_S
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')

@@ -25,8 +25,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from stylepong_common.node_support import ThrottledLog, run_node
-from stylepong_policy import player_core as core
-from stylepong_policy import spec
+from stylepong_player import player_core as core
+from stylepong_player import spec
 
 ARRIVED_RAD = 1e-6
 

@@ -65,7 +65,7 @@ def test_export_refuses_a_network_that_does_not_fit_the_spec(tmp_path):
 
 
 def test_current_spec_contract_describes_the_spec_module():
-    from stylepong_policy import spec
+    from stylepong_player import spec
     contract = current_spec_contract()
     assert contract['spec_version'] == spec.SPEC_VERSION
     assert contract['joint_names'] == list(spec.JOINT_NAMES)

@@ -11,8 +11,8 @@ import onnx
 import pytest
 import torch
 
-from stylepong_policy import player_core as pc
-from stylepong_policy.actor_contract import ActorMismatchError, current_spec_contract, onnx_path
+from stylepong_player import player_core as pc
+from stylepong_player.actor_contract import ActorMismatchError, current_spec_contract, onnx_path
 from stylepong_policy.rl.export import export_actor, write_onnx_for
 from stylepong_policy.rl.networks import ActorCritic
 
@@ -106,7 +106,7 @@ def test_the_onnx_path_runs_without_torch():
     code = (
         "import sys; sys.modules['torch'] = None\n"
         "import numpy as np\n"
-        "from stylepong_policy import player_core as pc, spec\n"
+        "from stylepong_player import player_core as pc, spec\n"
         f"core = pc.PlayerCore(pc.PlayerConfig(), pc.load_actor({str(SHIPPED)!r}, 'onnx'))\n"
         "core.set_enabled(True)\n"
         "core.on_joint_state(list(spec.JOINT_NAMES), list(spec.HOME_JOINT_POSITIONS_RAD), [0.0] * 6, 1.0)\n"

@@ -2,11 +2,14 @@
 import json
 import random
 
+import numpy as np
 import pytest
 import torch
 
 from stylepong_description import robot_model as rm
-from stylepong_policy import spec, task
+from stylepong_player import player_core as pc
+from stylepong_player import spec
+from stylepong_policy import task
 
 
 def test_layout_and_contract():
@@ -48,6 +51,15 @@ def _player_inputs(env, i, order):
             env.goal_xy_m[i].tolist(), env.last_action[i].tolist())
 
 
+def _player_observation(names, positions, velocities, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action):
+    """What the player builds from those messages: its joint order, then its observation."""
+    index = pc.JointOrder().index(names)
+    assert index is not None, names
+    return pc.build_observation(np.asarray(positions)[index], np.asarray(velocities)[index],
+                                np.asarray(ball_position_m), np.asarray(ball_velocity_m_s), np.asarray(goal_xy_m),
+                                np.asarray(last_action))
+
+
 def test_player_path_and_env_path_give_identical_observations():
     """Noise and latency off (the protocol's nominal env): the same state through both paths."""
     env = task.make_env(task.TaskConfig(num_envs=8, randomize=False), 'cpu', seed=5)
@@ -58,7 +70,7 @@ def test_player_path_and_env_path_give_identical_observations():
         for i in range(env.num_envs):
             order = list(range(6))
             rng.shuffle(order)
-            player = spec.player_observation(*_player_inputs(env, i, order))
+            player = torch.from_numpy(_player_observation(*_player_inputs(env, i, order)))
             assert player.dtype == obs.dtype and player.shape == (1, env.num_obs)
             assert torch.equal(player[0], obs[i]), (step, i, player[0] - obs[i])
         obs, _, _, _, _ = env.step(torch.randn(env.num_envs, 6, generator=generator))
@@ -74,12 +86,12 @@ def test_env_sends_the_decoded_action_to_the_servo():
 
 
 def test_player_path_rejects_bad_input():
-    names, q, qd = list(spec.JOINT_NAMES), [0.0] * 6, [0.0] * 6
-    with pytest.raises(ValueError, match='lacks'):
-        spec.player_observation(names[:5], q[:5], qd[:5], [0, 0, 1], [0, 0, 0], [1, 0], [0] * 6)
-    with pytest.raises(ValueError, match='not finite'):
-        spec.player_observation(names, q, qd, [0, float('nan'), 1], [0, 0, 0], [1, 0], [0] * 6)
-    with pytest.raises(ValueError, match='names'):
-        spec.player_observation(names, q[:4], qd, [0, 0, 1], [0, 0, 0], [1, 0], [0] * 6)
-    with pytest.raises(ValueError, match='goal'):
-        spec.player_observation(names, q, qd, [0, 0, 1], [0, 0, 0], [1, 0, 0], [0] * 6)
+    names, zeros = list(spec.JOINT_NAMES), np.zeros(6)
+    assert pc.JointOrder().index(names[:5]) is None                       # an arm joint missing
+    with pytest.raises(ValueError, match='goal_xy_m'):
+        pc.build_observation(zeros, zeros, np.zeros(3), np.zeros(3), np.zeros(3), zeros)
+    with pytest.raises(ValueError, match='joint_velocity_rad_s'):
+        pc.build_observation(zeros, zeros[:4], np.zeros(3), np.zeros(3), np.zeros(2), zeros)
+    with pytest.raises(ValueError, match='ball_position_m'):
+        spec.build_observation(torch.zeros(2, 6), torch.zeros(2, 6), torch.zeros(2, 2), torch.zeros(2, 3),
+                               torch.zeros(2, 2), torch.zeros(2, 6))

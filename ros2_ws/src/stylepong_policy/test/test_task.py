@@ -4,7 +4,8 @@ import math
 import pytest
 import torch
 
-from stylepong_policy import spec, task
+from stylepong_player import spec
+from stylepong_policy import task
 from stylepong_sim import referee as rf
 from stylepong_sim import world_spec as ws
 

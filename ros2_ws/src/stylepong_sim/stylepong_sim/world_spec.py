@@ -13,18 +13,26 @@ from typing import Any
 
 import numpy as np
 
+# Shared with the robot side (the player), so defined there: the home pose, the policy's rate, the table's
+# size and the cell's extent.
+from stylepong_description.robot_cell import (  # noqa: F401  (world_spec's names for them)
+    CELL_HALF_EXTENT_M,
+    HALF_LENGTH_M,
+    HALF_WIDTH_M,
+    HOME_JOINT_POSITIONS_RAD,
+    POLICY_RATE_HZ,
+    TABLE_LENGTH_M,
+    TABLE_WIDTH_M,
+)
+
 GRAVITY_M_S2 = 9.81
 
 # --- Table and net (ITTF) -------------------------------------------------------------------------
-TABLE_LENGTH_M = 2.74
-TABLE_WIDTH_M = 1.525
 TABLE_HEIGHT_M = 0.76          # playing surface above the floor
 TABLE_THICKNESS_M = 0.03
 NET_HEIGHT_M = 0.1525          # above the playing surface
 NET_LENGTH_M = 1.83            # 15.25 cm overhang on each side
 NET_THICKNESS_M = 0.01
-HALF_LENGTH_M = TABLE_LENGTH_M / 2.0
-HALF_WIDTH_M = TABLE_WIDTH_M / 2.0
 NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M     # the net's top edge above the floor
 # The net as a box: its lower and upper corners (m).
 NET_BOX_LOW_M = (-NET_THICKNESS_M / 2, -NET_LENGTH_M / 2, TABLE_HEIGHT_M)
@@ -64,8 +72,6 @@ ROBOT_LINK_TANGENTIAL_FACTOR = 0.8
 # the end line, across the table's width.
 ROBOT_BASE_POSITION_M = (-HALF_LENGTH_M - 0.45, 0.0, TABLE_HEIGHT_M - 0.10)
 ROBOT_BASE_YAW_RAD = 0.0
-# Home pose (URDF joint order): paddle centre at about (-1.47, 0.11, 0.89) m, handle up, face normal +x.
-HOME_JOINT_POSITIONS_RAD = (0.0, -1.9, 1.9, -1.57, -1.57, -1.57)
 
 # The robot stands on a pedestal (floor to base). Geometry only: the arm never reaches it.
 PEDESTAL_HALF_SIZE_M = (0.12, 0.12)
@@ -92,11 +98,8 @@ ARM_KD_NMS_PER_RAD = (200.0, 200.0, 200.0, 40.0, 40.0, 40.0)
 # missed; MuJoCo's own soft ball contacts would need this step too, and at 1/120 s they gave rebounds
 # from nearly none to many times too strong (docs/DESIGN.md, "Analytic ball contacts").
 PHYSICS_DT_S = 0.001
-POLICY_RATE_HZ = 60.0
 BALL_TIMEOUT_S = 3.0           # a rally not decided by then is a TIMEOUT
 BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its launch is removed
-# A ball whose centre leaves this box (|x|, |y| below the bounds; z above the floor) has left the cell.
-CELL_HALF_EXTENT_M = (5.0, 4.0)
 
 
 def on_table(x_m: Any, y_m: Any) -> Any:

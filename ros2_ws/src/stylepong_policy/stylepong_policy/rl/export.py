@@ -29,7 +29,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from stylepong_policy.actor_contract import (  # noqa: F401  (re-exported: the names callers import from here)
+from stylepong_player.actor_contract import (  # noqa: F401  (re-exported: the names callers import from here)
     CONTRACT_KEYS,
     ONNX_INPUT,
     ONNX_OUTPUT,
