@@ -61,13 +61,19 @@ MAX_SIDE_REACH_M = {'leftward': 0.1, 'rightward': 0.3}
 
 @dataclass(frozen=True)
 class StrokeShape:
-    """Key poses of the paddle centre: offsets (m, world axes) from home and blade yaw (rad) about world z."""
+    """Key poses of the paddle centre: offsets (m, world axes) from home and blade yaw (rad) about world z.
+
+    pitch_rad, when given, is how far the blade is opened at the back-swing, hit and follow-through (a
+    wrist that turns the face up through the stroke); None holds TeacherConfig.blade_pitch_rad from the
+    end of the back-swing on, as the shipped strokes do.
+    """
     back_offset_m: tuple[float, float, float]
     hit_offset_m: tuple[float, float, float]
     follow_offset_m: tuple[float, float, float]
     back_yaw_rad: float
     hit_yaw_rad: float
     follow_yaw_rad: float
+    pitch_rad: tuple[float, float, float] | None = None
 
 
 # Home puts the blade centre 0.10 m behind the end line and 0.13 m above the table's height, facing +x.
@@ -116,7 +122,7 @@ class VariationRanges:
     # so their sign never changes.
     yaw_jitter_rad: float = 0.05
     # Durations of the back-swing and of the forward swing, +-20 % each (a slow drag varies in tempo).
-    # The nominal 2.4 s stroke stays within 1.92-2.88 s (TeacherConfig.validate's 1.5-3 s) and the
+    # The nominal 2.4 s stroke stays within 1.92-2.88 s (within TeacherConfig.validate's STROKE_S_RANGE) and the
     # fastest forward swing (rightward, x0.8) peaks at 0.8 m/s, under the 1 m/s of a slow drag.
     duration_scale: tuple[float, float] = (0.8, 1.2)
     # Where on the forward swing's path the hit falls (0.5: half-way in time, where the path parameter
@@ -211,7 +217,7 @@ def varied_shape(shape: StrokeShape, variation: SwingVariation) -> StrokeShape:
                        follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m,
                                              variation.amplitude_scale),
                        back_yaw_rad=shape.back_yaw_rad + yaw_back, hit_yaw_rad=shape.hit_yaw_rad + yaw_hit,
-                       follow_yaw_rad=shape.follow_yaw_rad + yaw_follow)
+                       follow_yaw_rad=shape.follow_yaw_rad + yaw_follow, pitch_rad=shape.pitch_rad)
 
 
 def minimum_jerk_time(progress: float) -> float:
@@ -224,6 +230,11 @@ def minimum_jerk_time(progress: float) -> float:
         else:
             high = middle
     return 0.5 * (low + high)
+
+
+# How long a stroke (back-swing to follow-through) may take: the shipped 2.4 s is a brisk drag; a person
+# dragging a UR5 carefully (about 1 rad/s at the fastest joint) takes up to twice that.
+STROKE_S_RANGE = (1.5, 6.0)
 
 
 @dataclass(frozen=True)
@@ -290,8 +301,9 @@ class TeacherConfig:
         if self.side_reach_m > max(MAX_SIDE_REACH_M.values()):
             raise ValueError(f'side_reach_m must be within 0-{max(MAX_SIDE_REACH_M.values())} m, got '
                              f'{self.side_reach_m!r}')
-        if not 1.5 <= self.stroke_s <= 3.0:
-            raise ValueError(f'a stroke (back-swing to follow-through) takes 1.5-3 s like a slow drag, '
+        low_s, high_s = STROKE_S_RANGE
+        if not low_s <= self.stroke_s <= high_s:
+            raise ValueError(f'a stroke (back-swing to follow-through) takes {low_s:g}-{high_s:g} s like a slow drag, '
                              f'got {self.stroke_s:.2f} s')
 
     @property
@@ -391,11 +403,13 @@ class StrokePath:
     """Via-point of the paddle centre over time for one take of a stroke, starting at the ready (home) pose."""
 
     def __init__(self, swing: str, config: TeacherConfig, home_position_m: np.ndarray,
-                 variation: SwingVariation = SwingVariation()):
+                 variation: SwingVariation = SwingVariation(), shape: StrokeShape | None = None):
+        """`shape`: the stroke's key poses (default: the shipped STROKES[swing]; stroke_styles reads others)."""
         if swing not in STROKES:
             raise ValueError(f'swing must be one of {SWINGS}, got {swing!r}')
         variation.validate()
-        shape = varied_shape(STROKES[swing], variation)
+        self.nominal_shape = STROKES[swing] if shape is None else shape
+        shape = varied_shape(self.nominal_shape, variation)
         self.config = config
         self.variation = variation
         self.backswing_s = config.backswing_s * variation.backswing_scale
@@ -417,6 +431,10 @@ class StrokePath:
                              [1.0 / h, 1.0 / (h * (h - 1.0)), 1.0 / (1.0 - h)]])
         self._swing_coefficients_m = lagrange @ swing_points_m
         self._swing_yaw_coefficients_rad = lagrange @ np.array(self.yaws[1:])
+        # Without key-pose pitches the blade is held at blade_pitch_rad through the forward swing (the
+        # shipped strokes, computed as before); with them it turns along the same quadratic as the yaw.
+        self.pitches = shape.pitch_rad
+        self._swing_pitch_coefficients_rad = None if shape.pitch_rad is None else lagrange @ np.array(shape.pitch_rad)
         self._hit_tau = minimum_jerk_time(h)   # u = h is reached at this fraction of the forward swing
 
     @property
@@ -440,7 +458,8 @@ class StrokePath:
             s, ds = minimum_jerk(t_s / self.backswing_s)
             ds /= self.backswing_s
             _, yaw_back, _, _ = self.yaws
-            pitch = self.config.blade_pitch_rad   # opened with the back-swing, held open after it
+            # opened with the back-swing (to blade_pitch_rad, held open after it, or to the back pose's pitch)
+            pitch = self.config.blade_pitch_rad if self.pitches is None else self.pitches[0]
             return ViaPoint(self.ready + s * (self.back - self.ready), ds * (self.back - self.ready),
                             s * yaw_back, ds * yaw_back, s * pitch, ds * pitch)
         # Forward swing: u(t) minimum-jerk from 0 to 1 along the quadratic.
@@ -449,8 +468,12 @@ class StrokePath:
         powers = np.array([1.0, u, u * u])
         dpowers = np.array([0.0, 1.0, 2.0 * u])
         points, yaws = self._swing_coefficients_m, self._swing_yaw_coefficients_rad
+        if self._swing_pitch_coefficients_rad is None:
+            return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws),
+                            float(du * (dpowers @ yaws)), self.config.blade_pitch_rad)
+        pitches = self._swing_pitch_coefficients_rad
         return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws), float(du * (dpowers @ yaws)),
-                        self.config.blade_pitch_rad)
+                        float(powers @ pitches), float(du * (dpowers @ pitches)))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -489,7 +512,7 @@ class VirtualTeacher:
     """
 
     def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = rm.TOOL_FRAME,
-                 variation: SwingVariation = SwingVariation()):
+                 variation: SwingVariation = SwingVariation(), shape: StrokeShape | None = None):
         config.validate()
         self.config = config
         self.swing = swing
@@ -501,7 +524,7 @@ class VirtualTeacher:
         self.home_rotation = home_centre.rotation.copy()
         # Both frames are fixed to the last link: the grip's pose relative to the paddle centre is constant.
         self.centre_to_grip = home_centre.actInv(self.kinematics.pose(home, self.grip_id))
-        self.path = StrokePath(swing, config, home_centre.translation, variation)
+        self.path = StrokePath(swing, config, home_centre.translation, variation, shape)
         self.phase = 'approach'
         self._phase_start_s: float | None = None
         self._approach_from: ViaPoint | None = None

@@ -7,7 +7,9 @@ the swing) and /recorder/stop (std_srvs/Trigger). Steps: wait for joint states (
 commanding the arm, i.e. drag_teach), bring the paddle to the ready pose, start the recorder, play the
 stroke, stop the recorder, let go, exit (exit code 0 when a clip was recorded). Each take varies like a
 person's (teacher.sample_variation): `seed` picks the take (the same seed, the same stroke), `variation`
-scales how far it departs from the nominal stroke (0: the nominal stroke).
+scales how far it departs from the nominal stroke (0: the nominal stroke). `strokes_file` teaches hand-made
+key poses instead of the shipped ones (a style: stroke_styles.py, config/styles/<name>.yaml), each take
+checked before the drag (joint limits, the shoulder singularity, an unmistakable label).
 Parameters: PARAMETERS below, defaults in config/virtual_teacher.yaml (read at start-up). A bad one stops the
 node with one line on stderr and exit code 2 (stylepong_common.node_support).
 Exit codes: 0 a clip was recorded (or, without the recorder, the stroke played); 2 a bad parameter, or joint
@@ -30,6 +32,7 @@ from std_srvs.srv import Trigger
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model as rm
 from stylepong_msgs.srv import StartClip
+from stylepong_sim.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
 from stylepong_sim.teacher import (
     MAX_SIDE_REACH_M,
     MAX_SIDE_TURN_RAD,
@@ -75,6 +78,8 @@ PARAMETERS = (
           'side about the shoulder pan (0: the nominal stroke)', low=0.0, high=MAX_SIDE_TURN_RAD),
     Param('side_reach_m', _DEFAULTS.side_reach_m, 'how far a leftward or rightward stroke is carried further to its '
           'side, the arm reaching out (0: the nominal stroke)', low=0.0, high=max(MAX_SIDE_REACH_M.values())),
+    Param('strokes_file', '', "hand-made key poses: a style's YAML (or its name, config/styles/<name>.yaml); "
+          "empty: the shipped strokes"),
 )
 
 
@@ -87,10 +92,28 @@ def teacher_from(p: dict) -> VirtualTeacher:
     except ValueError as error:   # its messages name the field, and the fields are the parameters
         raise ParameterError(str(error)) from error
     variation = sample_variation(p['swing'], p['seed'], p['variation'])
+    shape = None
+    if p['strokes_file']:
+        path = resolve_strokes_file(p['strokes_file'])
+        try:
+            strokes = load_strokes_file(path)
+        except ValueError as error:
+            raise ParameterError(f'parameter strokes_file: {error}') from error
+        if p['swing'] not in strokes:
+            raise ParameterError(f'parameter strokes_file: {path} has no {p["swing"]} stroke '
+                                 f'(it has {", ".join(strokes)})')
+        shape = strokes[p['swing']]
     try:
-        return VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation)
+        teacher = VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation, shape=shape)
     except ValueError as error:   # swing, seed, variation and config are checked: what is left is the frame
         raise ParameterError(f'parameter grip_frame: {error}') from error
+    if shape is not None:   # the take about to be dragged, with this config's tempo, pitch, turn and reach
+        try:
+            check_stroke(p['swing'], teacher.path)
+        except ValueError as error:
+            raise ParameterError(f'parameter strokes_file: {path}, {p["swing"]} take (seed {p["seed"]}): '
+                                 f'{error}') from error
+    return teacher
 
 
 class VirtualTeacherNode(Node):
@@ -183,6 +206,10 @@ class VirtualTeacherNode(Node):
     # --- the cycle ---
     def _on_tick(self) -> None:
         now = self._now_s()
+        if self._started_s == 0.0:
+            # On simulated time the clock reads 0 until the first /clock arrives: the wait for joint states
+            # starts at the first tick that has a time, else it looks as if it began at the simulation's start.
+            self._started_s = now
         if self.exit_code is not None or self.teacher.phase == 'released':
             self._publish(np.zeros(6))
             return

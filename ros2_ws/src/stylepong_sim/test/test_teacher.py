@@ -69,8 +69,10 @@ def test_the_three_directions_are_distinct():
 def test_unknown_swing_and_too_slow_a_stroke_are_refused():
     with pytest.raises(ValueError, match='swing'):
         StrokePath('backhand', TeacherConfig(), HOME_CENTRE)
-    with pytest.raises(ValueError, match='1.5-3 s'):
-        VirtualTeacher('forward', TeacherConfig(forward_swing_s=3.0))
+    with pytest.raises(ValueError, match='1.5-6 s'):
+        VirtualTeacher('forward', TeacherConfig(forward_swing_s=5.5))
+    with pytest.raises(ValueError, match='1.5-6 s'):
+        VirtualTeacher('forward', TeacherConfig(backswing_s=0.4, forward_swing_s=1.0))
 
 
 def test_the_hand_pulls_towards_the_via_point_and_never_pushes_harder_than_its_limit():
