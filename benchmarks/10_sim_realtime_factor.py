@@ -104,7 +104,7 @@ def main() -> int:
                     ('Node, real_time_factor 1 (default)', paced)):
         print(f"| {name} | {r['speed']:.2f} | {r['joint_hz']:.0f} | {r['wrench_hz']:.0f} | {r['ball_hz']:.0f} | "
               f"{100 * r['cpu']:.0f} % |")
-    print('\nTargets (docs/DESIGN.md, "Acceptance checks"): /joint_states and wrench >= 450 Hz at '
+    print('\nTargets (docs/ACCEPTANCE.md): /joint_states and wrench >= 450 Hz at '
           'real_time_factor 1; /clock >= 1.5x wall time at real_time_factor 0.')
     return 0
 

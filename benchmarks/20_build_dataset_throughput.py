@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """build_dataset throughput in JointState messages per second (target: >= 30,000 msg/s on this machine;
-docs/DESIGN.md, "Acceptance checks").
+docs/ACCEPTANCE.md).
 
 Times the whole tool in-process (`stylepong_policy.build_dataset.run`: find the bag, read and decode
 every JointState, check counts, resample to 60 Hz, trim, augment x2/x3/x5, write the .npz) on bags

@@ -1,5 +1,5 @@
 """`ros2 run stylepong_policy build_dataset ...` end to end, as a user runs it (the build_dataset checks
-of docs/DESIGN.md, "Acceptance checks").
+of docs/ACCEPTANCE.md).
 
 Expected values come from the motions the test wrote or from rosbags' own reader, never from the tool.
 """

@@ -1,6 +1,6 @@
 """drag_teach against the MuJoCo cell: `ros2 run stylepong_sim ur5_sim` + `ros2 run stylepong_fdcc drag_teach`,
 both with their defaults, driven and watched through their topics (the first three drag_teach checks of
-docs/DESIGN.md, "Acceptance checks"), then its services (enable, tare) and, with stiffness, a target pose
+docs/ACCEPTANCE.md), then its services (enable, tare) and, with stiffness, a target pose
 on ~/target_pose."""
 import math
 import subprocess

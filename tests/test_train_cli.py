@@ -1,5 +1,5 @@
 """`ros2 run stylepong_policy train` and `evaluate` end to end, as a user runs them (the checks of
-docs/DESIGN.md, "Acceptance checks", for train and evaluate)."""
+docs/ACCEPTANCE.md, for train and evaluate)."""
 import json
 import signal
 import subprocess
@@ -7,7 +7,7 @@ import time
 
 from tests.node_process import NodeProcess, wait_until
 
-TRAIN_LIMIT_S = 120.0   # the bound for `train --iterations 2 --num-envs 256` (docs/DESIGN.md, "Acceptance checks")
+TRAIN_LIMIT_S = 120.0   # the bound for `train --iterations 2 --num-envs 256` (docs/ACCEPTANCE.md)
 
 
 def ros2_run(executable: str, *args: str, env: dict, timeout_s: float) -> subprocess.CompletedProcess:

@@ -1,7 +1,7 @@
 """System tests of `ros2 run stylepong_sim ur5_sim` with its defaults, through its topics and services only.
 
 One node serves the whole module (it starts in a few seconds; each test resets what it needs). These are
-the ur5_sim checks of docs/DESIGN.md, "Acceptance checks", except the real_time_factor 0 one
+the ur5_sim checks of docs/ACCEPTANCE.md, except the real_time_factor 0 one
 (test_ur5_sim_fast.py).
 """
 import math
