@@ -28,6 +28,7 @@ setup(
             'select_checkpoint = stylepong_policy.select_checkpoint:main',
             'average_checkpoints = stylepong_policy.average_checkpoints:main',
             'paper_tables = stylepong_policy.paper_tables:main',
+            'style_confusion = stylepong_policy.style_confusion:main',
         ],
     },
 )
