@@ -75,12 +75,22 @@ class JointStateCdrReader:
         self._name_ids: dict[bytes, int] = {}
         self._last_block = b''
         self._last_id = -1
+        self._last_layout: CdrLayout | None = None
+        self._last_raw = b''
 
     def layout(self, raw: bytes) -> CdrLayout:
+        """Where `raw`'s fields lie: the previous message's layout when `raw` has its length and every byte
+        that decides an offset (a live topic's messages nearly always do), else a fresh walk."""
+        last = self._last_layout
+        if last is not None and len(raw) == last.size and all(
+                raw[start:stop] == self._last_raw[start:stop] for start, stop in last.layout_bytes):
+            return last
         try:
-            return self._layout(raw)
+            layout = self._layout(raw)
         except struct.error as error:
             raise CdrLayoutError(f'message too short ({len(raw)} bytes): {error}') from None
+        self._last_layout, self._last_raw = layout, bytes(raw)
+        return layout
 
     def _layout(self, raw: bytes) -> CdrLayout:
         if raw[:2] != _CDR_LITTLE_ENDIAN:
