@@ -87,11 +87,29 @@ def choose_label(bag: pathlib.Path, from_metadata: str | None, fallback: str | N
     return UNLABELLED, 'none in custom_data or the directory name; --label sets one'
 
 
-def process_bag(bag: pathlib.Path, args: argparse.Namespace, options: ClipOptions) -> BagReport:
+@dataclass(frozen=True)
+class BuildSettings:
+    """What becomes of the bags: the command line's options, for callers in Python."""
+    topic: str | None = None                     # None: the bag's one JointState topic
+    joints: tuple[str, ...] = ()                 # (): the URDF's joints
+    assume_order: bool = False                   # names missing: take the positions in `joints` order
+    speedups: tuple[int, ...] = DEFAULT_SPEEDUPS
+    label: str | None = None                     # for bags that carry none
+    strict: bool = False                         # any problem: write nothing, exit status 1
+    clip_options: ClipOptions = field(default_factory=ClipOptions)
+    plot: pathlib.Path | None = None             # also a figure of the clips
+
+    def arm_joints(self) -> tuple[str, ...]:
+        return tuple(self.joints) or default_joint_names()
+
+
+def process_bag(bag: pathlib.Path, settings: BuildSettings) -> BagReport:
     """Read one bag and cut its clips; every failure becomes the report's reason, never an exception."""
     report = BagReport(path=bag)
+    options = settings.clip_options
     try:
-        recording = read_joint_states(bag, topic=args.topic, joints=args.joints, assume_order=args.assume_order)
+        recording = read_joint_states(bag, topic=settings.topic, joints=settings.arm_joints(),
+                                      assume_order=settings.assume_order)
     except BagError as error:
         report.reason = str(error)
         return report
@@ -101,7 +119,7 @@ def process_bag(bag: pathlib.Path, args: argparse.Namespace, options: ClipOption
     report.topic = recording.topic
     report.problems.extend(recording.problems)
     report.notes.extend(recording.notes)
-    report.label, report.label_origin = choose_label(bag, recording.label, args.label)
+    report.label, report.label_origin = choose_label(bag, recording.label, settings.label)
     rate = median_rate_hz(recording.header_stamp_ns if (recording.header_stamp_ns > 0).all()
                           else recording.receive_time_ns)
     report.summary = (f'{recording.topic}: {recording.message_count} msgs, {rate:.0f} Hz'
@@ -193,59 +211,74 @@ def _ros_free_argv(argv: Sequence[str]) -> list[str]:
     return argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
 
 
+def settings_from_args(args: argparse.Namespace) -> BuildSettings:
+    """The command line's options as BuildSettings."""
+    options = ClipOptions(rate_hz=args.rate_hz, idle_speed_rad_s=args.idle_speed_rad_s, max_gap_s=args.max_gap_s)
+    return BuildSettings(topic=args.topic, joints=tuple(args.joints or ()), assume_order=args.assume_order,
+                         speedups=tuple(args.speedups), label=args.label, strict=args.strict, clip_options=options,
+                         plot=args.plot)
+
+
 def run(argv: Sequence[str] | None = None) -> int:
     """Build a dataset from the bags on the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(_ros_free_argv(sys.argv[1:] if argv is None else argv))
-    args.joints = args.joints or default_joint_names()
-    options = ClipOptions(rate_hz=args.rate_hz, idle_speed_rad_s=args.idle_speed_rad_s, max_gap_s=args.max_gap_s)
     try:
-        options.validate()
+        return build(args.bags, args.output, settings_from_args(args))
     except ValueError as error:
         parser.error(str(error))
-    if args.output.is_dir():
-        parser.error(f'--output {args.output} is a directory; give a file name such as dataset.npz')
 
-    search = find_bags(args.bags)
+
+def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
+          settings: BuildSettings = BuildSettings()) -> int:
+    """Build a dataset from `bags` (bags or folders holding them) into `output`, printing one report entry
+    per bag; returns the exit status (0: written; 1: no clip, or a problem under `strict`). ValueError for
+    settings that make no sense."""
+    options = settings.clip_options
+    options.validate()
+    output = pathlib.Path(output)
+    if output.is_dir():
+        raise ValueError(f'--output {output} is a directory; give a file name such as dataset.npz')
+    search = find_bags(bags)
     problems = 0
     for path, reason in search.rejected:
         print(f'[skipped] {path}: {reason}', flush=True)
         problems += 1
     reports = []
     for bag in search.bags:
-        report = process_bag(bag, args, options)
+        report = process_bag(bag, settings)
         reports.append(report)
-        print('\n'.join(format_report(report, args.speedups, options.rate_hz)), flush=True)
+        print('\n'.join(format_report(report, settings.speedups, options.rate_hz)), flush=True)
         problems += len(report.problems) + (0 if report.used else 1)
 
     originals = [SourceClip(clip, r.label, f'{r.path}:{r.topic}') for r in reports if r.used for clip in r.clips]
     used = sum(r.used for r in reports)
     tally = (f'{used} of {len(search.bags)} bag(s) used, {len(search.bags) - used + len(search.rejected)} skipped, '
              f'{problems} problem(s)')
-    if args.strict and problems:
+    if settings.strict and problems:
         print(f'build_dataset: --strict and {problems} problem(s): nothing written ({tally})', file=sys.stderr)
         return 1
     if not originals:
         print(f'build_dataset: no clip, nothing written ({tally})', file=sys.stderr)
         return 1
-    dataset = assemble_dataset(originals, args.speedups, args.joints, options.rate_hz)
+    dataset = assemble_dataset(originals, settings.speedups, settings.arm_joints(), options.rate_hz)
     try:
-        dataset.save(args.output)
+        dataset.save(output)
     except OSError as error:
-        print(f'build_dataset: cannot write {args.output}: {one_line(error)}', file=sys.stderr)
+        print(f'build_dataset: cannot write {output}: {one_line(error)}', file=sys.stderr)
         return 1
-    print(f'wrote {args.output}: {dataset.num_clips} clips ({len(originals)} original + '
+    print(f'wrote {output}: {dataset.num_clips} clips ({len(originals)} original + '
           f'{dataset.num_clips - len(originals)} sped up '
-          f'{"x" + "/x".join(map(str, args.speedups)) if args.speedups else ""}'
+          f'{"x" + "/x".join(map(str, settings.speedups)) if settings.speedups else ""}'
           f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}')
-    if args.plot is not None:
+    if settings.plot is not None:
         try:
             from stylepong_policy.dataset_plot import plot_dataset
-            plot_dataset(dataset, args.plot)
-            print(f'wrote {args.plot}')
+            plot_dataset(dataset, settings.plot)
+            print(f'wrote {settings.plot}')
         except Exception as error:   # noqa: BLE001  the dataset is written; a failed figure is only reported
-            print(f'build_dataset: could not write the figure {args.plot}: {one_line(error)}', file=sys.stderr)
-            return 0 if not args.strict else 1
+            print(f'build_dataset: could not write the figure {settings.plot}: {one_line(error)}', file=sys.stderr)
+            return 0 if not settings.strict else 1
     return 0
 
 

@@ -139,7 +139,7 @@ def build_reference(bags: pathlib.Path, out_path: pathlib.Path) -> pathlib.Path:
 
     report = io.StringIO()
     with contextlib.redirect_stdout(report):
-        status = build_dataset.run([str(bags), '-o', str(out_path)])
+        status = build_dataset.build([bags], out_path)
     if status != 0 or not out_path.is_file():
         raise SetupError(f'no reference clips from {bags} (build_dataset exit {status}):\n{report.getvalue()}')
     return out_path

@@ -8,8 +8,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from stylepong_policy.build_dataset import build_parser, process_bag
-from stylepong_policy.dataset import ClipOptions
+from stylepong_policy.build_dataset import build_parser, process_bag, settings_from_args
 from tests.joint_state_bags import URDF_JOINTS, read_with_rosbags
 
 # ../shared/interop-bags beside the repository, unless STYLEPONG_INTEROP_BAGS names another copy.
@@ -23,8 +22,7 @@ pytestmark = pytest.mark.skipif(not INTEROP.is_dir(), reason=f'{INTEROP} is abse
 def run_bag(bag: pathlib.Path, *extra: str):
     args = build_parser().parse_args([str(bag), '-o', 'unused.npz', *extra])
     args.joints = args.joints or URDF_JOINTS
-    options = ClipOptions(rate_hz=args.rate_hz, idle_speed_rad_s=args.idle_speed_rad_s, max_gap_s=args.max_gap_s)
-    return process_bag(bag, args, options)
+    return process_bag(bag, settings_from_args(args))
 
 
 @pytest.mark.parametrize('name', UR3E)
