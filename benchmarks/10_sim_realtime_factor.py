@@ -11,16 +11,15 @@ import sys
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 # A ROS domain of its own, traffic on the loopback only (as the test suite does).
 os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(1, 101))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 
+from stylepong_common.node_process import NodeProcess  # noqa: E402
 from stylepong_sim import world_spec as ws  # noqa: E402
 from stylepong_sim.cell import Cell  # noqa: E402
-from tests.node_process import NodeProcess  # noqa: E402
-from tests.ur5_sim_probe import Ur5SimProbe  # noqa: E402
+from stylepong_sim.ur5_sim_probe import Ur5SimProbe  # noqa: E402
 
 NODE_WINDOW_S = 8.0
 

@@ -22,10 +22,9 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 from stylepong_policy.build_dataset import run  # noqa: E402
-from tests.joint_state_bags import jazzy_typestore, write_recorder_bag  # noqa: E402
+from stylepong_recording.joint_state_bags import jazzy_typestore, write_recorder_bag  # noqa: E402
 
 TARGET_MSG_S = 30_000
 RATE_HZ = 500.0

@@ -26,7 +26,6 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 DURATION_S = 20.0
 CYCLES = 20000
 OLD_COMMIT = '9dcd180'   # the code whose drag_teach missed 0.79 % of its ticks (BENCHMARKS.md of that commit)

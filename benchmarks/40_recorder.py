@@ -4,14 +4,12 @@ import os
 import random
 import shutil
 import signal
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 # A fresh DDS domain per recording: a SIGKILLed recorder stays in the graph until its lease expires.
 DOMAINS = iter(random.Random(os.getpid()).sample(range(102, 200), 20))
@@ -23,12 +21,12 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from stylepong_common.node_process import NodeProcess, wait_until  # noqa: E402
 from stylepong_msgs.srv import StartClip  # noqa: E402
+from stylepong_recording.bag_check import JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_rosbags  # noqa: E402
 from stylepong_recording.clip_writer import ClipWriter, TopicSpec  # noqa: E402
 from stylepong_recording.msg_definitions import MessageDefinitions  # noqa: E402
 from stylepong_recording.recover_bag import recover_bag  # noqa: E402
-from tests.bag_check import JOINT_STATE_TYPE, JOINT_STATES, joint_state_cdr, read_with_rosbags  # noqa: E402
-from tests.node_process import NodeProcess, wait_until  # noqa: E402
 
 RATE_HZ = 500.0
 WRENCH = '/force_torque_sensor_broadcaster/wrench'

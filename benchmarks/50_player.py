@@ -25,7 +25,6 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'   # the deployed style actor
 DURATION_S = 15.0
 CALLS = 3000

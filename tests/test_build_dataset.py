@@ -11,7 +11,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from tests.joint_state_bags import (
+from stylepong_recording.joint_state_bags import (
     Swing,
     read_with_rosbags,
     truncate_file,

@@ -19,9 +19,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
+from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model as rm
 from stylepong_sim.teacher import CellKinematics
-from tests.node_process import NodeProcess, wait_until
 
 CONTROL_RATE_HZ = 500.0          # drag_teach's default
 LIMITS = rm.joint_limits()

@@ -26,10 +26,10 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
+from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
 from stylepong_player import player_core as pc
 from stylepong_player import spec
-from tests.node_process import NodeProcess, wait_until
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SHIPPED = ROOT / 'ros2_ws/src/stylepong_policy/models/ppo_actor.pt'

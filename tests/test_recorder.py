@@ -21,9 +21,10 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
 from stylepong_msgs.srv import StartClip
-from tests.bag_check import (
+from stylepong_recording.bag_check import (
     JOINT_NAMES,
     JOINT_STATES,
     read_with_mcap_ros2,
@@ -31,7 +32,6 @@ from tests.bag_check import (
     read_with_sqlite3,
     storage_file,
 )
-from tests.node_process import NodeProcess, wait_until
 
 RATE_HZ = 500.0
 # The recorder flushes every 0.1 s (README: "a killed recorder loses at most that much"); a message counts

@@ -18,7 +18,7 @@ import time
 import pytest
 from rmw_dds_common.msg import Gid, NodeEntitiesInfo, ParticipantEntitiesInfo
 
-from tests.node_process import wait_until
+from stylepong_common.node_process import wait_until
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 

@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from tests.node_process import NodeProcess, wait_until
+from stylepong_common.node_process import NodeProcess, wait_until
 
 # The cell's own topics (README, "The simulated cell").
 CELL_TOPICS = {'/joint_states', '/force_torque_sensor_broadcaster/wrench', '/clock', '/rally/events',

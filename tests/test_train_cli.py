@@ -5,7 +5,7 @@ import signal
 import subprocess
 import time
 
-from tests.node_process import NodeProcess, wait_until
+from stylepong_common.node_process import NodeProcess, wait_until
 
 TRAIN_LIMIT_S = 120.0   # the bound for `train --iterations 2 --num-envs 256` (docs/ACCEPTANCE.md)
 

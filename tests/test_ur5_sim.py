@@ -11,11 +11,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from stylepong_common.node_process import NodeProcess
 from stylepong_description import robot_model as rm
 from stylepong_msgs.msg import RallyEvent
 from stylepong_sim import world_spec as ws
-from tests.node_process import NodeProcess
-from tests.ur5_sim_probe import Ur5SimProbe, stamp_s
+from stylepong_sim.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
 PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])   # turned away from the table

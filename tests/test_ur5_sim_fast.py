@@ -1,8 +1,8 @@
 """System tests of `ros2 run stylepong_sim ur5_sim` with non-default parameters: real_time_factor 0, video."""
 import imageio_ffmpeg
 
-from tests.node_process import NodeProcess
-from tests.ur5_sim_probe import Ur5SimProbe
+from stylepong_common.node_process import NodeProcess
+from stylepong_sim.ur5_sim_probe import Ur5SimProbe
 
 
 def test_real_time_factor_0_runs_faster_than_the_wall_clock(ros_env):

@@ -7,10 +7,10 @@ import pathlib
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model as rm
 from stylepong_sim import world_spec as ws
 from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig, sample_variation
-from tests.node_process import NodeProcess, wait_until
 
 KIN = CellKinematics()
 CENTRE = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)

@@ -17,7 +17,7 @@ from stylepong_policy.dataset import (
     parse_speedups,
     speed_up,
 )
-from tests.joint_state_bags import EPOCH_NS, Swing, wrap_to_pi
+from stylepong_recording.joint_state_bags import EPOCH_NS, Swing, wrap_to_pi
 
 NPZ_KEYS = {'t', 'q', 'qd', 'clip_start', 'clip_length', 'label', 'speed_factor', 'source', 'rate_hz', 'joint_names'}
 JOINTS = ('a', 'b', 'c', 'd', 'e', 'f')

@@ -16,7 +16,7 @@ from stylepong_policy.demo_check import (
     check_demonstrations,
     frames_after_speedup,
 )
-from tests.joint_state_bags import (
+from stylepong_recording.joint_state_bags import (
     EPOCH_NS,
     Swing,
     jazzy_typestore,

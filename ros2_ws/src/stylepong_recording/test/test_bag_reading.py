@@ -8,10 +8,7 @@ from stylepong_recording.bag_errors import BagError
 from stylepong_recording.bag_reading import read_joint_states
 from stylepong_recording.bag_search import find_bags
 from stylepong_recording.clip_writer import TopicSpec, open_clip
-from stylepong_recording.joint_state_cdr import JointStateCdrReader
-from stylepong_recording.msg_definitions import MessageDefinitions
-from stylepong_recording.recover_bag import recover_bag
-from tests.joint_state_bags import (
+from stylepong_recording.joint_state_bags import (
     DRIVER_JOINTS,
     EPOCH_NS,
     URDF_JOINTS,
@@ -24,6 +21,9 @@ from tests.joint_state_bags import (
     write_raw_bag,
     write_recorder_bag,
 )
+from stylepong_recording.joint_state_cdr import JointStateCdrReader
+from stylepong_recording.msg_definitions import MessageDefinitions
+from stylepong_recording.recover_bag import recover_bag
 
 STORE = jazzy_typestore()
 SWING = Swing(rest_before_s=0.1, duration_s=0.4, rest_after_s=0.1)
@@ -244,7 +244,7 @@ def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_
     from rosbags.rosbag2.enums import StoragePlugin
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    from tests.joint_state_bags import JOINT_STATE_MSGDEF
+    from stylepong_recording.joint_state_bags import JOINT_STATE_MSGDEF
     msgdef = JOINT_STATE_MSGDEF.replace('float64[] velocity', 'float32[] velocity')
     custom = get_typestore(Stores.EMPTY)
     custom.register(get_types_from_msg(msgdef, 'sensor_msgs/msg/JointState'))

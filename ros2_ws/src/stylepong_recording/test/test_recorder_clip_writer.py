@@ -4,18 +4,7 @@ import errno
 
 import pytest
 
-from stylepong_recording.bag_layout import IN_PROGRESS_NAME
-from stylepong_recording.clip_writer import (
-    ClipError,
-    ClipWriter,
-    TopicSpec,
-    bag_dir_name,
-    label_from_bag_dir_name,
-    label_problem,
-    open_clip,
-)
-from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessageType
-from tests.bag_check import (
+from stylepong_recording.bag_check import (
     JOINT_NAMES,
     JOINT_STATE_TYPE,
     JOINT_STATES,
@@ -27,6 +16,17 @@ from tests.bag_check import (
     read_with_sqlite3,
     storage_file,
 )
+from stylepong_recording.bag_layout import IN_PROGRESS_NAME
+from stylepong_recording.clip_writer import (
+    ClipError,
+    ClipWriter,
+    TopicSpec,
+    bag_dir_name,
+    label_from_bag_dir_name,
+    label_problem,
+    open_clip,
+)
+from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessageType
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 

@@ -12,11 +12,7 @@ import yaml
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from stylepong_recording.bag_layout import IN_PROGRESS_NAME, STORAGE_SUFFIX
-from stylepong_recording.clip_writer import ClipWriter, TopicSpec
-from stylepong_recording.msg_definitions import MessageDefinitions
-from stylepong_recording.recover_bag import RecoveryError, main, recover_bag
-from tests.bag_check import (
+from stylepong_recording.bag_check import (
     JOINT_STATE_TYPE,
     JOINT_STATES,
     WRENCH,
@@ -27,6 +23,10 @@ from tests.bag_check import (
     read_with_sqlite3,
     storage_file,
 )
+from stylepong_recording.bag_layout import IN_PROGRESS_NAME, STORAGE_SUFFIX
+from stylepong_recording.clip_writer import ClipWriter, TopicSpec
+from stylepong_recording.msg_definitions import MessageDefinitions
+from stylepong_recording.recover_bag import RecoveryError, main, recover_bag
 
 DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
 
