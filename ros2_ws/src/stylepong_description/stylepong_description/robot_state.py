@@ -73,6 +73,7 @@ class UrdfJoint:
     origin_xyz_m: np.ndarray
     origin_xyzw: np.ndarray
     axis: np.ndarray
+    velocity_limit: float = float('inf')   # <limit velocity>: rad/s (m/s prismatic); inf when absent
 
     def transform(self, position: float = 0.0) -> LinkTransform:
         """Parent link to child link at this joint position (rad, or m for prismatic; ignored when fixed)."""
@@ -104,9 +105,11 @@ def parse_joints(urdf_xml: str) -> tuple[UrdfJoint, ...]:
         rpy = _floats(origin.get('rpy') if origin is not None else None, (0.0, 0.0, 0.0))
         axis_element = element.find('axis')
         axis = _floats(axis_element.get('xyz') if axis_element is not None else None, (1.0, 0.0, 0.0))
+        limit = element.find('limit')
+        velocity_limit = float(limit.get('velocity', 'inf')) if limit is not None else float('inf')
         joints.append(UrdfJoint(name=name, type=kind, parent=parent.get('link'), child=child.get('link'),
                                 origin_xyz_m=xyz, origin_xyzw=quaternion_from_rpy(*rpy),
-                                axis=axis / np.linalg.norm(axis)))
+                                axis=axis / np.linalg.norm(axis), velocity_limit=velocity_limit))
     return tuple(joints)
 
 
@@ -122,6 +125,19 @@ class RobotState:
     @property
     def moving_joint_names(self) -> tuple[str, ...]:
         return tuple(j.name for j in self.moving_joints)
+
+    def link_pose_in_base(self, link: str, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(translation m, rotation xyzw) of `link` in the URDF's root link, moving joints at `positions`."""
+        by_child = {t.child: t for t in self.fixed_transforms() + self.moving_transforms(positions)}
+        chain = []
+        while link in by_child:
+            chain.append(by_child[link])
+            link = by_child[link].parent
+        translation, rotation = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+        for t in reversed(chain):
+            translation = translation + rotate(rotation, t.translation_m)
+            rotation = quaternion_multiply(rotation, t.rotation_xyzw)
+        return translation, rotation
 
     def fixed_transforms(self) -> list[LinkTransform]:
         """For /tf_static: one per fixed joint."""
