@@ -82,6 +82,10 @@ flock 9
 # A source file moved or deleted since the last build leaves a dangling link in the --symlink-install
 # trees, which a package's setup.py then fails to copy (glob('config/*.yaml') still lists it): drop them.
 find "$ROOT/ros2_ws/build" "$ROOT/ros2_ws/install" -xtype l -delete 2>/dev/null || true
-colcon --log-base log build --symlink-install --event-handlers console_cohesion- status- summary+ \
+# ros2_ws/src/tf2_msgs stands in for tf2_msgs where the underlay has none (the PyPI wheels); a real ROS
+# underlay's own tf2_msgs (with its service and action) must not be shadowed.
+skip=()
+if [ -n "${ROS_UNDERLAY:-}" ] && [ -d "$ROS_UNDERLAY/share/tf2_msgs" ]; then skip=(--packages-skip tf2_msgs); fi
+colcon --log-base log build --symlink-install --event-handlers console_cohesion- status- summary+ "${skip[@]}" \
   --cmake-args -DPython3_EXECUTABLE="$PYTHON" -DBUILD_TESTING=OFF
 say "done: source ros2_ws/install/setup.bash"
