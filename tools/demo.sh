@@ -86,6 +86,14 @@ echo "[demo] playing $ACTOR through ROS: ur5_sim + player + rally_eval, $BALLS b
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
   -p video_width:=480 -p video_height:=352 -p video_fps:=25.0
 start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
+# The browser viewer on the same graph: the arm, the ball and the plots, live while the rally is played.
+start_node "$LOGS/viewer.log" ros2 run stylepong_viz viewer --web-port "${VIEWER_PORT:-9090}" --grpc-port "${VIEWER_GRPC_PORT:-9876}"
+for _ in $(seq 150); do grep -q '^viewer: open' "$LOGS/viewer.log" && break; sleep 0.1; done
+if grep -q '^viewer: open' "$LOGS/viewer.log"; then
+  echo "[demo] watch it live in a browser: $(grep -o 'http://[^ ]*' "$LOGS/viewer.log" | head -n 1)"
+else
+  echo "[demo] the viewer did not start (see $LOGS/viewer.log); the rally goes on without it"
+fi
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed 1000 --seeds 1 --speed all \
   --json "$DEMO_DIR/rally.json" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[demo]   /'
 stop_nodes
