@@ -63,7 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     for a, b in itertools.combinations_with_replacement(sets, 2):
         row = [mean_dtw_rad([q for k, q in sets[a][0] if k == label], [q for k, q in sets[b][0] if k == label],
                             same_set=a == b) for label in LABELS]
-        print(f'| {a} | {b} | ' + ' | '.join(f'{d:.1f}' for d in row) + f' | {np.nanmean(row):.1f} |')
+        known = [d for d in row if not np.isnan(d)]   # a label a set lacks (or has once, within a set) has none
+        mean = f'{np.mean(known):.1f}' if known else '-'
+        print(f'| {a} | {b} | ' + ' | '.join('-' if np.isnan(d) else f'{d:.1f}' for d in row) + f' | {mean} |')
     return 0
 
 
