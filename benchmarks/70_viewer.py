@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+"""viewer: what the browser viewer costs the graph: drag_teach's missed ticks and the player's jitter, without
+and with `ros2 run stylepong_viz viewer` running, side by side in one run.
+
+1. drag_teach (defaults: 500 Hz, wall clock) against ur5_sim for DURATION_S; its own count at Ctrl-C
+   (cycles, missed ticks: 2 ms periods without a cycle).
+2. The player (on ur5_sim's /clock) while rally_eval serves RALLY_BALLS balls; its own /player/status at
+   the end (rally_eval's JSON): period jitter p99 while playing (|period - 1/60 s|).
+Each with the viewer off and on, alternating, PAIRS times: this shared machine's load changes by the
+minute, so only runs made together compare. The viewer runs with no browser attached (a browser's WebGL
+is the browser's cost, on whatever machine shows the page) and its own CPU share is given.
+Prints one Markdown section for BENCHMARKS.md (`make bench`).
+"""
+import json
+import os
+import pathlib
+import random
+import re
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+DURATION_S = 15.0
+RALLY_BALLS = 3            # about 15 s of play
+PAIRS = 2
+DRAG_STATS = re.compile(r'(\d+) cycles in .*? (\d+) missed')
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def _player_package() -> str:
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    for package in ('stylepong_player', 'stylepong_policy'):
+        try:
+            if (pathlib.Path(get_package_prefix(package)) / 'lib' / package / 'player').exists():
+                return package
+        except PackageNotFoundError:
+            continue
+    raise RuntimeError('no package installs the player executable')
+
+
+def _start(args: list[str], env: dict, log: pathlib.Path) -> subprocess.Popen:
+    return subprocess.Popen(args, stdout=open(log, 'w'), stderr=subprocess.STDOUT, env=env, start_new_session=True)
+
+
+def _stop(process: subprocess.Popen) -> None:
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(20)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _cpu_s(pid: int) -> float:
+    try:
+        fields = pathlib.Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return float('nan')
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _wait_for(log: pathlib.Path, text: str, process: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while text not in log.read_text():
+        if time.monotonic() > deadline or process.poll() is not None:
+            raise RuntimeError(f'{log.name}: no {text!r}:\n' + log.read_text()[-2000:])
+        time.sleep(0.2)
+
+
+def graph_run(what: str, with_viewer: bool) -> dict:
+    """ur5_sim + (drag_teach | player) [+ viewer] for DURATION_S; the measured figures."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               PYTHONUNBUFFERED='1')
+    logs = pathlib.Path(tempfile.mkdtemp(prefix=f'bench_viewer_{what}_'))
+    sim_args = [] if what == 'drag_teach' else ['--ros-args', '-p', 'max_lag_s:=0.01']   # as benchmarks/50_player.py
+    processes = [_start(['ros2', 'run', 'stylepong_sim', 'ur5_sim', *sim_args], env, logs / 'ur5_sim.log')]
+    viewer = None
+    if with_viewer:
+        viewer = _start(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(_free_port()),
+                         '--grpc-port', str(_free_port())], env, logs / 'viewer.log')
+        processes.append(viewer)
+    status: list[dict] = []
+    try:
+        if what == 'drag_teach':
+            node = _start(['ros2', 'run', 'stylepong_fdcc', 'drag_teach'], env, logs / 'node.log')
+            processes.append(node)
+            _wait_for(logs / 'node.log', 'running', node)
+        else:
+            node = _start(['ros2', 'run', _player_package(), 'player', '--ros-args', '-p', 'use_sim_time:=true'],
+                          env, logs / 'node.log')
+            processes.append(node)
+        if viewer is not None:
+            _wait_for(logs / 'viewer.log', 'serving', viewer)
+        time.sleep(3.0)                          # start-up (drag_teach's tare, the player's actor)
+        viewer_cpu = _cpu_s(viewer.pid) if viewer is not None else 0.0
+        started = time.monotonic()
+        if what == 'player':
+            status = _rally(env, node, logs)
+        else:
+            time.sleep(DURATION_S)
+        viewer_share = ((_cpu_s(viewer.pid) - viewer_cpu) / (time.monotonic() - started)) if viewer else None
+    finally:
+        for process in reversed(processes):
+            _stop(process)
+    load = os.getloadavg()[0]
+    if what == 'drag_teach':
+        match = DRAG_STATS.search((logs / 'node.log').read_text())
+        if not match:
+            raise RuntimeError('drag_teach printed no statistics:\n' + (logs / 'node.log').read_text()[-2000:])
+        cycles, missed = (int(x) for x in match.groups())
+        return {'cycles': cycles, 'missed': missed, 'viewer_cpu': viewer_share, 'load': load}
+    period = status[-1].get('period_ms', {})
+    return {'steps': period.get('count'), 'jitter_p99_ms': period.get('jitter_p99'), 'viewer_cpu': viewer_share,
+            'load': load}
+
+
+def _rally(env: dict, node: subprocess.Popen, logs: pathlib.Path) -> list[dict]:
+    """rally_eval serving RALLY_BALLS balls to the player; the player's status at the end."""
+    out = logs / 'rally.json'
+    result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS),
+                             '--first-seed', '900', '--json', str(out)], env=env, capture_output=True, text=True,
+                            timeout=300)
+    if result.returncode != 0 or node.poll() is not None:
+        raise RuntimeError('rally_eval failed:\n' + result.stderr[-1000:] + (logs / 'node.log').read_text()[-1000:])
+    return [json.loads(out.read_text())['player_status']]
+
+
+def _cpu_text(share) -> str:
+    return '-' if share is None else f'{100.0 * share:.0f} %'
+
+
+def main() -> int:
+    print('## viewer: what the browser viewer costs the graph (drag_teach missed ticks, player jitter)\n')
+    print('`python3 benchmarks/70_viewer.py`. ur5_sim with drag_teach (500 Hz, wall clock), and ur5_sim with the '
+          f'player (on /clock) while rally_eval serves {RALLY_BALLS} balls of seed 900, drag_teach '
+          f'{DURATION_S:.0f} s, without and with `ros2 run stylepong_viz viewer` (no browser attached), '
+          f'alternating, {PAIRS} pairs. Figures are the nodes\' own: drag_teach\'s count at Ctrl-C, the player\'s '
+          '/player/status (its steps while playing and their period jitter p99 = |period - 1/60 s|, on the cell\'s '
+          'clock, 1 ms resolution); viewer CPU = the viewer process\'s share of one core.\n')
+    print('| run | viewer | drag_teach cycles | missed ticks | missed % | player steps | player jitter p99 | '
+          'viewer CPU | load (1 min) |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    for run in range(1, PAIRS + 1):
+        for with_viewer in (False, True):
+            drag = graph_run('drag_teach', with_viewer)
+            player = graph_run('player', with_viewer)
+            missed_pct = 100.0 * drag['missed'] / max(1, drag['cycles'] + drag['missed'])
+            cpu = drag['viewer_cpu'] if drag['viewer_cpu'] is None else \
+                (drag['viewer_cpu'] + player['viewer_cpu']) / 2.0
+            print(f'| {run} | {"on" if with_viewer else "off"} | {drag["cycles"]} | {drag["missed"]} | '
+                  f'{missed_pct:.2f} % | {player["steps"]} | {player["jitter_p99_ms"]} ms | {_cpu_text(cpu)} | '
+                  f'{(drag["load"] + player["load"]) / 2.0:.2f} |', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
