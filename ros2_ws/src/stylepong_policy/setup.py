@@ -29,6 +29,7 @@ setup(
             'average_checkpoints = stylepong_policy.average_checkpoints:main',
             'paper_tables = stylepong_policy.paper_tables:main',
             'style_confusion = stylepong_policy.style_confusion:main',
+            'learn_style = stylepong_policy.learn_style:main',
         ],
     },
 )

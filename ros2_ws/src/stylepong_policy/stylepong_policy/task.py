@@ -54,6 +54,8 @@ FAILURE_REASONS: tuple[str, ...] = rf.REASONS
 SUCCESS_INDEX = rf.REASON_INDEX[rf.REASON_RETURNED]
 ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
+# The slowest approach the style clock divides by: a ball this slow along x is about to be decided anyway.
+MIN_APPROACH_SPEED_M_S = 0.5
 REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action')
 
 
@@ -360,7 +362,8 @@ class TableTennisEnv:
         Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, extras) as
         the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
         'style_state', 'style_label' (the ball's direction), 'style_phase' (the paddle has touched the
-        ball), and 'style_weight' when style_weight_after_hit is not 1). 'log' holds success_rate,
+        ball), 'style_time_s' (the style clock: _style_time_s), and 'style_weight' when
+        style_weight_after_hit is not 1). 'log' holds success_rate,
         hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each referee verdict) and
         reward/<term> (the episodes' sums of each reward term).
         The task's own extras, after the step and before any reset:
@@ -408,8 +411,9 @@ class TableTennisEnv:
                   'outcome': outcome, 'paddle_hit': events.paddle_hit,
                   'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
                   'reward_terms': terms}
-        if self.cfg.style_weight_after_hit != 1.0:   # the counter only serves the factor: none, no cost
-            self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
+        self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
+        extras[env_contract.EXTRAS_STYLE_TIME] = self._style_time_s()
+        if self.cfg.style_weight_after_hit != 1.0:
             factor = self.cfg.style_weight_after_hit
             extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(self._style_weighted(), factor, 1.0)
         done_ids = torch.nonzero(dones).squeeze(1)
@@ -419,6 +423,15 @@ class TableTennisEnv:
             self._reset_envs(done_ids)
         obs, critic_obs = self._observations()
         return obs, critic_obs, reward, dones, extras
+
+    def _style_time_s(self) -> torch.Tensor:
+        """[N] the style clock (rl.env): since the paddle's touch, or, before it, minus the time the ball
+        needs to reach the paddle's home plane at its speed along x now (recomputed every step, so drag and
+        the bounce on the robot's half only shift it by what they have changed so far)."""
+        w = self.world
+        approach_m_s = (-w.ball_vel_m_s[0]).clamp_min(MIN_APPROACH_SPEED_M_S)
+        before_s = -(w.ball_pos_m[0] - self._plane_x_m) / approach_m_s
+        return torch.where(w.hit, self._steps_since_hit.float() * self.policy_dt_s, before_s)
 
     def _style_weighted(self) -> torch.Tensor:
         """[N] bool: the steps that earn style_weight_after_hit, from the hit for its duration or to the verdict."""

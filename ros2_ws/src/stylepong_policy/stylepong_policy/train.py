@@ -92,6 +92,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--seed', type=int, help=f'training seed, below {FIRST_EVALUATION_SEED}')
     parser.add_argument('--resume', nargs='?', const='', default=None, metavar='CHECKPOINT_OR_RUN_DIR',
                         help='continue from a checkpoint (default: the last checkpoint of --out)')
+    parser.add_argument('--from', dest='start_from', type=pathlib.Path, metavar='CHECKPOINT',
+                        help='start from the network of this training checkpoint (a skill to build on; the '
+                             'optimiser and the discriminator start afresh)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
     parser.add_argument('--no-tensorboard', action='store_true', help='skip TensorBoard event files')
     return parser.parse_args(argv)
@@ -166,6 +169,7 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
     """The discriminator and its reference windows for an amp config."""
     from stylepong_policy.dataset import ReferenceDataset
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
+    from stylepong_policy.rl.pose_prior import PosePrior
     path = reference_dataset_path(cfg.amp, run_dir)
     dataset = ReferenceDataset.load(path)
     label_names = tuple(getattr(env, 'style_labels', ())) if cfg.amp.condition_on_label else ()
@@ -176,7 +180,10 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
           f'from clips with speed factors {cfg.amp.speed_factors or "all"}'
           + (f', conditioned on the labels {list(label_names)}' if label_names else '')
           + (', and on the phase (before / after the hit)' if cfg.amp.condition_on_phase else ''), flush=True)
-    return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed), path
+    pose_prior = (PosePrior.from_dataset(dataset, label_names, cfg.amp.pose_sigma_rad, device)
+                  if cfg.amp.w_pose > 0.0 else None)
+    return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed,
+                       pose_prior=pose_prior), path
 
 
 def resolve_device(name: str) -> torch.device:
@@ -213,21 +220,30 @@ def _raise_keyboard_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the train executable."""
-    args = parse_args(argv)
-    try:
-        cfg, config_source, method = resolve_config(args)
-        device = resolve_device(cfg.runner.device)
-    except (ValueError, FileNotFoundError) as err:
-        print(f'train: {err}', file=sys.stderr)
-        return 2
-    run_dir = args.out
+class TrainError(Exception):
+    """A run that cannot start (bad config, dataset, checkpoint or run directory): one line for the user."""
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """What train_run leaves: the runner (its iteration, statistics, interruption), the exported actor."""
+    runner: OnPolicyRunner
+    actor_path: pathlib.Path | None          # None: no iteration completed, nothing exported
+    session_s: float                         # this session's wall time
+
+
+def train_run(cfg: TrainConfig, run_dir: pathlib.Path, method: str, *, config_source: str,
+              resume: str | pathlib.Path | None = None, start_from: pathlib.Path | None = None,
+              tensorboard: bool = True, until_wall_time_s: float | None = None,
+              on_iteration=None, command: str = '') -> TrainResult:
+    """Train `cfg` into run_dir (a new run, one resumed from `resume` ('' : run_dir's last checkpoint), or one
+    starting from the network of `start_from`), up to cfg.runner.iterations or until the run's training time
+    reaches until_wall_time_s; then export the actor, summary and curve. Ctrl-C / SIGTERM stop it with the
+    last checkpoint kept (result.runner.interrupted). TrainError for what the user must fix."""
+    device = resolve_device(cfg.runner.device)
     checkpoint_dir = run_dir / CHECKPOINT_DIR
-    if args.resume is None and checkpoint_dir.is_dir() and any(checkpoint_dir.iterdir()):
-        print(f'train: {run_dir} already holds a run; pass --resume to continue it or choose another --out',
-              file=sys.stderr)
-        return 2
+    if resume is None and checkpoint_dir.is_dir() and any(checkpoint_dir.iterdir()):
+        raise TrainError(f'{run_dir} already holds a run; pass --resume to continue it or choose another --out')
     if device.type == 'cpu':
         torch.set_num_threads(cfg.runner.num_threads)
     seed_everything(cfg.runner.seed)
@@ -236,8 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         task_cfg = task.TaskConfig(**cfg.task)
     except TypeError as err:
-        print(f'train: bad task section in the config: {err}', file=sys.stderr)
-        return 2
+        raise TrainError(f'bad task section in the config: {err}') from err
     env = task.make_env(task_cfg, device, cfg.runner.seed)
     motion_prior = dataset_path = None
     if cfg.amp is not None:
@@ -245,17 +260,20 @@ def main(argv: list[str] | None = None) -> int:
         try:
             motion_prior, dataset_path = make_motion_prior(cfg, env, run_dir, device)
         except (ValueError, FileNotFoundError, KeyError) as err:
-            print(f'train: {err}', file=sys.stderr)
-            return 2
-    runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=not args.no_tensorboard, motion_prior=motion_prior)
-    if args.resume is not None:
+            raise TrainError(str(err)) from err
+    runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=tensorboard, motion_prior=motion_prior)
+    if resume is not None:
         try:
-            loaded = runner.load(args.resume or run_dir)
+            loaded = runner.load(resume or run_dir)
         except (ValueError, FileNotFoundError) as err:
-            print(f'train: cannot resume: {err}', file=sys.stderr)
-            return 2
+            raise TrainError(f'cannot resume: {err}') from err
         print(f'train: resumed {loaded} at iteration {runner.iteration} '
               f'({runner.env_steps} samples, {runner.wall_time_s / 3600.0:.2f} h so far)', flush=True)
+    elif start_from is not None:
+        try:
+            print(f'train: starting from the network of {runner.start_from(start_from)}', flush=True)
+        except (ValueError, FileNotFoundError) as err:
+            raise TrainError(f'cannot start from {start_from}: {err}') from err
     run_dir.mkdir(parents=True, exist_ok=True)
     save_config(cfg, run_dir / CONFIG_NAME)
     print(f'train: {env.num_envs} envs on {device}, config {config_source}, run dir {run_dir}, '
@@ -264,14 +282,11 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM (a session or job manager stopping us) ends training like Ctrl-C: checkpoint kept, actor exported.
     signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     started = time.perf_counter()
-    # Each session of a (resumed, multi-stage) run records the command that ran it, as typed.
-    command = shlex.join(['train'] + (sys.argv[1:] if argv is None else list(argv)))
-    runner.learn(cfg.runner.iterations, session_info={'command': command})
+    runner.learn(cfg.runner.iterations, session_info={'command': command}, until_wall_time_s=until_wall_time_s,
+                 on_iteration=on_iteration)
     if runner.iteration == 0:
-        print('train: no iteration completed; nothing to export', file=sys.stderr)
-        return 130 if runner.interrupted else 1
-
-    actor_path, sidecar = export_actor(
+        return TrainResult(runner, None, time.perf_counter() - started)
+    actor_path, _ = export_actor(
         runner.actor_critic, run_dir / actor_name(method), current_spec_contract(),
         training={'method': method, 'iterations': runner.iteration, 'samples': runner.env_steps,
                   'seed': cfg.runner.seed,
@@ -282,12 +297,30 @@ def main(argv: list[str] | None = None) -> int:
     if (run_dir / CSV_NAME).is_file():
         plot_learning_curve(run_dir / CSV_NAME, run_dir / CURVE_NAME,
                             title=f'{method.upper()}, seed {cfg.runner.seed}, {env.num_envs} envs')
-    stats = runner.last_stats
-    success = stats.get('success_rate', math.nan)
+    return TrainResult(runner, actor_path, time.perf_counter() - started)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the train executable."""
+    args = parse_args(argv)
+    try:
+        cfg, config_source, method = resolve_config(args)
+        # Each session of a (resumed, multi-stage) run records the command that ran it, as typed.
+        command = shlex.join(['train'] + (sys.argv[1:] if argv is None else list(argv)))
+        result = train_run(cfg, args.out, method, config_source=config_source, resume=args.resume,
+                           start_from=args.start_from, tensorboard=not args.no_tensorboard, command=command)
+    except (TrainError, ValueError, FileNotFoundError) as err:
+        print(f'train: {err}', file=sys.stderr)
+        return 2
+    runner = result.runner
+    if result.actor_path is None:
+        print('train: no iteration completed; nothing to export', file=sys.stderr)
+        return 130 if runner.interrupted else 1
+    success = runner.last_stats.get('success_rate', math.nan)
     print(f'train: iteration {runner.iteration}, {runner.env_steps} samples, '
           f'success {"n/a (no ball decided)" if math.isnan(success) else f"{success:.3f}"}, this session '
-          f'{time.perf_counter() - started:.1f} s, whole run {runner.wall_time_s:.1f} s; '
-          f'actor {actor_path} (+ {sidecar.name})', flush=True)
+          f'{result.session_s:.1f} s, whole run {runner.wall_time_s:.1f} s; '
+          f'actor {result.actor_path} (+ {result.actor_path.with_suffix(".json").name})', flush=True)
     if runner.interrupted:
         print('train: interrupted; resume with --resume', file=sys.stderr)
         return 130

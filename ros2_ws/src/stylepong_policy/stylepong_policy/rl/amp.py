@@ -50,6 +50,7 @@ from stylepong_policy.dataset import window_start_indices
 from .config import FRAME_FEATURES, AMPConfig
 from .networks import make_mlp
 from .normalizer import RunningNormalizer
+from .pose_prior import PosePrior
 
 STYLE_REWARDS = ('lsgan', 'log')
 # A conditioned stroke's phases: before the hit (0) and after it (1).
@@ -252,12 +253,16 @@ class MotionPrior:
     """The discriminator, its data and its training, and the style reward for the policy's windows."""
 
     def __init__(self, cfg: AMPConfig, reference: ReferenceMotion, frame_size: int, num_envs: int,
-                 device: torch.device | str, seed: int = 0):
+                 device: torch.device | str, seed: int = 0, pose_prior: PosePrior | None = None):
         """frame_size: the env's style frame; the discriminator sees its cfg.frame_features, as `reference`
-        must hold them."""
+        must hold them. pose_prior: the dense pose reward weighted by cfg.w_pose (rl.pose_prior), with the
+        labels of the env's style_labels when conditioned on labels."""
         self.cfg = cfg
         self.device = torch.device(device)
         self.columns = feature_columns(cfg.frame_features, frame_size)
+        # The joint positions of a frame, which the pose prior compares (none without a pose prior: a frame
+        # need not be positions and velocities then).
+        self.q_columns = feature_columns('q', frame_size) if pose_prior is not None else None
         frame_size = self.columns.stop - self.columns.start
         if reference.frames.shape[1] != frame_size:
             raise ValueError(f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
@@ -277,6 +282,11 @@ class MotionPrior:
         self.generator.manual_seed(int(seed) + 7907)
         self.history: StyleHistory | None = None
         self.num_envs = int(num_envs)
+        self.pose_prior = pose_prior
+        # A label without demonstrations earns no style reward: D has no example of it, so it could only
+        # teach the policy what that stroke is not (item "labels without clips" in docs/DESIGN.md).
+        self.labels_with_windows = (torch.bincount(reference.labels, minlength=self.num_labels) > 0
+                                    if self.num_labels else None)
         # The normaliser starts from the demonstrations, so the first rewards are not on raw radians.
         self.discriminator.normalizer.update(reference.frames)
 
@@ -310,17 +320,34 @@ class MotionPrior:
         condition = self.condition(labels, phases)
         windows = self.history.push(frames[:, self.columns])
         reward = style_reward(self.discriminator.score(windows, condition), self.cfg.style_reward)
+        if self.labels_with_windows is not None:
+            reward = reward * self.labels_with_windows[labels]
         self.replay.insert(windows, condition)
         done_ids = torch.nonzero(dones).squeeze(1)
         if done_ids.numel():
             self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
         return reward
 
-    def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None
-            ) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style, w_style times the env's per-step factor [N] when it gives one."""
-        weighted = style if style_factor is None else style_factor * style
-        return self.cfg.w_task * task_reward + self.cfg.w_style * weighted
+    def pose_reward(self, frames: torch.Tensor, time_s: torch.Tensor | None,
+                    labels: torch.Tensor | None = None) -> torch.Tensor:
+        """The pose prior's reward [N] for the arm states frames [N, D] reached by this step, at the env's
+        style clock time_s [N] (0 without a pose prior)."""
+        if self.pose_prior is None:
+            return torch.zeros(frames.shape[0], device=frames.device)
+        if time_s is None:
+            raise ValueError("amp.w_pose: the env must give each step's 'style_time_s'")
+        return self.pose_prior.reward(frames[:, self.q_columns], time_s, labels if self.num_labels else None)
+
+    def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
+            pose: torch.Tensor | None = None) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style + w_pose r_pose, the style terms times the env's per-step factor
+        [N] when it gives one."""
+        motion = self.cfg.w_style * style
+        if pose is not None:
+            motion = motion + self.cfg.w_pose * pose
+        if style_factor is not None:
+            motion = style_factor * motion
+        return self.cfg.w_task * task_reward + motion
 
     # --- training ----------------------------------------------------------------------------------
     def update(self) -> dict[str, float]:

@@ -67,6 +67,9 @@ class RunnerConfig:
     num_threads: int = 2                 # torch intra-op threads on CPU
     save_interval: int = 50              # iterations between numbered checkpoints (last.pt is every iteration)
     keep_checkpoints: int = 0            # numbered checkpoints kept besides last.pt (0 keeps all)
+    # The run's first iterations step the critic alone: a run started from another run's network (a skill)
+    # meets rewards its critic never valued, and its first advantages would be noise that undoes the skill.
+    critic_warmup_iterations: int = 0
     progress_bar: bool = True
 
 
@@ -96,16 +99,19 @@ class AMPConfig:
     condition_on_phase: bool = False     # D also sees if a window ends before or after the hit ('style_phase')
     w_task: float = 1.0
     w_style: float = 0.05
+    # The pose prior (rl.pose_prior): w_pose exp(-|q - nearest demonstrated pose of the label| / sigma) per step.
+    w_pose: float = 0.0
+    pose_sigma_rad: float = 0.3
 
     def validate(self) -> None:
         positive = {'sequence_length': self.sequence_length, 'learning_rate': self.learning_rate,
                     'batch_size': self.batch_size, 'replay_size': self.replay_size,
-                    'normalizer_clip': self.normalizer_clip}
+                    'normalizer_clip': self.normalizer_clip, 'pose_sigma_rad': self.pose_sigma_rad}
         for name, value in positive.items():
             if not value > 0:
                 raise ValueError(f'amp.{name} must be positive, got {value}')
         for name in ('weight_decay_trunk', 'weight_decay_head', 'grad_penalty', 'updates_per_iteration', 'w_task',
-                     'w_style'):
+                     'w_style', 'w_pose'):
             if getattr(self, name) < 0:
                 raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
         if self.frame_features not in FRAME_FEATURES:
@@ -143,8 +149,8 @@ class TrainConfig:
         for name, value in {'ppo.gamma': p.gamma, 'ppo.lam': p.lam}.items():
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f'{name} must be in [0, 1], got {value}')
-        if r.iterations < 0 or r.keep_checkpoints < 0:
-            raise ValueError('runner.iterations and runner.keep_checkpoints must not be negative')
+        if r.iterations < 0 or r.keep_checkpoints < 0 or r.critic_warmup_iterations < 0:
+            raise ValueError('runner.iterations, keep_checkpoints and critic_warmup_iterations must not be negative')
         if not 0 <= r.seed:
             raise ValueError(f'runner.seed must not be negative, got {r.seed}')
         if not isinstance(self.task, dict):

@@ -27,7 +27,10 @@ and may hold
                  conditioned on labels (amp.condition_on_label) needs it;
   'style_phase'  [N] int64: 0 before the event that splits each episode's motion in two (the task: the
                  paddle's first touch of the ball), 1 from it on, before any reset; a motion prior
-                 conditioned on phases (amp.condition_on_phase) needs it.
+                 conditioned on phases (amp.condition_on_phase) needs it;
+  'style_time_s' [N] float: the style clock, the time from each step to that event (negative before it,
+                 the time it is expected in; positive after it), before any reset; the pose prior
+                 (amp.w_pose, rl.pose_prior) needs it.
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -47,6 +50,7 @@ EXTRAS_STYLE_STATE = 'style_state'
 EXTRAS_STYLE_WEIGHT = 'style_weight'
 EXTRAS_STYLE_LABEL = 'style_label'
 EXTRAS_STYLE_PHASE = 'style_phase'
+EXTRAS_STYLE_TIME = 'style_time_s'
 
 
 class VecEnv(Protocol):

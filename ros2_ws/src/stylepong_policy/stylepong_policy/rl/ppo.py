@@ -81,8 +81,10 @@ class PPO:
         elif self.cfg.schedule == 'fixed':
             self._set_learning_rate(self.cfg.learning_rate)
 
-    def update(self, storage: RolloutStorage, generator: torch.Generator | None = None) -> dict[str, float]:
-        """Several epochs of minibatch gradient steps on a filled storage; returns mean losses and diagnostics."""
+    def update(self, storage: RolloutStorage, generator: torch.Generator | None = None,
+               update_actor: bool = True) -> dict[str, float]:
+        """Several epochs of minibatch gradient steps on a filled storage; returns mean losses and diagnostics.
+        update_actor False steps the critic alone (the policy and the learning rate stay as they are)."""
         cfg, ac = self.cfg, self.actor_critic
         totals = {'value_loss': 0.0, 'surrogate_loss': 0.0, 'entropy': 0.0, 'kl': 0.0, 'clip_fraction': 0.0}
         count = 0
@@ -94,7 +96,7 @@ class PPO:
 
             with torch.no_grad():
                 kl = gaussian_kl(mb.old_mean, mb.old_std, dist.mean, dist.stddev).mean()
-            if cfg.schedule == 'adaptive':
+            if cfg.schedule == 'adaptive' and update_actor:
                 # rsl_rl's rule: shrink the step when the policy moved too far, grow it when it barely moved.
                 if kl > 2.0 * cfg.desired_kl:
                     self._set_learning_rate(self.learning_rate / 1.5)
@@ -111,7 +113,9 @@ class PPO:
             else:
                 value_loss = (values - mb.returns).square().mean()
 
-            loss = surrogate_loss + cfg.value_loss_coef * value_loss - cfg.entropy_coef * entropy
+            loss = cfg.value_loss_coef * value_loss
+            if update_actor:
+                loss = loss + surrogate_loss - cfg.entropy_coef * entropy
             self.optimizer.zero_grad(set_to_none=True)
             loss.backward()
             nn.utils.clip_grad_norm_(ac.parameters(), cfg.max_grad_norm)

@@ -14,7 +14,7 @@ import random
 import sys
 import time
 from collections import deque
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -238,6 +238,16 @@ class OnPolicyRunner:
             restore_rng_state(data['rng'], self.shuffle)
         return path
 
+    def start_from(self, path: str | pathlib.Path) -> pathlib.Path:
+        """Begin this run from another run's network (actor, critic, normalisers, action noise): a skill to
+        build on. Everything else starts afresh: iteration 0, the optimiser, the discriminator."""
+        path = find_checkpoint(path)
+        data = read_checkpoint(path)
+        if data['architecture'] != self.actor_critic.architecture():
+            raise ValueError(f'checkpoint {path} holds a network of another shape: {data["architecture"]}')
+        self.actor_critic.load_state_dict(data['model'])
+        return path
+
     def _save_checkpoints(self) -> None:
         self.save(self.checkpoint_dir / LAST_CHECKPOINT)
         if self.iteration % self.cfg.runner.save_interval == 0:
@@ -274,12 +284,13 @@ class OnPolicyRunner:
                                              'stopping before they poison the normalisers')
                 parts = None
                 if self.motion_prior is not None:
-                    style = self.motion_prior.observe(extras[env_contract.EXTRAS_STYLE_STATE], dones,
-                                                      self.env.style_state(),
-                                                      extras.get(env_contract.EXTRAS_STYLE_LABEL),
+                    frames = extras[env_contract.EXTRAS_STYLE_STATE]
+                    labels = extras.get(env_contract.EXTRAS_STYLE_LABEL)
+                    style = self.motion_prior.observe(frames, dones, self.env.style_state(), labels,
                                                       extras.get(env_contract.EXTRAS_STYLE_PHASE))
-                    parts = {'task': rewards, 'style': style}
-                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT))
+                    pose = self.motion_prior.pose_reward(frames, extras.get(env_contract.EXTRAS_STYLE_TIME), labels)
+                    parts = {'task': rewards, 'style': style, 'pose': pose}
+                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose)
                     self._sync()
                     style_s += time.perf_counter() - t2
                 stats.record(rewards, dones, extras, parts)
@@ -296,9 +307,15 @@ class OnPolicyRunner:
         return obs, critic_obs, world_s, policy_s, style_s
 
     def learn(self, until_iteration: int, progress_bar: bool | None = None,
-              session_info: dict[str, Any] | None = None) -> dict[str, Any]:
-        """Train until the run has `until_iteration` iterations; Ctrl-C stops after saving a checkpoint.
-        session_info (e.g. the command line) is kept with this session's record in checkpoints."""
+              session_info: dict[str, Any] | None = None, until_wall_time_s: float | None = None,
+              on_iteration: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+        """Train until the run has `until_iteration` iterations, or (until_wall_time_s) until its training
+        time summed over all its sessions reaches that budget; Ctrl-C stops after saving a checkpoint.
+        session_info (e.g. the command line) is kept with this session's record in checkpoints;
+        on_iteration is called with each iteration's statistics once its checkpoint is saved."""
+        def budget_left() -> bool:
+            return until_wall_time_s is None or self.wall_time_s < until_wall_time_s
+
         progress_bar = self.cfg.runner.progress_bar if progress_bar is None else progress_bar
         start = self.iteration
         log = TrainingLog(self.run_dir, start, tensorboard=self.tensorboard)
@@ -319,13 +336,14 @@ class OnPolicyRunner:
                 obs, critic_obs = self.env.reset()
                 if self.motion_prior is not None:
                     self.motion_prior.start(self.env.style_state())
-            while self.iteration < until_iteration:
+            while self.iteration < until_iteration and budget_left():
                 t_start = time.perf_counter()
                 self.alg.apply_schedule(self.iteration, until_iteration)
                 stats.reset_iteration()
                 obs, critic_obs, world_s, policy_s, style_s = self._collect(obs, critic_obs, stats)
                 t_learn = time.perf_counter()
-                losses = self.alg.update(self.storage, self.shuffle)
+                losses = self.alg.update(self.storage, self.shuffle,
+                                         update_actor=self.iteration >= self.cfg.runner.critic_warmup_iterations)
                 self._sync()
                 t_disc = time.perf_counter()
                 if self.motion_prior is not None:
@@ -348,6 +366,8 @@ class OnPolicyRunner:
                                    **stats.summary(), **losses}
                 log.write(self.last_stats)
                 self._save_checkpoints()
+                if on_iteration is not None:
+                    on_iteration(self.last_stats)
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix(success=_fmt(self.last_stats.get('success_rate', math.nan)),

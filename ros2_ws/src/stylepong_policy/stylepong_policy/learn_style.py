@@ -1,0 +1,414 @@
+"""`ros2 run stylepong_policy learn_style`: a person's demonstration bags in, a deployable style actor out.
+
+    learn_style BAGS_DIR_OR_DATASET --out RUN [--minutes M] [--device cpu|cuda] [--from ACTOR] [--resume]
+
+One recipe (config/amp.yaml) and nothing to tune. The stages, each recorded in RUN/learn_style.json when
+it ends, so that `--resume` (after Ctrl-C, SIGKILL or a power cut) continues from the last one:
+  check      the demonstrations (labels, clips per label, joint names, joint limits, rate, length against
+             the discriminator's window); a bad bag or folder is refused in one line, before anything else
+  dataset    RUN/dataset.npz: the clips at 60 Hz and their x2/x3/x5 speed-ups (build_dataset)
+  train      RUN/train/: the style learned from the skill --from (default: the shipped style actor's
+             network, models/amp_actor_checkpoint.pt) with a fresh discriminator and the pose prior, for
+             the training share of the time budget; a checkpoint every iteration (resumable) and every
+             save_interval iterations (the candidates)
+  choose     RUN/choose/: the weight averages of the run's last checkpoints (AVERAGED_SHARES of them) and
+             its last checkpoint, validated on seeds 900 and up (below 1000); the one with the lowest mean
+             DTW to the demonstrations among those returning MIN_SUCCESS of the balls (else the one that
+             returns most)
+  export     RUN/actor.pt (+ .json sidecar), RUN/actor.onnx, and RUN/actor_checkpoint.pt (its network, a
+             skill another learn_style --from can start from)
+  evaluate   RUN/eval/: the new actor, PPO's and the shipped style actor on the evaluation seeds (1000 and
+             up), strokes and DTW against the given demonstrations
+  report     RUN/report.md and its PNGs (style_report)
+A label with no clips is not an error: its balls earn no style term, and the skill returns them with the
+stroke it started with (docs/DESIGN.md, "Learning a style").
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import shlex
+import sys
+import time
+from dataclasses import dataclass
+
+from stylepong_policy.rl.config import TrainConfig, load_config
+
+PROG = 'learn_style'
+STATE_NAME = 'learn_style.json'
+STAGES = ('check', 'dataset', 'train', 'choose', 'export', 'evaluate', 'report')
+DEFAULT_MINUTES = 60.0
+# What is not training, within the budget: the world's compilation, choosing, exporting, evaluating and
+# the report (about 4 minutes on a 2-core CPU), with a margin for a loaded machine.
+RESERVE_S = 7.0 * 60.0
+MIN_TRAIN_S = 60.0
+# Candidates: the mean of the weights of the run's last checkpoints, the last third and the last sixth
+# of them (the end of a run, where the style is learned and returns are kept); and the last checkpoint.
+AVERAGED_SHARES = (1.0 / 3.0, 1.0 / 6.0)
+MIN_SUCCESS = 0.92                  # validation success a candidate must reach to be chosen for its style
+VALIDATION = dict(seeds=4, first_seed=900, balls=200)       # below world_spec.FIRST_EVALUATION_SEED
+EVALUATION = dict(seeds=10, first_seed=1000, balls=200)
+EVALUATION_HIGH = dict(seeds=5, first_seed=2000, balls=200)
+DATASET_NAME = 'dataset.npz'
+ACTOR_NAME = 'actor.pt'
+ACTOR_CHECKPOINT_NAME = 'actor_checkpoint.pt'
+TRAIN_DIR, CHOOSE_DIR, EVAL_DIR = 'train', 'choose', 'eval'
+
+
+class StyleError(Exception):
+    """What the user must fix: one line."""
+
+
+@dataclass(frozen=True)
+class Paths:
+    """Where a run keeps each of its files."""
+    run: pathlib.Path
+
+    @property
+    def state(self) -> pathlib.Path:
+        return self.run / STATE_NAME
+
+    @property
+    def dataset(self) -> pathlib.Path:
+        return self.run / DATASET_NAME
+
+    @property
+    def actor(self) -> pathlib.Path:
+        return self.run / ACTOR_NAME
+
+    @property
+    def actor_checkpoint(self) -> pathlib.Path:
+        return self.run / ACTOR_CHECKPOINT_NAME
+
+    @property
+    def train(self) -> pathlib.Path:
+        return self.run / TRAIN_DIR
+
+    @property
+    def choose(self) -> pathlib.Path:
+        return self.run / CHOOSE_DIR
+
+    @property
+    def eval(self) -> pathlib.Path:
+        return self.run / EVAL_DIR
+
+
+def models_dir() -> pathlib.Path:
+    """The shipped models (installed share directory, else beside the sources)."""
+    from stylepong_policy.train import default_config_path
+    return default_config_path('amp').parent.parent / 'models'
+
+
+def shipped_skill() -> pathlib.Path:
+    """The network behind the shipped style actor: the skill a new style starts from by default."""
+    return models_dir() / 'amp_actor_checkpoint.pt'
+
+
+def skill_checkpoint(given: pathlib.Path | None) -> pathlib.Path:
+    """The training checkpoint to start from: --from as given (a checkpoint, a learn_style RUN, or an
+    exported actor with its <name>_checkpoint.pt beside it), else the shipped skill."""
+    if given is None:
+        return shipped_skill()
+    candidates = [given / ACTOR_CHECKPOINT_NAME] if given.is_dir() else [
+        given.with_name(given.stem + '_checkpoint.pt'), given]
+    for candidate in candidates:
+        if candidate.is_file() and _is_training_checkpoint(candidate):
+            return candidate
+    raise StyleError(f'--from {given}: not a training checkpoint, and no {candidates[0].name} beside it '
+                     f'(an exported actor holds no critic to continue from)')
+
+
+def _is_training_checkpoint(path: pathlib.Path) -> bool:
+    import torch
+    try:
+        data = torch.load(path, map_location='cpu', weights_only=False)
+    except Exception:   # noqa: BLE001 - TorchScript archives and other files are simply not checkpoints
+        return False
+    return isinstance(data, dict) and 'model' in data and 'architecture' in data
+
+
+# --- the run's state ------------------------------------------------------------------------------
+def read_state(paths: Paths) -> dict:
+    """The run's record of its stages ({} for a new run)."""
+    return json.loads(paths.state.read_text()) if paths.state.is_file() else {}
+
+
+def write_state(paths: Paths, state: dict) -> None:
+    """Write the record atomically: a run killed mid-write keeps the previous one."""
+    tmp = paths.state.with_name(paths.state.name + '.tmp')
+    tmp.write_text(json.dumps(state, indent=2) + '\n')
+    tmp.replace(paths.state)
+
+
+def stage_done(paths: Paths, state: dict, stage: str, seconds: float, **facts) -> None:
+    """Record a finished stage, its wall time and facts."""
+    state.setdefault('stages', {})[stage] = {'wall_time_s': round(seconds, 1), **facts}
+    write_state(paths, state)
+
+
+def say(text: str) -> None:
+    """One line of the command's own output."""
+    print(f'[{PROG}] {text}', flush=True)
+
+
+# --- stages ---------------------------------------------------------------------------------------
+def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
+    """The one recipe (config/amp.yaml) and its path, on `device` (None: the config's)."""
+    from stylepong_policy.train import default_config_path
+    path = default_config_path('amp')
+    cfg = load_config(path)
+    if device is not None:
+        cfg.runner.device = device
+    cfg.runner.progress_bar = False
+    return cfg, path
+
+
+def check_stage(source: pathlib.Path, cfg: TrainConfig):
+    """The checked demonstrations (demo_check.DemonstrationSet); StyleError with one line per bad bag."""
+    from stylepong_policy import demo_check
+    try:
+        return demo_check.check_demonstrations(source, window_frames=cfg.amp.sequence_length)
+    except demo_check.DemonstrationError as err:
+        raise StyleError(str(err)) from err
+
+
+def dataset_stage(found, paths: Paths) -> dict:
+    """RUN/dataset.npz from checked demonstrations: their clips and x2/x3/x5 speed-ups."""
+    dataset = found.reference_dataset()
+    dataset.save(paths.dataset)
+    return {'clips': int(dataset.num_clips), 'frames': int(len(dataset.q)), 'clips_per_label': found.clips_per_label()}
+
+
+def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill: pathlib.Path,
+                budget_s: float, command: str) -> dict:
+    """Learn the style from the skill until the run's training time reaches budget_s (resumes a run)."""
+    from stylepong_policy import train
+    from stylepong_policy.learn_style_progress import StageBar
+    cfg.amp.dataset = str(paths.dataset)
+    resume = '' if (paths.train / 'checkpoints' / 'last.pt').is_file() else None
+    with StageBar('train', budget_s) as bar:
+        result = train.train_run(cfg, paths.train, 'amp', config_source=str(config_path), resume=resume,
+                                 start_from=None if resume is not None else skill, tensorboard=False,
+                                 until_wall_time_s=budget_s, on_iteration=bar.iteration, command=command)
+    runner = result.runner
+    if runner.interrupted:
+        raise KeyboardInterrupt
+    if result.actor_path is None:
+        raise StyleError('training completed no iteration within its budget; give more --minutes')
+    return {'iterations': runner.iteration, 'samples': runner.env_steps,
+            'training_time_s': round(runner.wall_time_s, 1),
+            'samples_per_s': round(runner.env_steps / max(runner.wall_time_s, 1e-9), 1)}
+
+
+def candidates_of(run_dir: pathlib.Path) -> list[tuple[str, list[int]]]:
+    """(name, iterations to average) of each candidate: averages of the last AVERAGED_SHARES of the
+    numbered checkpoints, and the last checkpoint alone."""
+    from stylepong_policy.select_checkpoint import numbered_checkpoints
+    iterations = [i for i, _ in numbered_checkpoints(run_dir)]
+    if not iterations:
+        raise StyleError(f'{run_dir} has no numbered checkpoint to choose from; give more --minutes')
+    chosen: list[tuple[str, list[int]]] = []
+    for share in AVERAGED_SHARES:
+        tail = iterations[-max(2, round(len(iterations) * share)):]
+        name = f'average_{tail[0]}_{tail[-1]}'
+        if len(tail) > 1 and all(name != c[0] for c in chosen):
+            chosen.append((name, tail))
+    chosen.append((f'checkpoint_{iterations[-1]}', iterations[-1:]))
+    return chosen
+
+
+def choose_stage(paths: Paths, device: str) -> dict:
+    """Validate each candidate (candidates_of) and keep the choice (choose_candidate)."""
+    import torch
+
+    from stylepong_policy.average_checkpoints import average_checkpoints
+    from stylepong_policy.learn_style_progress import StageBar
+    from stylepong_policy.rl.runner import read_checkpoint
+    from stylepong_policy.select_checkpoint import export_checkpoint, numbered_checkpoints, run_evaluation
+    paths.choose.mkdir(parents=True, exist_ok=True)
+    by_iteration = dict(numbered_checkpoints(paths.train))
+    rows = []
+    candidates = candidates_of(paths.train)
+    with StageBar('choose', len(candidates), unit='candidate') as bar:
+        for name, iterations in candidates:
+            checkpoint = average_checkpoints([read_checkpoint(by_iteration[i]) for i in iterations])
+            torch.save(checkpoint, paths.choose / f'{name}.pt')
+            actor = export_checkpoint(checkpoint, paths.choose / f'{name}_actor.pt', onnx=False)
+            result = run_evaluation(actor, speed='all', device=device, dtw_dataset=str(paths.dataset), **VALIDATION)
+            distances = [d['mean_rad'] for d in result['dtw'].values() if d['mean_rad'] is not None]
+            rows.append({'candidate': name, 'iterations': iterations, 'success_rate': result['success_rate'],
+                         'mean_dtw_rad': sum(distances) / len(distances) if distances else None,
+                         'dtw_rad': {k: v['mean_rad'] for k, v in result['dtw'].items()}})
+            bar.advance(1)
+    chosen = choose_candidate(rows)
+    (paths.choose / 'candidates.json').write_text(json.dumps({'validation': VALIDATION, 'min_success': MIN_SUCCESS,
+                                                              'candidates': rows, 'chosen': chosen['candidate']},
+                                                             indent=2) + '\n')
+    return {'chosen': chosen['candidate'], 'validation_success': chosen['success_rate'],
+            'validation_mean_dtw_rad': chosen['mean_dtw_rad']}
+
+
+def choose_candidate(rows: list[dict]) -> dict:
+    """The lowest mean DTW among the rows returning MIN_SUCCESS (a row without DTW counts as far); else the
+    row that returns most."""
+    good = [r for r in rows if r['success_rate'] >= MIN_SUCCESS]
+    if not good:
+        return max(rows, key=lambda r: r['success_rate'])
+    return min(good, key=lambda r: float('inf') if r['mean_dtw_rad'] is None else r['mean_dtw_rad'])
+
+
+def export_stage(paths: Paths, chosen: str) -> None:
+    """The chosen candidate as RUN/actor.pt, .json, .onnx, and its network as RUN/actor_checkpoint.pt."""
+    import torch
+
+    from stylepong_policy.select_checkpoint import export_checkpoint
+    checkpoint = torch.load(paths.choose / f'{chosen}.pt', map_location='cpu', weights_only=False)
+    export_checkpoint(checkpoint, paths.actor, onnx=True, extra={'learn_style': {'candidate': chosen}})
+    slim = {**checkpoint, 'optimizer': None, 'motion_prior': None}
+    torch.save(slim, paths.actor_checkpoint)
+
+
+def evaluate_stage(paths: Paths, device: str) -> dict:
+    """The new actor, PPO's and the shipped style actor on the evaluation seeds, against the demonstrations."""
+    from stylepong_policy import style_report
+    from stylepong_policy.learn_style_progress import StageBar
+    paths.eval.mkdir(parents=True, exist_ok=True)
+    actors = {'style': paths.actor, 'ppo': models_dir() / 'ppo_actor.pt', 'shipped': models_dir() / 'amp_actor.pt'}
+    jobs = [(name, actor, 'all', EVALUATION) for name, actor in actors.items()]
+    jobs.append(('style', paths.actor, 'high', EVALUATION_HIGH))
+    with StageBar('evaluate', len(jobs), unit='evaluation') as bar:
+        for name, actor, speed, setting in jobs:
+            out = paths.eval / style_report.summary_name(name, speed)
+            strokes = paths.eval / style_report.strokes_name(name) if speed == 'all' else None
+            result = evaluate_with_strokes(actor, speed, setting, device, paths.dataset, strokes)
+            out.write_text(json.dumps(result, indent=2) + '\n')
+            bar.advance(1)
+    style = json.loads((paths.eval / style_report.summary_name('style', 'all')).read_text())
+    return {'success_rate': style['success_rate'],
+            'dtw_rad': {k: v['mean_rad'] for k, v in style.get('dtw', {}).items()}}
+
+
+def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device: str, dataset: pathlib.Path,
+                          strokes_path: pathlib.Path | None) -> dict:
+    """evaluate's summary of an actor with DTW against `dataset`, its strokes saved when a path is given."""
+    from stylepong_player.spec import ACTION_RATE_HZ
+    from stylepong_policy import evaluate
+    from stylepong_policy import strokes as st
+    from stylepong_policy.rl.export import load_actor
+    loaded = load_actor(actor)
+    evaluation = evaluate.evaluate_actor(loaded, speed=speed, device=device, **setting)
+    summary = evaluate.summarise(evaluation, dataset=evaluate.load_reference(dataset), dataset_path=dataset)
+    if strokes_path is not None:
+        st.save_strokes(strokes_path, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
+                        joint_names=loaded.metadata['joint_names'], actor=evaluation.actor, speed=speed)
+        summary['strokes_file'] = evaluate.portable_path(strokes_path)
+    return summary
+
+
+def report_stage(paths: Paths, state: dict) -> pathlib.Path:
+    """RUN/report.md and its figures."""
+    from stylepong_policy import style_report
+    return style_report.write_report(paths.run, state)
+
+
+# --- the command ----------------------------------------------------------------------------------
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of learn_style."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split('\n\n')[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('source', type=pathlib.Path, metavar='BAGS_DIR_OR_DATASET',
+                        help='a folder of labelled demonstration bags, or a build_dataset .npz')
+    parser.add_argument('--out', required=True, type=pathlib.Path, help='run directory')
+    parser.add_argument('--minutes', type=float, default=DEFAULT_MINUTES,
+                        help=f'wall-time budget of the whole command (default {DEFAULT_MINUTES:g})')
+    parser.add_argument('--device', choices=('cpu', 'cuda'), default=None, help='torch device (default: cpu)')
+    parser.add_argument('--from', dest='start_from', type=pathlib.Path, metavar='ACTOR',
+                        help='the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
+                             '(default: the shipped style actor)')
+    parser.add_argument('--resume', action='store_true', help='continue the run in --out from its last stage')
+    return parser.parse_args(argv)
+
+
+def training_budget_s(minutes: float) -> float:
+    """The training stage's share of the budget: all but RESERVE_S (a quarter of a short budget)."""
+    total_s = minutes * 60.0
+    return max(MIN_TRAIN_S, total_s - min(RESERVE_S, 0.25 * total_s))
+
+
+def run(args: argparse.Namespace, command: str) -> pathlib.Path:
+    """Every stage not yet done; returns the report's path. StyleError for what the user must fix."""
+    paths = Paths(args.out)
+    state = read_state(paths)
+    if state and not args.resume:
+        raise StyleError(f'{args.out} already holds a learn_style run; pass --resume to continue it or choose '
+                         'another --out')
+    if args.resume and not state:
+        say(f'nothing to resume in {args.out}; starting a new run')
+    if args.minutes <= 0:
+        raise StyleError(f'--minutes must be positive, got {args.minutes}')
+    if state:   # a resumed run keeps what it was started with
+        source, minutes = pathlib.Path(state['source']), float(state['minutes'])
+        device, skill = state['device'], pathlib.Path(state['skill'])
+    else:
+        source, minutes, device = args.source, args.minutes, args.device or 'cpu'
+        if not source.exists():
+            raise StyleError(f'{source}: no such folder or dataset')
+        skill = skill_checkpoint(args.start_from)
+    cfg, config_path = recipe(device)
+    started = time.perf_counter()
+    found = check_stage(source, cfg)   # again on resume: it is quick, and the bags may have changed
+    if 'check' not in state.get('stages', {}):
+        args.out.mkdir(parents=True, exist_ok=True)
+        state.update(source=str(source.resolve()), minutes=minutes, device=device, skill=str(skill.resolve()),
+                     command=command, config=str(config_path))
+        stage_done(paths, state, 'check', time.perf_counter() - started, summary=found.describe())
+    say(f'demonstrations: {found.describe()}')
+    for stage in STAGES[1:]:
+        if stage in state.get('stages', {}):
+            continue
+        started = time.perf_counter()
+        say(f'stage {STAGES.index(stage) + 1}/{len(STAGES)}: {stage}')
+        facts = run_stage(stage, paths, state, found, cfg, config_path, skill, minutes, device)
+        stage_done(paths, state, stage, time.perf_counter() - started, **(facts or {}))
+    return paths.run / 'report.md'
+
+
+def run_stage(stage: str, paths: Paths, state: dict, found, cfg: TrainConfig, config_path: pathlib.Path,
+              skill: pathlib.Path, minutes: float, device: str) -> dict | None:
+    """Run one stage after the check; returns the facts its record keeps."""
+    if stage == 'dataset':
+        return dataset_stage(found, paths)
+    if stage == 'train':
+        return train_stage(cfg, config_path, paths, skill, training_budget_s(minutes), state['command'])
+    if stage == 'choose':
+        return choose_stage(paths, device)
+    if stage == 'export':
+        export_stage(paths, state['stages']['choose']['chosen'])
+        return None
+    if stage == 'evaluate':
+        return evaluate_stage(paths, device)
+    report_stage(paths, state)
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the learn_style executable."""
+    args = parse_args(argv)
+    command = shlex.join([PROG] + (sys.argv[1:] if argv is None else list(argv)))
+    try:
+        report = run(args, command)
+    except StyleError as err:
+        print(f'{PROG}: {err}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted; the last checkpoint is kept. Continue with: '
+              f'{PROG} {shlex.quote(str(args.source))} --out {shlex.quote(str(args.out))} --resume', file=sys.stderr)
+        return 130
+    say(f'done: {args.out / ACTOR_NAME} (+ .json, .onnx); report {report}')
+    say(f'play it: ros2 run stylepong_player player --ros-args -p actor:={args.out / "actor.onnx"}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

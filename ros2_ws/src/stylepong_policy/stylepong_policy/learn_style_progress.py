@@ -1,0 +1,48 @@
+"""learn_style's progress: one bar per stage, with the stage's name and an ETA (tqdm).
+
+The training stage is budgeted in time, so its bar counts seconds of training against the budget and
+its ETA is the budget left; the other stages count their evaluations. On a terminal the bar redraws in
+place; in a log file (nohup) it writes a line every LOG_INTERVAL_S.
+"""
+from __future__ import annotations
+
+import sys
+
+from tqdm import tqdm
+
+LOG_INTERVAL_S = 30.0
+
+
+class StageBar:
+    """A context manager around tqdm for one stage of learn_style."""
+
+    def __init__(self, stage: str, total: float, unit: str = 's'):
+        self.stage = stage
+        self.total = float(total)
+        self.unit = unit
+        self.bar: tqdm | None = None
+
+    def __enter__(self) -> 'StageBar':
+        tty = sys.stderr.isatty()
+        fmt = '{desc} {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} ' + self.unit + ' [{elapsed}<{remaining}{postfix}]'
+        self.bar = tqdm(total=self.total, desc=f'[learn_style] {self.stage}', bar_format=fmt, dynamic_ncols=True,
+                        mininterval=0.5 if tty else LOG_INTERVAL_S, file=sys.stderr)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def advance(self, amount: float) -> None:
+        """Move the bar on, never past its total."""
+        if self.bar is not None:
+            self.bar.update(max(0.0, min(amount, self.total - self.bar.n)))
+
+    def iteration(self, stats: dict) -> None:
+        """The runner's per-iteration callback: its training time and a few figures."""
+        self.advance(float(stats.get('iteration_time_s', 0.0)))
+        if self.bar is not None:
+            success = stats.get('success_rate')
+            self.bar.set_postfix_str(f'it {stats.get("iteration")}'
+                                     + (f', success {success:.3f}' if isinstance(success, float) else '')
+                                     + f', pose {stats.get("step_reward/pose", float("nan")):.3f}', refresh=False)

@@ -1,0 +1,97 @@
+"""The pose prior (rl.pose_prior) and how the motion prior uses it: the reward of a pose against its label's
+demonstrated pose at the same time from the hit, labels without clips, and the mixed reward."""
+import math
+
+import numpy as np
+import pytest
+import torch
+from synthetic_reference import write_reference  # beside this file: conftest.py
+
+from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
+from stylepong_policy.rl.config import AMPConfig
+from stylepong_policy.rl.pose_prior import PosePrior
+
+LABELS = ('forward', 'leftward', 'rightward')
+
+
+def line_clip(frames: int, hit: int, joint: int = 0) -> tuple[np.ndarray, int]:
+    """A clip whose joint `joint` reads its frame index (rad), with its hit frame."""
+    q = np.zeros((frames, 6))
+    q[:, joint] = np.arange(frames)
+    return q, hit
+
+
+def test_reference_is_the_clip_frame_at_the_same_time_from_the_hit():
+    prior = PosePrior([[line_clip(10, 4)]], sigma_rad=0.5, rate_hz=10.0)
+    q = torch.zeros(5, 6)
+    time_s = torch.tensor([0.0, -0.2, 0.3, -5.0, 5.0])       # frames 4, 2, 7, before the start, after the end
+    expected = [4.0, 2.0, 7.0, 0.0, 9.0]
+    assert prior.reference_distance_rad(q, time_s).tolist() == pytest.approx(expected)
+    q[:, 0] = torch.tensor(expected)
+    assert prior.reward(q, time_s).tolist() == pytest.approx([1.0] * 5)
+    q[0, 0] = 5.0
+    assert prior.reward(q, time_s)[0].item() == pytest.approx(math.exp(-1.0 / 0.5))
+
+
+def test_the_nearest_clip_of_the_label_counts_and_other_labels_do_not():
+    prior = PosePrior([[line_clip(10, 4, joint=0), line_clip(10, 4, joint=1)], [line_clip(5, 2, joint=2)]],
+                      sigma_rad=1.0, rate_hz=10.0)
+    q = torch.zeros(2, 6)
+    q[:, 1] = 4.0                      # on the second clip of label 0 at the hit, 4 rad off label 1's clip
+    distance = prior.reference_distance_rad(q, torch.zeros(2), torch.tensor([0, 1]))
+    assert distance[0].item() == pytest.approx(0.0)
+    assert distance[1].item() == pytest.approx(math.hypot(4.0, 2.0))
+
+
+def test_a_label_without_clips_earns_nothing():
+    prior = PosePrior([[line_clip(4, 1)], []], sigma_rad=0.3, rate_hz=60.0)
+    reward = prior.reward(torch.zeros(3, 6), torch.zeros(3), torch.tensor([0, 1, 1]))
+    assert reward[1:].tolist() == [0.0, 0.0] and prior.labels_with_clips.tolist() == [True, False]
+
+
+def test_bad_priors_are_refused():
+    with pytest.raises(ValueError, match='sigma'):
+        PosePrior([[line_clip(4, 1)]], sigma_rad=0.0, rate_hz=60.0)
+    with pytest.raises(ValueError, match='no demonstrated clip'):
+        PosePrior([[], []], sigma_rad=0.3, rate_hz=60.0)
+    with pytest.raises(ValueError, match='hit frame'):
+        PosePrior([[line_clip(4, 7)]], sigma_rad=0.3, rate_hz=60.0)
+
+
+@pytest.fixture(scope='module')
+def forward_only(tmp_path_factory):
+    """A dataset of forward clips only (originals and speed-ups)."""
+    path = write_reference(tmp_path_factory.mktemp('pose') / 'forward.npz', labels=('forward', 'forward'))
+    return ReferenceDataset.load(path)
+
+
+def test_from_dataset_takes_every_clip_of_each_label(forward_only):
+    prior = PosePrior.from_dataset(forward_only, LABELS, sigma_rad=0.3)
+    assert [clips.count for clips in prior.labels] == [forward_only.num_clips, 0, 0]
+    # A demonstrated clip played on the clock of its own hit is at distance 0 all along.
+    clip = forward_only.clip(0)
+    hit = int(prior.labels[0].hit_frames[0])
+    time_s = (torch.arange(len(clip.q)) - hit) / forward_only.rate_hz
+    q = torch.as_tensor(clip.q, dtype=torch.float32)
+    assert prior.reference_distance_rad(q, time_s, torch.zeros(len(q), dtype=torch.long)).max() < 1e-5
+
+
+def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose(forward_only):
+    cfg = AMPConfig(sequence_length=2, frame_features='q', condition_on_label=True, w_style=0.5, w_pose=2.0,
+                    pose_sigma_rad=0.3)
+    reference = ReferenceMotion.from_dataset(forward_only, 2, features='q', label_names=LABELS)
+    prior = MotionPrior(cfg, reference, 12, num_envs=3, device='cpu',
+                        pose_prior=PosePrior.from_dataset(forward_only, LABELS, 0.3))
+    frames = torch.as_tensor(forward_only.states()[:3], dtype=torch.float32)
+    prior.start(frames)
+    labels = torch.tensor([0, 1, 2])
+    style = prior.observe(frames, torch.zeros(3, dtype=torch.bool), frames, labels)
+    assert style[1:].tolist() == [0.0, 0.0]
+    with pytest.raises(ValueError, match='style_time_s'):
+        prior.pose_reward(frames, None, labels)
+    pose = prior.pose_reward(frames, torch.zeros(3), labels)
+    assert pose[0].item() > 0.0 and pose[1:].tolist() == [0.0, 0.0]
+    task = torch.tensor([1.0, 2.0, 3.0])
+    mixed = prior.mix(task, style, pose=pose)
+    assert mixed.tolist() == pytest.approx((task + 0.5 * style + 2.0 * pose).tolist())
