@@ -120,10 +120,17 @@ def skill_checkpoint(given: pathlib.Path | None) -> pathlib.Path:
 
 
 def _is_training_checkpoint(path: pathlib.Path) -> bool:
+    """A file torch.save wrote with a network and its architecture (not a TorchScript actor, whose archive
+    holds code)."""
+    import zipfile
+
     import torch
     try:
+        with zipfile.ZipFile(path) as archive:
+            if any('/code/' in name for name in archive.namelist()):
+                return False
         data = torch.load(path, map_location='cpu', weights_only=False)
-    except Exception:   # noqa: BLE001 - TorchScript archives and other files are simply not checkpoints
+    except (OSError, zipfile.BadZipFile, RuntimeError, EOFError, ValueError):
         return False
     return isinstance(data, dict) and 'model' in data and 'architecture' in data
 
@@ -277,14 +284,15 @@ def evaluate_stage(paths: Paths, device: str) -> dict:
     actors = {'style': paths.actor, 'ppo': models_dir() / 'ppo_actor.pt', 'shipped': models_dir() / 'amp_actor.pt'}
     jobs = [(name, actor, 'all', EVALUATION) for name, actor in actors.items()]
     jobs.append(('style', paths.actor, 'high', EVALUATION_HIGH))
-    with StageBar('evaluate', len(jobs), unit='evaluation') as bar:
+    with StageBar('evaluate', len(jobs), unit='evaluations') as bar:
         for name, actor, speed, setting in jobs:
-            out = paths.eval / style_report.summary_name(name, speed)
-            strokes = paths.eval / style_report.strokes_name(name) if speed == 'all' else None
-            result = evaluate_with_strokes(actor, speed, setting, device, paths.dataset, strokes)
+            files = style_report.eval_files(paths.run, name)
+            out = files.all_speeds_json if speed == 'all' else files.high_speeds_json
+            result = evaluate_with_strokes(actor, speed, setting, device, paths.dataset,
+                                           files.strokes_npz if speed == 'all' else None)
             out.write_text(json.dumps(result, indent=2) + '\n')
             bar.advance(1)
-    style = json.loads((paths.eval / style_report.summary_name('style', 'all')).read_text())
+    style = json.loads(style_report.eval_files(paths.run, 'style').all_speeds_json.read_text())
     return {'success_rate': style['success_rate'],
             'dtw_rad': {k: v['mean_rad'] for k, v in style.get('dtw', {}).items()}}
 
@@ -309,7 +317,17 @@ def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device
 def report_stage(paths: Paths, state: dict) -> pathlib.Path:
     """RUN/report.md and its figures."""
     from stylepong_policy import style_report
-    return style_report.write_report(paths.run, state)
+    stages = state.get('stages', {})
+    missing = [label for label, count in stages.get('dataset', {}).get('clips_per_label', {}).items() if not count]
+    notes = [f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',
+             f'Recipe: {state.get("config")}, from the skill {state.get("skill")}; command: `{state.get("command")}`.']
+    if missing:
+        notes.append(f'No clip labelled {", ".join(missing)}: those balls earned no style term in training and are '
+                     'returned with the stroke of the skill the run started from; no DTW is measured for them.')
+    return style_report.write_report(paths.run, dataset_path=paths.dataset,
+                                     timings_s={k: v['wall_time_s'] for k, v in stages.items()},
+                                     checkpoints={'train': stages.get('train'), 'choose': stages.get('choose')},
+                                     notes=notes)
 
 
 # --- the command ----------------------------------------------------------------------------------

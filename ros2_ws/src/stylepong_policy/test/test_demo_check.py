@@ -28,7 +28,7 @@ from stylepong_recording.joint_state_bags import (
 )
 
 SHIPPED_BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
-WINDOW = 8     # the cpu recipe's discriminator window (config/amp_cpu.yaml sequence_length)
+WINDOW = 8     # the recipe's discriminator window (config/amp.yaml sequence_length)
 SWING = Swing()
 
 
