@@ -4,7 +4,8 @@ SHELL := /bin/bash
 ROOT := $(CURDIR)
 # Sourcing the workspace is all a command needs: the venv underlay comes with it.
 WS := set +u; source $(ROOT)/ros2_ws/install/setup.bash;
-PYTEST_ARGS ?=
+# Tests marked slow (over 20 s each on a 2-core machine) run in .ci/run, which clears this.
+PYTEST_ARGS ?= -m 'not slow'
 
 .PHONY: setup demo test bench clean
 

@@ -275,6 +275,7 @@ def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
     assert len(lines) == 1 and words in lines[0], result.stderr
 
 
+@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_player_and_rally_eval_return_balls_in_ur5_sim(ros_env, tmp_path):
     out = tmp_path / 'rally.json'
     with NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim, \

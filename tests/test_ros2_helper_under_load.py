@@ -45,6 +45,7 @@ def _ros2(*args: str) -> subprocess.Popen:
     return subprocess.Popen(['ros2', *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_topic_list_shows_the_cells_topics_every_time(loaded_cell):
     # One at a time, as a user types them (several new participants at once discover each other faster).
     failures, durations = [], []

@@ -143,6 +143,7 @@ def _first_bounce_and_apex(probe: Ur5SimProbe, ball_id: int):
     return None
 
 
+@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_forty_randomized_balls_need_every_stroke(sim):
     _, probe = sim
     probe.reset()

@@ -5,6 +5,7 @@ The recorded clip is checked against the take the teacher's seed gives (teacher.
 import pathlib
 
 import numpy as np
+import pytest
 from rosbags.highlevel import AnyReader
 
 from stylepong_common.node_process import NodeProcess, wait_until
@@ -41,6 +42,7 @@ def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> n
             / (times_s[ahead[valid]] - times_s[valid]))
 
 
+@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
