@@ -1,7 +1,7 @@
 """The table-tennis task: the batched world (stylepong_sim.batched_world) as an RL environment.
 
 Where things live: the world (physics, robot, referee) is a simulator of the cell and sits with the
-cell in stylepong_sim; what makes it a learning problem (observations through stylepong_policy.spec,
+cell in stylepong_sim; what makes it a learning problem (observations through stylepong_player.spec,
 rewards, goals, domain randomisation, sensing noise and latency, resets) is here, beside PPO.
 
 One episode = one incoming ball, from its launch (world_spec's distribution, vectorised) until the
@@ -42,7 +42,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import torch
 
-from stylepong_policy import spec
+from stylepong_player import spec
 from stylepong_policy import strokes as st
 from stylepong_policy.rl import env as env_contract
 from stylepong_sim import batched_launcher as bl
@@ -231,6 +231,8 @@ class TableTennisEnv:
         # Policy steps since the ball was struck (0 before, and again from the next ball, whose hit flag is clear).
         self._steps_since_hit = torch.zeros(n, dtype=torch.long, device=self.device)
         self._style_weight_steps = round(cfg.style_weight_after_hit_s / self.policy_dt_s)
+        # A stroke ends this many steps after the paddle's touch, as `evaluate` cuts strokes (strokes module).
+        self._follow_through_steps = round(st.FOLLOW_THROUGH_S / self.policy_dt_s)
         self.num_style_features = ARM_STATE_SIZE
         # The kinds of motion a step may ask the motion prior for (rl.env's style labels): the stroke each
         # ball needs, labelled as the demonstrations are.
@@ -358,14 +360,14 @@ class TableTennisEnv:
     def step(self, actions: torch.Tensor):
         """Advance every environment by one policy period.
 
-        actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_policy.spec).
+        actions [N, 6]: the policy's raw output (clipped and decoded by stylepong_player.spec).
         Returns (obs [N, num_obs], critic_obs [N, num_critic_obs], rewards [N], dones [N] bool, extras) as
         the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
         'style_state', 'style_label' (the ball's direction), 'style_phase' (the paddle has touched the
-        ball), 'style_time_s' (the style clock: _style_time_s), and 'style_weight' when
-        style_weight_after_hit is not 1). 'log' holds success_rate,
-        hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each referee verdict) and
-        reward/<term> (the episodes' sums of each reward term).
+        ball), 'style_time_s' (the style clock: _style_time_s), 'style_stroke_end' (FOLLOW_THROUGH_S
+        after the touch, as evaluate cuts strokes), and 'style_weight' when style_weight_after_hit is not 1).
+        'log' holds success_rate, hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each
+        referee verdict) and reward/<term> (the episodes' sums of each reward term).
         The task's own extras, after the step and before any reset:
           'outcome'       per ball decided in this step: {'done', 'success', 'hit' (the paddle touched it
                           before the verdict) [N] bool, 'reason' [N] int64 index into FAILURE_REASONS}
@@ -413,6 +415,7 @@ class TableTennisEnv:
                   'reward_terms': terms}
         self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
         extras[env_contract.EXTRAS_STYLE_TIME] = self._style_time_s()
+        extras[env_contract.EXTRAS_STYLE_STROKE_END] = self._steps_since_hit == self._follow_through_steps
         if self.cfg.style_weight_after_hit != 1.0:
             factor = self.cfg.style_weight_after_hit
             extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(self._style_weighted(), factor, 1.0)

@@ -160,7 +160,7 @@ def build_shipped_dataset(path: pathlib.Path) -> pathlib.Path:
     """build_dataset over the shipped clips (ros2_ws/bags) into `path`; FileNotFoundError if it fails."""
     from stylepong_policy import build_dataset
     bags = shipped_bags_dir()
-    if build_dataset.run([str(bags), '-o', str(path)]) != 0 or not path.is_file():
+    if build_dataset.build([bags], path) != 0 or not path.is_file():
         raise FileNotFoundError(f'could not build a reference dataset from {bags}; pass --dataset')
     return path
 
@@ -170,6 +170,7 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
     from stylepong_policy.dataset import ReferenceDataset
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     from stylepong_policy.rl.pose_prior import PosePrior
+    from stylepong_policy.rl.stroke_prior import StrokePrior
     path = reference_dataset_path(cfg.amp, run_dir)
     dataset = ReferenceDataset.load(path)
     label_names = tuple(getattr(env, 'style_labels', ())) if cfg.amp.condition_on_label else ()
@@ -182,8 +183,10 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
           + (', and on the phase (before / after the hit)' if cfg.amp.condition_on_phase else ''), flush=True)
     pose_prior = (PosePrior.from_dataset(dataset, label_names, cfg.amp.pose_sigma_rad, device)
                   if cfg.amp.w_pose > 0.0 else None)
+    stroke_prior = (StrokePrior.from_dataset(dataset, label_names, cfg.amp.stroke_sigma_rad, env.num_envs)
+                    if cfg.amp.w_stroke > 0.0 else None)
     return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed,
-                       pose_prior=pose_prior), path
+                       pose_prior=pose_prior, stroke_prior=stroke_prior), path
 
 
 def resolve_device(name: str) -> torch.device:

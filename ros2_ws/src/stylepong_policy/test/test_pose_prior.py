@@ -95,3 +95,31 @@ def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose
     task = torch.tensor([1.0, 2.0, 3.0])
     mixed = prior.mix(task, style, pose=pose)
     assert mixed.tolist() == pytest.approx((task + 0.5 * style + 2.0 * pose).tolist())
+
+
+def test_stroke_prior_rewards_each_stroke_once_by_its_dtw_to_the_nearest_clip_of_its_label():
+    from stylepong_policy.rl.stroke_prior import StrokePrior
+    from stylepong_policy.style_metrics import dtw_distance_rad
+    clip = line_clip(4, 1)[0]
+    prior = StrokePrior([[clip], []], sigma_rad=0.5, num_envs=3, joints=6)
+    frames = torch.zeros(3, 6)
+    prior.start(frames)
+    no = torch.zeros(3, dtype=torch.bool)
+    labels = torch.tensor([0, 0, 1])
+    rewards = []
+    for step in range(1, 4):
+        frames = torch.zeros(3, 6)
+        frames[:, 0] = float(step)
+        end = torch.tensor([step == 3, False, step == 3])
+        rewards.append(prior.observe(frames, end, no, frames, labels))
+    assert all(r.abs().sum() == 0 for r in rewards[:2])
+    stroke = np.zeros((4, 6))
+    stroke[:, 0] = np.arange(4)
+    assert rewards[2][0].item() == pytest.approx(math.exp(-dtw_distance_rad(stroke, clip) / (0.5 * 4)))
+    assert rewards[2][0].item() == pytest.approx(1.0)            # the clip itself
+    assert rewards[2][1:].tolist() == [0.0, 0.0]                 # still going; a label without clips
+    # An ended stroke earns nothing more until its episode ends; the episode's end ends the other stroke.
+    done = torch.tensor([True, True, False])
+    after = prior.observe(torch.full((3, 6), 9.0), no, done, torch.zeros(3, 6), labels)
+    assert after[0].item() == 0.0 and 0.0 < after[1].item() < 1.0
+    assert prior.lengths.tolist() == [1, 1, 4]

@@ -51,6 +51,7 @@ from .config import FRAME_FEATURES, AMPConfig
 from .networks import make_mlp
 from .normalizer import RunningNormalizer
 from .pose_prior import PosePrior
+from .stroke_prior import StrokePrior
 
 STYLE_REWARDS = ('lsgan', 'log')
 # A conditioned stroke's phases: before the hit (0) and after it (1).
@@ -253,16 +254,18 @@ class MotionPrior:
     """The discriminator, its data and its training, and the style reward for the policy's windows."""
 
     def __init__(self, cfg: AMPConfig, reference: ReferenceMotion, frame_size: int, num_envs: int,
-                 device: torch.device | str, seed: int = 0, pose_prior: PosePrior | None = None):
+                 device: torch.device | str, seed: int = 0, pose_prior: PosePrior | None = None,
+                 stroke_prior: StrokePrior | None = None):
         """frame_size: the env's style frame; the discriminator sees its cfg.frame_features, as `reference`
-        must hold them. pose_prior: the dense pose reward weighted by cfg.w_pose (rl.pose_prior), with the
-        labels of the env's style_labels when conditioned on labels."""
+        must hold them. pose_prior and stroke_prior: the pose reward weighted by cfg.w_pose (rl.pose_prior)
+        and the stroke reward weighted by cfg.w_stroke (rl.stroke_prior), with the labels of the env's
+        style_labels when conditioned on labels."""
         self.cfg = cfg
         self.device = torch.device(device)
         self.columns = feature_columns(cfg.frame_features, frame_size)
         # The joint positions of a frame, which the pose prior compares (none without a pose prior: a frame
         # need not be positions and velocities then).
-        self.q_columns = feature_columns('q', frame_size) if pose_prior is not None else None
+        self.q_columns = feature_columns('q', frame_size) if pose_prior or stroke_prior else None
         frame_size = self.columns.stop - self.columns.start
         if reference.frames.shape[1] != frame_size:
             raise ValueError(f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
@@ -283,6 +286,7 @@ class MotionPrior:
         self.history: StyleHistory | None = None
         self.num_envs = int(num_envs)
         self.pose_prior = pose_prior
+        self.stroke_prior = stroke_prior
         # A label without demonstrations earns no style reward: D has no example of it, so it could only
         # teach the policy what that stroke is not (item "labels without clips" in docs/DESIGN.md).
         self.labels_with_windows = (torch.bincount(reference.labels, minlength=self.num_labels) > 0
@@ -304,6 +308,8 @@ class MotionPrior:
     def start(self, first_frames: torch.Tensor) -> None:
         """Every environment begins a new episode with these frames [N, D]."""
         self.history = StyleHistory(first_frames[:, self.columns], self.cfg.sequence_length)
+        if self.stroke_prior is not None:
+            self.stroke_prior.start(first_frames[:, self.q_columns])
 
     def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor,
                 labels: torch.Tensor | None = None, phases: torch.Tensor | None = None) -> torch.Tensor:
@@ -338,13 +344,25 @@ class MotionPrior:
             raise ValueError("amp.w_pose: the env must give each step's 'style_time_s'")
         return self.pose_prior.reward(frames[:, self.q_columns], time_s, labels if self.num_labels else None)
 
+    def stroke_reward(self, frames: torch.Tensor, stroke_end: torch.Tensor | None, dones: torch.Tensor,
+                      next_first_frames: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+        """The stroke prior's reward [N] (rl.stroke_prior.StrokePrior.observe; 0 without a stroke prior)."""
+        if self.stroke_prior is None:
+            return torch.zeros(frames.shape[0], device=frames.device)
+        if stroke_end is None:
+            raise ValueError("amp.w_stroke: the env must give each step's 'style_stroke_end'")
+        return self.stroke_prior.observe(frames[:, self.q_columns], stroke_end, dones,
+                                         next_first_frames[:, self.q_columns], labels if self.num_labels else None)
+
     def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
-            pose: torch.Tensor | None = None) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style + w_pose r_pose, the style terms times the env's per-step factor
-        [N] when it gives one."""
+            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke, the motion terms times the
+        env's per-step factor [N] when it gives one."""
         motion = self.cfg.w_style * style
         if pose is not None:
             motion = motion + self.cfg.w_pose * pose
+        if stroke is not None:
+            motion = motion + self.cfg.w_stroke * stroke
         if style_factor is not None:
             motion = style_factor * motion
         return self.cfg.w_task * task_reward + motion

@@ -102,16 +102,20 @@ class AMPConfig:
     # The pose prior (rl.pose_prior): w_pose exp(-|q - nearest demonstrated pose of the label| / sigma) per step.
     w_pose: float = 0.0
     pose_sigma_rad: float = 0.3
+    # The stroke prior (rl.stroke_prior): w_stroke exp(-DTW(stroke, nearest clip) / (sigma frames)), once a stroke.
+    w_stroke: float = 0.0
+    stroke_sigma_rad: float = 0.4
 
     def validate(self) -> None:
         positive = {'sequence_length': self.sequence_length, 'learning_rate': self.learning_rate,
                     'batch_size': self.batch_size, 'replay_size': self.replay_size,
-                    'normalizer_clip': self.normalizer_clip, 'pose_sigma_rad': self.pose_sigma_rad}
+                    'normalizer_clip': self.normalizer_clip, 'pose_sigma_rad': self.pose_sigma_rad,
+                    'stroke_sigma_rad': self.stroke_sigma_rad}
         for name, value in positive.items():
             if not value > 0:
                 raise ValueError(f'amp.{name} must be positive, got {value}')
         for name in ('weight_decay_trunk', 'weight_decay_head', 'grad_penalty', 'updates_per_iteration', 'w_task',
-                     'w_style', 'w_pose'):
+                     'w_style', 'w_pose', 'w_stroke'):
             if getattr(self, name) < 0:
                 raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
         if self.frame_features not in FRAME_FEATURES:

@@ -30,7 +30,10 @@ and may hold
                  conditioned on phases (amp.condition_on_phase) needs it;
   'style_time_s' [N] float: the style clock, the time from each step to that event (negative before it,
                  the time it is expected in; positive after it), before any reset; the pose prior
-                 (amp.w_pose, rl.pose_prior) needs it.
+                 (amp.w_pose, rl.pose_prior) needs it;
+  'style_stroke_end' [N] bool: the step that ends the stroke each episode's style is judged on (the
+                 episode's end ends it too, if nothing did before), before any reset; the stroke prior
+                 (amp.w_stroke, rl.stroke_prior) needs it.
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -51,6 +54,7 @@ EXTRAS_STYLE_WEIGHT = 'style_weight'
 EXTRAS_STYLE_LABEL = 'style_label'
 EXTRAS_STYLE_PHASE = 'style_phase'
 EXTRAS_STYLE_TIME = 'style_time_s'
+EXTRAS_STYLE_STROKE_END = 'style_stroke_end'
 
 
 class VecEnv(Protocol):

@@ -6,7 +6,7 @@ the spec module decodes into joint position targets):
   <name>.json  its sidecar: the contract (spec version, rates, joint names, observation layout, action
                decoding), the file's SHA-256, the network and training facts;
   <name>.onnx  the same function for onnxruntime (the `player` default: no torch on the robot computer),
-               the sidecar's contract in its metadata_props (stylepong_policy.actor_contract).
+               the sidecar's contract in its metadata_props (stylepong_player.actor_contract).
 A player refuses an actor built for a different observation/action contract instead of silently feeding
 it the wrong numbers.
 

@@ -289,8 +289,11 @@ class OnPolicyRunner:
                     style = self.motion_prior.observe(frames, dones, self.env.style_state(), labels,
                                                       extras.get(env_contract.EXTRAS_STYLE_PHASE))
                     pose = self.motion_prior.pose_reward(frames, extras.get(env_contract.EXTRAS_STYLE_TIME), labels)
-                    parts = {'task': rewards, 'style': style, 'pose': pose}
-                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose)
+                    stroke = self.motion_prior.stroke_reward(frames, extras.get(env_contract.EXTRAS_STYLE_STROKE_END),
+                                                             dones, self.env.style_state(), labels)
+                    parts = {'task': rewards, 'style': style, 'pose': pose, 'stroke': stroke}
+                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose,
+                                                    stroke)
                     self._sync()
                     style_s += time.perf_counter() - t2
                 stats.record(rewards, dones, extras, parts)
