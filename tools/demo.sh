@@ -110,3 +110,7 @@ print(f"[demo] player: period p99 jitter {p['period_ms'].get('jitter_p99')} ms, 
 PY
 echo "[demo] outputs: demonstration clip $BAG; dataset $DEMO_DIR/dataset.npz (plot $DEMO_DIR/dataset.png);"
 echo "[demo]   rally result $DEMO_DIR/rally.json; rally video $DEMO_DIR/rally.mp4; node logs $LOGS"
+echo "[demo] next, a style of your own: learn one from the clip just recorded (a folder of your labelled clips"
+echo "[demo]   works the same), then play it (learn_style takes about 60 min on a 2-core CPU):"
+echo "[demo]   ros2 run stylepong_policy learn_style $BAG --out runs/my_style"
+echo "[demo]   ros2 run stylepong_player player --ros-args -p actor:=runs/my_style/actor.onnx"

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 import torch
 
@@ -53,7 +54,11 @@ def run(tmp_path_factory):
 def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
     actor = load_actor(run / ls.ACTOR_NAME)
     assert actor(torch.zeros(1, actor.num_obs)).shape == (1, actor.num_actions)
-    assert (run / 'actor.onnx').is_file()
+    # The player runs it as it is: the ONNX file against the contract of this workspace's spec.
+    from stylepong_player.actor_contract import current_spec_contract
+    from stylepong_player.player_core import load_actor as player_actor
+    onnx = player_actor(run / 'actor.onnx', 'onnx', current_spec_contract())
+    assert onnx(np.zeros((1, actor.num_obs), dtype=np.float32)).shape == (1, actor.num_actions)
     assert read_sidecar(run / ls.ACTOR_NAME)['training']['learn_style']['candidate']
     checkpoint = torch.load(run / ls.ACTOR_CHECKPOINT_NAME, map_location='cpu', weights_only=False)
     assert {'model', 'architecture'} <= set(checkpoint) and checkpoint['optimizer'] is None
