@@ -24,6 +24,7 @@ setup(
         'console_scripts': [
             'recorder = stylepong_recording.recorder_node:main',
             'recover_bag = stylepong_recording.recover_bag:main',
+            'compress_bag = stylepong_recording.compress_bag:main',
         ],
     },
 )

@@ -21,7 +21,7 @@ import shutil
 import sqlite3
 import struct
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import yaml
@@ -30,7 +30,7 @@ from mcap.records import Channel as McapChannel
 from mcap.records import Chunk, Footer, Header, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from rosbags.interfaces import Qos
-from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, Writer
 from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
@@ -86,6 +86,8 @@ class StorageScan:
     message_counts: dict[int, int]
     intact: bool
     problems: list[str]
+    # mcap only: the compression of its chunks ('' none, 'zstd', 'lz4'); a rewrite keeps them compressed.
+    chunk_compression: str = ''
 
     def counts_by_topic(self) -> dict[str, int]:
         counts: dict[str, int] = {}
@@ -152,6 +154,7 @@ def _mcap_records(path: Path, problems: list[str], state: dict) -> Iterator[obje
             elif isinstance(record, Footer):
                 state['footer'] = True
             elif isinstance(record, Chunk):
+                state['chunk_compression'] = state.get('chunk_compression') or record.compression
                 if not record.compression and len(record.data) != record.uncompressed_size:
                     problems.append(f'a damaged chunk ending at byte {good_end} was skipped')
                     continue
@@ -188,7 +191,8 @@ def _scan_mcap(path: Path) -> StorageScan:
             orphans += 1
     if orphans:
         problems.append(f'{orphans} messages of unknown channels were dropped')
-    return StorageScan(MCAP_STORAGE, path, connections, counts, state.get('intact', False), problems)
+    return StorageScan(MCAP_STORAGE, path, connections, counts, state.get('intact', False), problems,
+                       state.get('chunk_compression') or '')
 
 
 def _mcap_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
@@ -201,6 +205,11 @@ def _sqlite_connect(path: Path) -> sqlite3.Connection:
     # Read-write on purpose: opening resolves what a killed writer left (replays committed WAL frames,
     # rolls a hot journal back), which makes the database consistent again.
     return sqlite3.connect(f'file:{path}?mode=rw', uri=True)
+
+
+def scan_storage(storage: str, path: Path) -> StorageScan:
+    """What the storage file `path` of kind `storage` ('mcap' or 'sqlite3') holds, read as far as it is whole."""
+    return _scan_mcap(path) if storage == MCAP_STORAGE else _scan_sqlite3(path)
 
 
 def _scan_sqlite3(path: Path) -> StorageScan:
@@ -257,7 +266,8 @@ def _read_metadata(bag_dir: Path) -> dict | None:
     return info if isinstance(info, dict) else None
 
 
-def _find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
+def find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
+    """The bag's one storage file and its kind: the file metadata.yaml lists, else the only one there."""
     by_suffix = {suffix: storage for storage, suffix in STORAGE_SUFFIX.items()}
     listed = metadata.get(RELATIVE_FILE_PATHS_KEY) if metadata else None
     if isinstance(listed, list) and len(listed) == 1 and isinstance(listed[0], str):
@@ -328,7 +338,7 @@ def _definition_hash(conn: StoredConnection) -> str:
                             f'{err}') from err
 
 
-def _complete_definitions(scan: StorageScan) -> None:
+def complete_definitions(scan: StorageScan) -> None:
     """Old sqlite3 bags store no definitions: take them from the Jazzy store when it knows the type."""
     store = None
     for conn in scan.connections.values():
@@ -344,6 +354,10 @@ def _complete_definitions(scan: StorageScan) -> None:
 def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
     """Everything scanned, written as a fresh bag by rosbags (which also writes its metadata.yaml)."""
     writer = Writer(new_bag, version=ROSBAG2_VERSION, storage_plugin=storage_plugin(scan.storage))
+    if scan.chunk_compression:
+        # rosbags compresses mcap chunks with zstd only (rosbag2's mcap storage does the same with its
+        # zstd presets); readers take the compression from each chunk, metadata.yaml does not record it.
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
     for key, value in custom_data.items():
         writer.set_custom_data(key, value)
     messages = _mcap_messages(scan) if scan.storage == MCAP_STORAGE else _sqlite3_messages(scan)
@@ -358,8 +372,10 @@ def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -
                 writer.write(connections[cid], log_time_ns, data)
 
 
-def _rewrite(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str]) -> None:
-    """Write the recovered bag next to the old one, then swap it in."""
+def rewrite_bag(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str],
+                check: Callable[[Path], None] | None = None) -> None:
+    """Write what `scan` found as a new bag beside the old one, `check` it (it raises to keep the old
+    bag), then swap it in."""
     work = bag_dir / _WORK_DIR_NAME
     shutil.rmtree(work, ignore_errors=True)
     # rosbags names its storage file after the bag directory: name it like the file it replaces.
@@ -367,6 +383,8 @@ def _rewrite(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str]) -> N
     try:
         work.mkdir()
         _write_copy(new_bag, scan, custom_data)
+        if check is not None:
+            check(new_bag)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)     # a full disk must not stay fuller
         raise
@@ -394,8 +412,8 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
         raise RecoveryError(f'{bag_dir} is still being recorded by process {note["pid"]}: stop the recorder '
                             'first (or pass --force if that process is not the recorder)')
     metadata = _read_metadata(bag_dir)
-    storage, path = _find_storage(bag_dir, metadata)
-    scan = _scan_mcap(path) if storage == MCAP_STORAGE else _scan_sqlite3(path)
+    storage, path = find_storage(bag_dir, metadata)
+    scan = scan_storage(storage, path)
     problems = list(scan.problems)
     in_progress = (bag_dir / IN_PROGRESS_NAME).exists()
     healthy = scan.intact and not in_progress and _metadata_matches(bag_dir, metadata, scan)
@@ -410,9 +428,9 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
         problems.append(f'{METADATA_NAME} disagrees with the storage file')
     custom_data = _custom_data(bag_dir, metadata, note, problems)
     if not check_only:
-        _complete_definitions(scan)
+        complete_definitions(scan)
         try:
-            _rewrite(bag_dir, scan, custom_data)
+            rewrite_bag(bag_dir, scan, custom_data)
         except (OSError, WriterError) as err:
             raise RecoveryError(f'{bag_dir}: writing the recovered bag failed ({err}); the bag is unchanged') \
                 from err
