@@ -2,6 +2,7 @@
 
 API (all units SI; joint vectors have 6 entries in URDF order, stylepong_description.robot_model.JOINT_NAMES)
     cell = Cell()                               robot at home and at rest, no ball, time 0
+    Cell(actuator='ur_servoj', servoj=ur_servoj.ServojSettings(125.0, 0.03, 2000.0))   the UR's servoj instead
     cell.reset()                                robot to home at rest, targets home, ball removed (its rally
                                                 ends 'aborted'), hand released; time keeps running
     cell.set_joint_targets(q_rad)               position targets for the servo; InputError (a ValueError) if
@@ -30,7 +31,8 @@ API (all units SI; joint vectors have 6 entries in URDF order, stylepong_descrip
     cell.paddle_pose(), cell.tool_pose() -> (position_m, rotation 3x3: columns = frame axes in world)
     cell.model, cell.data                       the MuJoCo objects (read them, e.g. to render; do not step them)
 
-Robot: the URDF's arm under the servo law of world_spec (rate-limited reference, PD with torques clipped to
+Robot: the URDF's arm under the servo law of world_spec (actuator 'ideal': rate-limited reference; 'ur_servoj':
+the UR controller's servoj shapes the reference instead, ur_servoj.py; then PD with torques clipped to
 the effort limits, ideal gravity compensation, armature, joint speed clip). It collides with the table,
 net and floor (MuJoCo contacts), never with itself. Joint efforts = servo torque + gravity compensation.
 
@@ -63,21 +65,11 @@ import numpy as np
 from stylepong_description import robot_model as rm
 from stylepong_sim import ball_contacts as bc
 from stylepong_sim import referee as rf
-from stylepong_sim import scene
+from stylepong_sim import scene, ur_servoj
 from stylepong_sim import world_spec as ws
+from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
 
-MAX_LAUNCH_SPEED_M_S = 30.0
-FRAME_WORLD = 'world'
-FRAME_TOOL = rm.TOOL_FRAME
 _GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
-
-
-class InputError(ValueError):
-    """A rejected command or input; `kind` names the problem (for throttling warnings per kind)."""
-
-    def __init__(self, kind: str, message: str):
-        super().__init__(message)
-        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -104,7 +96,8 @@ class _HandWrench:
 
 class Cell:
     """The simulated cell: UR5 with paddle, table, net and ball in MuJoCo, with the referee watching."""
-    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, ball_physics: BallPhysics = BallPhysics()):
+    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, ball_physics: BallPhysics = BallPhysics(),
+                 actuator: str = ur_servoj.IDEAL, servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
         self.model = scene.build_model()
         self.data = mujoco.MjData(self.model)
         self.ball_physics = ball_physics
@@ -160,6 +153,13 @@ class Cell:
         self._q_ref = self.home_joint_positions_rad.copy()
         self._ref_moving = False
         self._feedforward_active = False
+        # actuator 'ur_servoj': the UR controller's servoj shapes the reference (ur_servoj.py); 'ideal' keeps
+        # world_spec's reference below, which the batched world shares.
+        if actuator not in ur_servoj.ACTUATORS:
+            raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
+        self.actuator = actuator
+        self._servoj = (ur_servoj.ServojReference(self.home_joint_positions_rad, servoj)
+                        if actuator == ur_servoj.UR_SERVOJ else None)
         self._reset_robot()
 
     # --- commands --------------------------------------------------------------------------------
@@ -171,6 +171,8 @@ class Cell:
     def set_joint_targets(self, q_rad) -> None:
         q = self._checked_joint_vector(q_rad, 'joint target')
         self._q_cmd = q
+        if self._servoj is not None:
+            self._servoj.command(q)
         self._ref_moving = not np.array_equal(self._q_cmd, self._q_ref)
 
     def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
@@ -320,6 +322,8 @@ class Cell:
         self._q_ref = self.home_joint_positions_rad.copy()
         self._ref_moving = False
         self._feedforward_active = False
+        if self._servoj is not None:
+            self._servoj.reset(self.home_joint_positions_rad, float(d.time))
         d.ctrl[:6] = self._q_ref
         mujoco.mj_forward(self.model, d)
 
@@ -353,7 +357,10 @@ class Cell:
 
     def _step_once(self) -> None:
         m, d = self.model, self.data
-        if self._ref_moving:
+        if self._servoj is not None:
+            q_ref, v_ref = self._servoj.step(float(d.time) + self._dt, self._dt)
+            d.ctrl[:6] = q_ref + self._kd_over_kp_s * v_ref
+        elif self._ref_moving:
             self._advance_servo_reference()
         elif self._feedforward_active:
             d.ctrl[:6] = self._q_ref   # the reference has arrived: no more velocity feed-forward
