@@ -62,36 +62,21 @@ class StyleError(Exception):
 
 @dataclass(frozen=True)
 class Paths:
-    """Where a run keeps each of its files."""
+    """Where a run keeps each of its files (`paths_of`)."""
     run: pathlib.Path
+    state: pathlib.Path
+    dataset: pathlib.Path
+    actor: pathlib.Path
+    actor_checkpoint: pathlib.Path
+    train: pathlib.Path
+    choose: pathlib.Path
+    eval: pathlib.Path
 
-    @property
-    def state(self) -> pathlib.Path:
-        return self.run / STATE_NAME
 
-    @property
-    def dataset(self) -> pathlib.Path:
-        return self.run / DATASET_NAME
-
-    @property
-    def actor(self) -> pathlib.Path:
-        return self.run / ACTOR_NAME
-
-    @property
-    def actor_checkpoint(self) -> pathlib.Path:
-        return self.run / ACTOR_CHECKPOINT_NAME
-
-    @property
-    def train(self) -> pathlib.Path:
-        return self.run / TRAIN_DIR
-
-    @property
-    def choose(self) -> pathlib.Path:
-        return self.run / CHOOSE_DIR
-
-    @property
-    def eval(self) -> pathlib.Path:
-        return self.run / EVAL_DIR
+def paths_of(run: pathlib.Path) -> Paths:
+    """The files of the run in `run`."""
+    return Paths(run, run / STATE_NAME, run / DATASET_NAME, run / ACTOR_NAME, run / ACTOR_CHECKPOINT_NAME,
+                 run / TRAIN_DIR, run / CHOOSE_DIR, run / EVAL_DIR)
 
 
 def models_dir() -> pathlib.Path:
@@ -356,7 +341,7 @@ def training_budget_s(minutes: float) -> float:
 
 def run(args: argparse.Namespace, command: str) -> pathlib.Path:
     """Every stage not yet done; returns the report's path. StyleError for what the user must fix."""
-    paths = Paths(args.out)
+    paths = paths_of(args.out)
     state = read_state(paths)
     if state and not args.resume:
         raise StyleError(f'{args.out} already holds a learn_style run; pass --resume to continue it or choose '
