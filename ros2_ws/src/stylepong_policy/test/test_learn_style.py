@@ -51,6 +51,7 @@ def run(tmp_path_factory):
         yield out
 
 
+@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
     actor = load_actor(run / ls.ACTOR_NAME)
     assert actor(torch.zeros(1, actor.num_obs)).shape == (1, actor.num_actions)
@@ -73,6 +74,7 @@ def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
         'chosen']
 
 
+@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_finished_run_is_not_overwritten_and_resumes_only_what_is_missing(run):
     assert ls.main([str(BAGS), '--out', str(run)]) == 2
     state = json.loads((run / ls.STATE_NAME).read_text())
@@ -86,6 +88,7 @@ def test_a_finished_run_is_not_overwritten_and_resumes_only_what_is_missing(run)
     assert 'report' in json.loads((run / ls.STATE_NAME).read_text())['stages']
 
 
+@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_learn_style_run_is_a_skill_to_start_from(run):
     assert ls.skill_checkpoint(run) == run / ls.ACTOR_CHECKPOINT_NAME
     assert ls.skill_checkpoint(run / ls.ACTOR_NAME) == run / ls.ACTOR_CHECKPOINT_NAME
