@@ -15,15 +15,15 @@ Prints one Markdown section for BENCHMARKS.md (`make bench`).
 """
 import os
 import pathlib
-import random
 import re
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
+
+from stylepong_common.node_process import isolated_ros_env, start_logged, stop_group
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DURATION_S = 20.0
@@ -82,18 +82,15 @@ def old_sources() -> pathlib.Path | None:
 
 def node_run(old_src: pathlib.Path | None = None) -> tuple[str, tuple[float, float, float]]:
     """drag_teach (today's, or the one in old_src) against ur5_sim; its statistics line and the load."""
-    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONUNBUFFERED='1')
+    env = isolated_ros_env()
     drag_command = ['ros2', 'run', 'stylepong_fdcc', 'drag_teach']
     if old_src is not None:
         env['PYTHONPATH'] = os.pathsep.join([str(old_src / 'stylepong_fdcc'), str(old_src / 'stylepong_description'),
                                              env.get('PYTHONPATH', '')])
         drag_command = [sys.executable, '-m', 'stylepong_fdcc.drag_teach_node']
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_'))
-    sim_log, drag_log = open(logs / 'ur5_sim.log', 'w'), open(logs / 'drag_teach.log', 'w')
-    sim = subprocess.Popen(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], stdout=sim_log, stderr=subprocess.STDOUT,
-                           env=env, start_new_session=True)
-    drag = subprocess.Popen(drag_command, stdout=drag_log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], env, logs / 'ur5_sim.log')
+    drag = start_logged(drag_command, env, logs / 'drag_teach.log')
     try:
         deadline = time.monotonic() + 60.0
         while 'running' not in (logs / 'drag_teach.log').read_text():
@@ -103,15 +100,7 @@ def node_run(old_src: pathlib.Path | None = None) -> tuple[str, tuple[float, flo
         time.sleep(DURATION_S)
     finally:
         for process in (drag, sim):
-            if process.poll() is None:
-                os.killpg(process.pid, signal.SIGINT)
-                try:
-                    process.wait(10)
-                except subprocess.TimeoutExpired:
-                    os.killpg(process.pid, signal.SIGKILL)
-                    process.wait()
-        sim_log.close()
-        drag_log.close()
+            stop_group(process, timeout_s=10.0)
     stats = re.search(r'\d+ cycles in .*?rejected', (logs / 'drag_teach.log').read_text())
     if not stats:
         raise RuntimeError('drag_teach printed no statistics:\n' + (logs / 'drag_teach.log').read_text()[-2000:])

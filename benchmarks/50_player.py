@@ -15,14 +15,14 @@ Prints one Markdown section for BENCHMARKS.md (`make bench`).
 import json
 import os
 import pathlib
-import random
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
+
+from stylepong_common.node_process import isolated_ros_env, process_cpu_s, start_logged, stop_group
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'   # the deployed style actor
@@ -62,33 +62,9 @@ def actor_alone() -> dict[str, np.ndarray]:
     return times
 
 
-def _env() -> dict:
-    return dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-                PYTHONUNBUFFERED='1')
-
-
-def _start(args: list[str], env: dict, log: pathlib.Path) -> subprocess.Popen:
-    return subprocess.Popen(args, stdout=open(log, 'w'), stderr=subprocess.STDOUT, env=env, start_new_session=True)
-
-
-def _stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(20)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-
-def _cpu_s(pid: int) -> float:
-    fields = pathlib.Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
 def node_alone(backend: str) -> tuple[dict, float]:
     """The player fed by a synthetic robot and camera on the wall clock; returns (status, CPU share)."""
-    os.environ.update(_env())
+    os.environ.update(isolated_ros_env())
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
@@ -97,7 +73,7 @@ def node_alone(backend: str) -> tuple[dict, float]:
     from stylepong_msgs.msg import BallState
     from stylepong_player import spec
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_'))
-    player = _start(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'start_enabled:=true',
+    player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'start_enabled:=true',
                      '-p', f'backend:={backend}', '-p', 'status_rate_hz:=1.0'], dict(os.environ), logs / 'player.log')
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -118,7 +94,7 @@ def node_alone(backend: str) -> tuple[dict, float]:
                 raise RuntimeError('player did not start:\n' + (logs / 'player.log').read_text())
             executor.spin_once(timeout_sec=0.05)
         start = time.monotonic()
-        cpu_start = _cpu_s(player.pid)
+        cpu_start = process_cpu_s(player.pid)
         next_joint = next_ball = start
         k = 0
         while (now := time.monotonic()) - start < DURATION_S:
@@ -135,7 +111,7 @@ def node_alone(backend: str) -> tuple[dict, float]:
                 ball_pub.publish(ball)
             executor.spin_once(timeout_sec=0.0)
             time.sleep(max(0.0, min(next_joint, next_ball) - time.monotonic()))
-        cpu_share = (_cpu_s(player.pid) - cpu_start) / (time.monotonic() - start)
+        cpu_share = (process_cpu_s(player.pid) - cpu_start) / (time.monotonic() - start)
         status.clear()
         while not status:
             executor.spin_once(timeout_sec=0.1)
@@ -144,29 +120,29 @@ def node_alone(backend: str) -> tuple[dict, float]:
         executor.shutdown()
         node.destroy_node()
         rclpy.shutdown(context=context)
-        _stop(player)
+        stop_group(player)
 
 
 def with_ur5_sim() -> tuple[dict, float, dict]:
-    env = _env()
+    env = isolated_ros_env()
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_sim_'))
-    sim = _start(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
+    sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
                  logs / 'ur5_sim.log')
-    player = _start(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
+    player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
                     logs / 'player.log')
     try:
         time.sleep(3.0)
-        cpu_start, wall_start = _cpu_s(player.pid), time.monotonic()
+        cpu_start, wall_start = process_cpu_s(player.pid), time.monotonic()
         out = logs / 'rally.json'
         subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS),
                         '--first-seed', '900', '--json', str(out)],
                        env=env, capture_output=True, text=True, timeout=300, check=True)
-        cpu_share = (_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)
+        cpu_share = (process_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)
         summary = json.loads(out.read_text())
         return summary['player_status'], cpu_share, summary
     finally:
-        _stop(player)
-        _stop(sim)
+        stop_group(player)
+        stop_group(sim)
 
 
 def _row(what: str, s: dict, key: str = 'p50') -> str:

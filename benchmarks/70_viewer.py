@@ -14,59 +14,19 @@ Prints one Markdown section for BENCHMARKS.md (`make bench`).
 import json
 import os
 import pathlib
-import random
 import re
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import time
+
+from stylepong_common.node_process import free_port, isolated_ros_env, process_cpu_s, start_logged, stop_group
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DURATION_S = 15.0
 RALLY_BALLS = 3            # about 15 s of play
 PAIRS = 2
 DRAG_STATS = re.compile(r'(\d+) cycles in .*? (\d+) missed')
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(('127.0.0.1', 0))
-        return probe.getsockname()[1]
-
-
-def _player_package() -> str:
-    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-    for package in ('stylepong_player', 'stylepong_policy'):
-        try:
-            if (pathlib.Path(get_package_prefix(package)) / 'lib' / package / 'player').exists():
-                return package
-        except PackageNotFoundError:
-            continue
-    raise RuntimeError('no package installs the player executable')
-
-
-def _start(args: list[str], env: dict, log: pathlib.Path) -> subprocess.Popen:
-    return subprocess.Popen(args, stdout=open(log, 'w'), stderr=subprocess.STDOUT, env=env, start_new_session=True)
-
-
-def _stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(20)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-
-def _cpu_s(pid: int) -> float:
-    try:
-        fields = pathlib.Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except OSError:
-        return float('nan')
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def _wait_for(log: pathlib.Path, text: str, process: subprocess.Popen, timeout_s: float = 60.0) -> None:
@@ -79,39 +39,38 @@ def _wait_for(log: pathlib.Path, text: str, process: subprocess.Popen, timeout_s
 
 def graph_run(what: str, with_viewer: bool) -> dict:
     """ur5_sim + (drag_teach | player) [+ viewer] for DURATION_S; the measured figures."""
-    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONUNBUFFERED='1')
+    env = isolated_ros_env()
     logs = pathlib.Path(tempfile.mkdtemp(prefix=f'bench_viewer_{what}_'))
     sim_args = [] if what == 'drag_teach' else ['--ros-args', '-p', 'max_lag_s:=0.01']   # as benchmarks/50_player.py
-    processes = [_start(['ros2', 'run', 'stylepong_sim', 'ur5_sim', *sim_args], env, logs / 'ur5_sim.log')]
+    processes = [start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim', *sim_args], env, logs / 'ur5_sim.log')]
     viewer = None
     if with_viewer:
-        viewer = _start(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(_free_port()),
-                         '--grpc-port', str(_free_port())], env, logs / 'viewer.log')
+        viewer = start_logged(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(free_port()),
+                         '--grpc-port', str(free_port())], env, logs / 'viewer.log')
         processes.append(viewer)
     status: list[dict] = []
     try:
         if what == 'drag_teach':
-            node = _start(['ros2', 'run', 'stylepong_fdcc', 'drag_teach'], env, logs / 'node.log')
+            node = start_logged(['ros2', 'run', 'stylepong_fdcc', 'drag_teach'], env, logs / 'node.log')
             processes.append(node)
             _wait_for(logs / 'node.log', 'running', node)
         else:
-            node = _start(['ros2', 'run', _player_package(), 'player', '--ros-args', '-p', 'use_sim_time:=true'],
+            node = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'],
                           env, logs / 'node.log')
             processes.append(node)
         if viewer is not None:
             _wait_for(logs / 'viewer.log', 'serving', viewer)
         time.sleep(3.0)                          # start-up (drag_teach's tare, the player's actor)
-        viewer_cpu = _cpu_s(viewer.pid) if viewer is not None else 0.0
+        viewer_cpu = process_cpu_s(viewer.pid) if viewer is not None else 0.0
         started = time.monotonic()
         if what == 'player':
             status = _rally(env, node, logs)
         else:
             time.sleep(DURATION_S)
-        viewer_share = ((_cpu_s(viewer.pid) - viewer_cpu) / (time.monotonic() - started)) if viewer else None
+        viewer_share = ((process_cpu_s(viewer.pid) - viewer_cpu) / (time.monotonic() - started)) if viewer else None
     finally:
         for process in reversed(processes):
-            _stop(process)
+            stop_group(process)
     load = os.getloadavg()[0]
     if what == 'drag_teach':
         match = DRAG_STATS.search((logs / 'node.log').read_text())

@@ -15,7 +15,6 @@ import pathlib
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import time
 import urllib.request
@@ -23,7 +22,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from stylepong_common.node_process import NodeProcess
+from stylepong_common.node_process import NodeProcess, free_port
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 REACH_RIGHT_RAD = [-1.5, -1.2, 1.2, -1.57, -1.57, -1.57]   # paddle at world y about -0.6 m from the base
@@ -37,24 +36,6 @@ OVERLOADED_PER_CORE = 2.0
 BACKGROUND_RGB = (28, 30, 34)
 URL_LINE = re.compile(r'viewer: open (\S+)')
 CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser') or shutil.which('google-chrome')
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(('127.0.0.1', 0))
-        return probe.getsockname()[1]
-
-
-def _player_package() -> str:
-    """The package that installs the player executable (it moved from stylepong_policy to stylepong_player)."""
-    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-    for package in ('stylepong_player', 'stylepong_policy'):
-        try:
-            if (pathlib.Path(get_package_prefix(package)) / 'lib' / package / 'player').exists():
-                return package
-        except PackageNotFoundError:
-            continue
-    raise RuntimeError('no package installs the player executable')
 
 
 def cell_view_pixels(png: bytes) -> dict:
@@ -107,8 +88,8 @@ def _wait_for_url(viewer: NodeProcess, timeout_s: float) -> str:
 def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
     from stylepong_viz.browser_shot import HeadlessPage
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'home_joint_positions_rad': REACH_RIGHT_RAD}).start()
-    player = NodeProcess(_player_package(), 'player').start()
-    web_port, grpc_port = _free_port(), _free_port()
+    player = NodeProcess('stylepong_player', 'player').start()
+    web_port, grpc_port = free_port(), free_port()
     viewer = NodeProcess('stylepong_viz', 'viewer', '--web-port', str(web_port), '--grpc-port', str(grpc_port))
     try:
         with HeadlessPage(width=1024, height=640) as browser:    # started first: its start-up is not the viewer's
@@ -160,11 +141,11 @@ def test_bag_is_served_with_its_joint_states(tmp_path):
     clip = _bag_clip()
     with AnyReader([clip]) as reader:
         joint_states = sum(c.msgcount for c in reader.connections if c.topic == '/joint_states')
-    web_port = _free_port()
+    web_port = free_port()
     log = tmp_path / 'viewer_bag.log'
     with open(log, 'w') as out:
         process = subprocess.Popen(_viewer_command('--bag', str(clip), '--web-port', str(web_port), '--grpc-port',
-                                                   str(_free_port())), stdout=out, stderr=subprocess.STDOUT,
+                                                   str(free_port())), stdout=out, stderr=subprocess.STDOUT,
                                    env=dict(os.environ, PYTHONUNBUFFERED='1'), start_new_session=True)
         try:
             deadline = time.monotonic() + 30.0
@@ -198,8 +179,8 @@ def test_bad_bag_gives_one_line_and_exit_code_2(tmp_path, case):
         path = tmp_path / 'notes'
         path.mkdir()
         (path / 'readme.txt').write_text('not a bag')
-    result = subprocess.run(_viewer_command('--bag', str(path), '--web-port', str(_free_port()), '--grpc-port',
-                                            str(_free_port())), capture_output=True, text=True, timeout=60)
+    result = subprocess.run(_viewer_command('--bag', str(path), '--web-port', str(free_port()), '--grpc-port',
+                                            str(free_port())), capture_output=True, text=True, timeout=60)
     print(result.stderr)
     assert result.returncode == 2, result.stdout + result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and result.stderr.startswith('viewer: '), result.stderr

@@ -29,6 +29,8 @@ import tempfile
 
 import torch
 
+from stylepong_common.command_line import write_lines
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FEATURES = ('q_qdot', 'q')
 
@@ -158,9 +160,7 @@ def main() -> int:
               'mean square over the frames); its median over the held-out windows was '
               + ', '.join(f'{r["distance_median_rad"]:.3f} (L = {n})' for n, f, r in rows if f == FEATURES[0])
               + ' rad.']
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text('\n'.join(lines) + '\n')
-    print(f'wrote {args.out}')
+    write_lines(args.out, lines)
     return 0
 
 

@@ -25,6 +25,8 @@ import tempfile
 import numpy as np
 import torch
 
+from stylepong_common.command_line import write_lines
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
@@ -97,9 +99,7 @@ def main() -> int:
     for length, row in rows:
         lines.append(f'| {length} | {1000 * length / 60:.0f} | {row["shuffled"][0]:.3f} +- {row["shuffled"][1]:.3f} | '
                      f'{row["slowed"][0]:.3f} +- {row["slowed"][1]:.3f} |')
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text('\n'.join(lines) + '\n')
-    print(f'wrote {args.out}')
+    write_lines(args.out, lines)
     return 0
 
 

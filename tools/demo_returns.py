@@ -67,7 +67,6 @@ def repo_path(path: pathlib.Path) -> pathlib.Path:
 
 def main() -> int:
     """Replay every clip and the actor's strokes, write the Markdown."""
-    sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / 'stylepong_policy'))
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--dataset', type=pathlib.Path, default=ROOT / 'results' / 'reference_dataset.npz')
     parser.add_argument('--actor', type=pathlib.Path,

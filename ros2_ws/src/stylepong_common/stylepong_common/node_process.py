@@ -1,12 +1,57 @@
-"""Start real nodes with `ros2 run` for system tests, and stop them the way a person would (Ctrl-C)."""
+"""Start real nodes with `ros2 run` for system tests and benchmarks, and stop them the way a person would
+(Ctrl-C); what such runs need around them: a ROS domain of their own, free ports, a process's CPU time."""
 from __future__ import annotations
 
 import os
 import pathlib
+import random
 import signal
+import socket
 import subprocess
 import tempfile
 import time
+
+
+def isolated_ros_env() -> dict[str, str]:
+    """This process's environment with a random ROS domain (1-101: DDS ports clear of Linux's ephemeral
+    range) on the loopback only, so that a run never meets another graph; output unbuffered for logs."""
+    return dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+                PYTHONUNBUFFERED='1')
+
+
+def start_logged(command: list[str], env: dict, log_path: pathlib.Path) -> subprocess.Popen:
+    """`command` with its output in log_path, in a session of its own: a Ctrl-C sent to its group also
+    reaches the node that `ros2 run` starts as its child."""
+    with open(log_path, 'w') as log:       # the child holds its own copy of the descriptor
+        return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+
+
+def stop_group(process: subprocess.Popen, timeout_s: float = 20.0) -> int:
+    """Ctrl-C (SIGINT) to the process's group, SIGKILL if it has not exited within timeout_s; its exit code."""
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait(timeout_s)
+    return process.returncode
+
+
+def process_cpu_s(pid: int) -> float:
+    """CPU time (user + system, s) the process has used so far; NaN once it is gone."""
+    try:
+        fields = pathlib.Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return float('nan')
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def free_port() -> int:
+    """A TCP port on the loopback that nothing listens on now."""
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
 
 
 class NodeProcess:
@@ -23,9 +68,7 @@ class NodeProcess:
         self.process: subprocess.Popen | None = None
 
     def start(self) -> 'NodeProcess':
-        self._log = open(self.log_path, 'w')
-        self.process = subprocess.Popen(self.command, stdout=self._log, stderr=subprocess.STDOUT, env=self.env,
-                                        start_new_session=True)
+        self.process = start_logged(self.command, self.env, self.log_path)
         return self
 
     def running(self) -> bool:
@@ -42,15 +85,7 @@ class NodeProcess:
         """SIGINT, then SIGKILL if the node does not exit within timeout_s. Returns the exit code."""
         if self.process is None:
             return None
-        if self.running():
-            self.signal(signal.SIGINT)
-            try:
-                self.process.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.signal(signal.SIGKILL)
-                self.process.wait(timeout_s)
-        self._log.close()
-        return self.process.returncode
+        return stop_group(self.process, timeout_s)
 
     def __enter__(self) -> 'NodeProcess':
         return self.start()

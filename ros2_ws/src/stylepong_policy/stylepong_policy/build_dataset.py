@@ -16,7 +16,9 @@ import re
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NoReturn
 
+from stylepong_common.command_line import exit_with_run
 from stylepong_policy.dataset import (
     DEFAULT_RATE_HZ,
     DEFAULT_SPEEDUPS,
@@ -282,14 +284,9 @@ def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None) -> NoReturn:
     """Entry point of the build_dataset executable (exit code 130 on Ctrl-C)."""
-    try:
-        code = run(argv)
-    except KeyboardInterrupt:
-        print('build_dataset: interrupted, nothing written', file=sys.stderr)
-        code = 130
-    sys.exit(code)
+    exit_with_run('build_dataset', run, argv)
 
 
 if __name__ == '__main__':

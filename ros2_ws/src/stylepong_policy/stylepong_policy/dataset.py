@@ -25,7 +25,7 @@ import os
 import pathlib
 import tempfile
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -328,6 +328,11 @@ class SourceClip:
     source: str
 
 
+# ReferenceDataset's arrays with one entry per clip (the others are per frame or whole-dataset).
+PER_CLIP_FIELDS = ('clip_start', 'clip_length', 'label', 'speed_factor', 'source', 'original', 'time_source',
+                   'velocity_source')
+
+
 @dataclass
 class ReferenceDataset:
     """All clips, concatenated (see the module docstring for the layout)."""
@@ -374,6 +379,10 @@ class ReferenceDataset:
         if speed_factors is not None:
             chosen &= np.isin(self.speed_factor, list(speed_factors))
         return np.flatnonzero(chosen)
+
+    def with_clips(self, clips: np.ndarray) -> ReferenceDataset:
+        """The same frames with only these clips listed (a subset that keeps every frame index valid)."""
+        return replace(self, **{name: getattr(self, name)[clips] for name in PER_CLIP_FIELDS})
 
     def window_starts(self, length: int, clips: np.ndarray | None = None) -> np.ndarray:
         """First frame index of every window of `length` frames lying inside one of these clips (all)."""

@@ -27,7 +27,6 @@ device=...)` returns the same dict.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import pathlib
@@ -39,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from stylepong_common.command_line import print_and_write_json, require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import strokes as st
 from stylepong_policy import style_metrics as sm
@@ -395,9 +395,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--randomize', action='store_true', help='evaluate with domain randomisation on')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
-    for name in ('seeds', 'balls', 'num_threads'):
-        if getattr(args, name) < 1:
-            parser.error(f'--{name.replace("_", "-")} must be at least 1')
+    require_counts(parser, args, ('seeds', 'balls', 'num_threads'))
     if args.first_seed < 0:
         parser.error('--first-seed must not be negative')
     if args.video_strokes < 1:
@@ -450,11 +448,7 @@ def main(argv: list[str] | None = None) -> int:
         frames = render_video(shown, args.video, camera=args.camera)
         summary['video'] = {'path': portable_path(args.video), 'frames': frames, 'fps': VIDEO_FPS,
                             'strokes': [s.outcome for s in shown]}
-    text = json.dumps(summary, indent=2)
-    print(text)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + '\n')
+    print_and_write_json(summary, args.json)
     return 0
 
 

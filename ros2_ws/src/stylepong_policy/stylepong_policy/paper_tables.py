@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from stylepong_common.command_line import require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import evaluate as ev
 from stylepong_policy import paper_charts as charts
@@ -571,9 +572,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
-    for name in ('seeds', 'balls', 'num_threads'):
-        if getattr(args, name) < 1:
-            parser.error(f'--{name.replace("_", "-")} must be at least 1')
+    require_counts(parser, args, ('seeds', 'balls', 'num_threads'))
     try:
         args.actor_overrides = parse_actor_overrides(args.actors)
     except ValueError as err:

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import torch
 
+from stylepong_common.command_line import require_counts
 from stylepong_policy.rl.config import config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.networks import ActorCritic
@@ -320,9 +321,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     args.high_seeds = args.seeds if args.high_seeds is None else args.high_seeds
     args.high_balls = args.balls if args.high_balls is None else args.high_balls
-    for name in ('seeds', 'balls', 'high_seeds', 'high_balls', 'num_threads'):
-        if getattr(args, name) < 1:
-            parser.error(f'--{name.replace("_", "-")} must be at least 1')
+    require_counts(parser, args, ('seeds', 'balls', 'high_seeds', 'high_balls', 'num_threads'))
     ranges = [('--first-seed', args.first_seed, args.seeds)]
     if args.high_first_seed is not None:
         ranges.append(('--high-first-seed', args.high_first_seed, args.high_seeds))

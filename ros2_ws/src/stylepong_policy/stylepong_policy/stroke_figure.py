@@ -73,7 +73,7 @@ def policy_row(label: str, stroke: st.Stroke, rate_hz: float) -> FigureRow:
 
 def reference_row(label: str, dataset, direction: str, near: st.Stroke) -> FigureRow:
     """The original clip of `direction` nearest (DTW) to the stroke `near`, seven frames over its length."""
-    originals = [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[direction], speed_factors=[1])]
+    originals = sm.reference_clips(dataset, direction, speed_factors=[1])
     if not originals:
         raise ValueError(f'the reference dataset has no original clip labelled {direction!r}')
     match = sm.nearest_reference(near.joint_positions_rad, originals)

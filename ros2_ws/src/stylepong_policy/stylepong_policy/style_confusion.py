@@ -29,9 +29,11 @@ import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
+from stylepong_common.command_line import exit_with_run, require_counts
 from stylepong_policy import evaluate as ev
 from stylepong_policy import strokes as st
 from stylepong_policy.dataset import ReferenceDataset
@@ -268,9 +270,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
-    for name in ('seeds', 'balls', 'num_threads'):
-        if getattr(args, name) < 1:
-            parser.error(f'--{name.replace("_", "-")} must be at least 1')
+    require_counts(parser, args, ('seeds', 'balls', 'num_threads'))
     actor_paths = _unique(parser, args.actors, 'actor')
     set_paths = _unique(parser, args.sets, 'set')
     torch.set_num_threads(args.num_threads)
@@ -345,14 +345,9 @@ def run(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None) -> NoReturn:
     """Entry point of the style_confusion executable (exit code 130 on Ctrl-C)."""
-    try:
-        code = run(argv)
-    except KeyboardInterrupt:
-        print('style_confusion: interrupted, nothing written', file=sys.stderr)
-        code = 130
-    sys.exit(code)
+    exit_with_run('style_confusion', run, argv)
 
 
 if __name__ == '__main__':

@@ -128,9 +128,10 @@ def cost_breakdown(stroke_rad: np.ndarray, clip_rad: np.ndarray, path: Sequence[
     return CostBreakdown(by_joint_rad=by_joint, by_phase_rad=by_phase)
 
 
-def reference_clips(dataset, label: str) -> list[tuple[int, np.ndarray]]:
-    """Every clip of a stylepong_policy.dataset.ReferenceDataset with this label, any speed factor."""
-    return [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[label])]
+def reference_clips(dataset, label: str, speed_factors: Sequence[int] | None = None) -> list[tuple[int, np.ndarray]]:
+    """(index, joint positions) of every clip of a stylepong_policy.dataset.ReferenceDataset with this label
+    and one of these speed factors (None: any)."""
+    return [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[label], speed_factors=speed_factors)]
 
 
 @dataclass(frozen=True)

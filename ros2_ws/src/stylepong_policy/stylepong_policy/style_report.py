@@ -249,7 +249,7 @@ def strip_for_direction(run_dir: pathlib.Path, results: Mapping[str, ActorResult
     rows = [fig.policy_row(f'PPO ({ppo.outcome})', ppo, rate_hz),
             fig.policy_row(f'new style actor ({ours.outcome})', ours, rate_hz),
             fig.reference_row(f'demonstration, {direction}', dataset, direction, ours)]
-    originals = [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[direction], speed_factors=[1])]
+    originals = sm.reference_clips(dataset, direction, speed_factors=[1])
     match = sm.nearest_reference(ours.joint_positions_rad, originals)
     entry = {'direction': direction, 'seed': key[0], 'ball': key[1],
              'launch_speed_m_s': round(ours.launch_speed_m_s, 3),

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from stylepong_policy.dataset import (
+    PER_CLIP_FIELDS,
     Clip,
     ClipOptions,
     ReferenceDataset,
@@ -194,6 +195,20 @@ def test_dataset_round_trip_has_the_issue_keys_and_plain_dtypes(tmp_path):
         assert np.array_equal(loaded.clip(c).q, original.q[::k])
         assert np.array_equal(loaded.clip(c).qd, k * original.qd[::k])
     assert not list(tmp_path.glob('sub/*.part'))
+
+
+def test_a_dataset_with_some_clips_keeps_their_frames_and_every_per_clip_array():
+    dataset = make_dataset()
+    keep = dataset.select(labels=['leftward'])
+    subset = dataset.with_clips(keep)
+    assert subset.num_clips == len(keep) == 4 and subset.label.tolist() == ['leftward'] * 4
+    for i, c in enumerate(keep):
+        assert np.array_equal(subset.clip(i).q, dataset.clip(c).q)
+        assert subset.original[i] == dataset.original[c] and subset.source[i] == dataset.source[c]
+    # Every array with one entry per clip is subset (a new per-clip field must join PER_CLIP_FIELDS).
+    per_clip = {name for name, value in vars(dataset).items()
+                if isinstance(value, np.ndarray) and len(value) == dataset.num_clips}
+    assert per_clip == set(PER_CLIP_FIELDS)
 
 
 @pytest.mark.parametrize('length', [1, 2, 3, 5, 8])

@@ -77,12 +77,7 @@ def test_a_set_without_a_label_compares_only_the_strokes_it_has(tmp_path):
     dataset = ReferenceDataset.load(write_reference(tmp_path / 'all.npz'))
     keep = dataset.select(labels=['forward'])
     strokes = evaluate.evaluate_actor(MODELS / 'ppo_actor.pt', seeds=1, first_seed=SEED, balls=BALLS).strokes
-    forward = ReferenceDataset(t=dataset.t, q=dataset.q, qd=dataset.qd, clip_start=dataset.clip_start[keep],
-                               clip_length=dataset.clip_length[keep], label=dataset.label[keep],
-                               speed_factor=dataset.speed_factor[keep], source=dataset.source[keep],
-                               original=dataset.original[keep], time_source=dataset.time_source[keep],
-                               velocity_source=dataset.velocity_source[keep], rate_hz=dataset.rate_hz,
-                               joint_names=dataset.joint_names)
+    forward = dataset.with_clips(keep)
     distance = sc.set_distance(strokes, forward)
     assert distance.strokes_compared == sum(s.direction == 'forward' for s in strokes)
     assert distance.by_direction_rad['leftward'] is None and distance.by_direction_rad['rightward'] is None

@@ -116,13 +116,7 @@ def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp
             summary['dtw'][d].update(mean_rad=None, reference_clips=0)
         summary['dtw']['forward']['reference_clips'] = len(keep)
         files.all_speeds_json.write_text(json.dumps(summary))
-    subset = ReferenceDataset(t=dataset.t, q=dataset.q, qd=dataset.qd, clip_start=dataset.clip_start[keep],
-                              clip_length=dataset.clip_length[keep], label=dataset.label[keep],
-                              speed_factor=dataset.speed_factor[keep], source=dataset.source[keep],
-                              original=dataset.original[keep], time_source=dataset.time_source[keep],
-                              velocity_source=dataset.velocity_source[keep], rate_hz=dataset.rate_hz,
-                              joint_names=dataset.joint_names)
-    subset.save(forward_only / 'forward.npz')
+    dataset.with_clips(keep).save(forward_only / 'forward.npz')
     report.write_report(forward_only, dataset_path=forward_only / 'forward.npz', timings_s={}, checkpoints=None,
                         render_strips=False)
     text = (forward_only / report.REPORT_MD).read_text()

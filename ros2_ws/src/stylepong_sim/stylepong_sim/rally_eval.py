@@ -46,6 +46,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from stylepong_common.command_line import EXIT_INTERRUPTED, print_and_write_json
+from stylepong_common.node_process import wait_until
 from stylepong_common.node_support import EXIT_CONFIG_ERROR
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
@@ -174,12 +176,7 @@ class Evaluator:
         self.node, self.executor, self.args = node, executor, args
 
     def spin_until(self, predicate, timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            self.executor.spin_once(timeout_sec=0.01)
-        return predicate()
+        return wait_until(predicate, timeout_s, spin=lambda: self.executor.spin_once(timeout_sec=0.01))
 
     def call(self, client, request, timeout_s: float = 10.0):
         future = client.call_async(request)
@@ -318,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         evaluator.settle()
     except KeyboardInterrupt:
         print('rally_eval: interrupted', file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except RuntimeError as error:
         print(f'rally_eval: {error}', file=sys.stderr)
         return 1
@@ -329,11 +326,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(results, args)
     summary['wall_time_s'] = round(time.monotonic() - started, 2)
     summary['player_status'] = node.status
-    text = json.dumps(summary, indent=2)
-    print(text)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text + '\n')
+    print_and_write_json(summary, args.json)
     return 0
 
 

@@ -14,6 +14,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from stylepong_common.node_process import wait_until
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 
@@ -89,12 +90,7 @@ class Ur5SimProbe:
             self.executor.spin_once(timeout_sec=min(0.01, max(0.0, deadline - time.monotonic())))
 
     def spin_until(self, predicate, timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            self.executor.spin_once(timeout_sec=0.01)
-        return bool(predicate())
+        return bool(wait_until(predicate, timeout_s, spin=lambda: self.executor.spin_once(timeout_sec=0.01)))
 
     def wait_for_sim(self, timeout_s: float = 60.0) -> bool:
         """The node is up: its topics flow and its services and command subscription are matched."""

@@ -27,20 +27,16 @@ def sampled(path: StrokePath, dt_s: float = 0.002):
 
 
 @pytest.mark.parametrize('swing', SWINGS)
-def test_a_stroke_is_slow_and_starts_and_ends_at_rest(swing):
+def test_the_nominal_stroke_is_at_its_top_speed_at_the_hit(swing):
+    # Every take, the nominal one among them, is slow, starts and ends at rest at home and passes its hit
+    # (test_teacher_variation); the nominal stroke is held closer: its top speed at the hit, its velocities
+    # within 2 mm/s of the positions' derivative (3 for every take).
     path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
     times, positions, velocities = sampled(path)
     assert 1.5 <= TeacherConfig().stroke_s <= 3.0 and path.duration_s <= 3.5
-    np.testing.assert_allclose(positions[0], HOME_CENTRE)
-    assert np.linalg.norm(velocities[0]) == 0.0 and np.linalg.norm(velocities[-1]) == 0.0
     speeds = np.linalg.norm(velocities, axis=1)
-    assert speeds.max() < 1.0
-    # It passes the hitting point near its top speed.
-    hit = path.at(path.hit_time_s())
-    np.testing.assert_allclose(hit.position_m, path.hit, atol=1e-9)
-    assert np.linalg.norm(hit.velocity_m_s) > 0.85 * speeds.max()
+    assert np.linalg.norm(path.at(path.hit_time_s()).velocity_m_s) > 0.85 * speeds.max()
     assert abs(times[np.argmax(speeds)] - path.hit_time_s()) < 0.2
-    # The velocities are the derivative of the positions.
     np.testing.assert_allclose(np.gradient(positions, times, axis=0)[1:-1], velocities[1:-1], atol=2e-3)
 
 

@@ -139,8 +139,9 @@ def test_a_take_outside_the_ranges_is_refused(bad):
 # --- every take is a clean stroke of its label ---
 @pytest.mark.parametrize('swing', SWINGS)
 def test_every_take_is_a_slow_stroke_through_its_hit_near_top_speed(swing):
-    for seed in range(30):
-        path = StrokePath(swing, TeacherConfig(), HOME_CENTRE, sample_variation(swing, seed))
+    takes = {'nominal': SwingVariation(), **{seed: sample_variation(swing, seed) for seed in range(30)}}
+    for seed, variation in takes.items():
+        path = StrokePath(swing, TeacherConfig(), HOME_CENTRE, variation)
         times, positions, velocities, _ = sampled(path)
         assert 1.5 <= path.stroke_s <= 3.0
         np.testing.assert_allclose(positions[0], HOME_CENTRE)
