@@ -2,7 +2,11 @@
 # The sim2sim test through ROS: ur5_sim with realistic sensing + player + rally_eval, and its result.
 #
 #   tools/sim2sim.sh [--actor PATH.pt] [--seeds 10] [--first-seed 1000] [--balls 20] [--json OUT.json]
+#                    [--engine mujoco|pybullet] [--actuator ideal|ur_servoj] [--servo-rate-hz 125]
+#                    [--lookahead-s 0.03] [--gain 2000]
 #
+# --engine pybullet runs the PyBullet cell (Bullet's own contacts: the paper's Table IV setting); --actuator
+# ur_servoj puts the UR controller's servoj between the player's commands and the joints (ur_servoj.py).
 # ur5_sim runs with config/realistic_sensing.yaml (camera noise, 25 ms latency, lost frames, F/T noise),
 # paced by the wall clock; the player runs the actor's ONNX export on the cell's /clock; rally_eval serves
 # the balls of `evaluate`'s seeds through /sim/launch_ball and scores each rally. The JSON has
@@ -15,6 +19,12 @@ SEEDS=10
 FIRST_SEED=1000
 BALLS=20
 JSON=results/sim2sim_ros.json
+ENGINE=mujoco
+ACTUATOR=ideal
+SERVO_RATE_HZ=125.0
+LOOKAHEAD_S=0.03
+GAIN=2000.0
+COMMAND="tools/sim2sim.sh $*"
 while [ $# -gt 0 ]; do
   case "$1" in
     --actor) ACTOR=$2; shift 2 ;;
@@ -22,30 +32,49 @@ while [ $# -gt 0 ]; do
     --first-seed) FIRST_SEED=$2; shift 2 ;;
     --balls) BALLS=$2; shift 2 ;;
     --json) JSON=$2; shift 2 ;;
+    --engine) ENGINE=$2; shift 2 ;;
+    --actuator) ACTUATOR=$2; shift 2 ;;
+    --servo-rate-hz) SERVO_RATE_HZ=$2; shift 2 ;;
+    --lookahead-s) LOOKAHEAD_S=$2; shift 2 ;;
+    --gain) GAIN=$2; shift 2 ;;
     *) echo "sim2sim: unknown argument $1" >&2; exit 2 ;;
   esac
 done
+case "$ENGINE" in mujoco|pybullet) ;; *) echo "sim2sim: --engine must be mujoco or pybullet, got '$ENGINE'" >&2; exit 2 ;; esac
+case "$ACTUATOR" in ideal|ur_servoj) ;; *) echo "sim2sim: --actuator must be ideal or ur_servoj, got '$ACTUATOR'" >&2; exit 2 ;; esac
 [ -f "${ACTOR%.pt}.onnx" ] || { echo "sim2sim: ${ACTOR%.pt}.onnx is missing (python3 -m stylepong_policy.rl.export --onnx $ACTOR)" >&2; exit 2; }
 SENSING="$(ros2 pkg prefix stylepong_sim)/share/stylepong_sim/config/realistic_sensing.yaml"
 LOGS=$(mktemp -d /tmp/sim2sim.XXXXXX)
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 source tools/node_group.sh
-echo "[sim2sim] $ACTOR through ROS: ur5_sim (realistic sensing) + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
-start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING"
+echo "[sim2sim] $ACTOR through ROS: ur5_sim (engine $ENGINE, actuator $ACTUATOR, realistic sensing) + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
+start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING" -p engine:="$ENGINE" \
+  -p actuator:="$ACTUATOR" -p servo_rate_hz:="$SERVO_RATE_HZ" -p lookahead_s:="$LOOKAHEAD_S" -p gain:="$GAIN"
+sleep 3
+# The cell refuses a bad setting at start (one line, exit code 2): pass it on rather than wait for it.
+kill -0 "${NODE_PIDS[0]}" 2>/dev/null || { grep -v '^\[' "$LOGS/ur5_sim.log" >&2; exit 2; }
 start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 mkdir -p "$(dirname "$JSON")"
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed "$FIRST_SEED" --seeds "$SEEDS" --speed all \
   --json "$JSON.part" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[sim2sim]   /'
 stop_nodes
-python3 - "$JSON.part" "$JSON" "$ACTOR" <<'PY'
+python3 - "$JSON.part" "$JSON" "$ACTOR" "$ENGINE" "$ACTUATOR" "$SERVO_RATE_HZ" "$LOOKAHEAD_S" "$GAIN" "$COMMAND" <<'PY'
 import json
 import pathlib
 import sys
 
 part, out, actor = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), sys.argv[3]
+engine, actuator, rate_hz, lookahead_s, gain, command = sys.argv[4:10]
 result = json.loads(part.read_text())
-result['world'] = ('ur5_sim (MuJoCo cell) through ROS: player (ONNX) + rally_eval, realistic sensing '
+cell = 'ur5_sim (MuJoCo cell)' if engine == 'mujoco' else 'ur5_sim engine pybullet (PyBullet cell, Bullet contacts)'
+drive = ('ideal actuator' if actuator == 'ideal' else
+         f'ur_servoj actuator at {float(rate_hz):g} Hz, look-ahead {float(lookahead_s):g} s, gain {float(gain):g}')
+result['world'] = (f'{cell} through ROS, {drive}: player (ONNX) + rally_eval, realistic sensing '
                    '(config/realistic_sensing.yaml), wall-clock paced')
+result['engine'] = engine
+result['actuator'] = {'model': actuator, 'servo_rate_hz': float(rate_hz), 'lookahead_s': float(lookahead_s),
+                      'gain': float(gain)}
+result['command'] = command
 result['actor'] = actor
 out.write_text(json.dumps(result, indent=2) + '\n')
 part.unlink()

@@ -24,6 +24,7 @@ setup(
     entry_points={
         'console_scripts': [
             'ur5_sim = stylepong_sim.ur5_sim_node:main',
+            'ur5_bullet = stylepong_sim.ur5_sim_node:main_bullet',
             'virtual_teacher = stylepong_sim.virtual_teacher_node:main',
             'rally_eval = stylepong_sim.rally_eval:main',
             'robot_state_publisher = stylepong_sim.robot_state_publisher_node:main',

@@ -1,6 +1,11 @@
 """`ros2 run stylepong_sim ur5_sim`: the simulated UR5 table-tennis cell, driven like a real UR5.
 
-Thin ROS wiring around stylepong_sim.cell.Cell (physics, servo, ball, referee) and sensing.py (sensor models).
+Thin ROS wiring around a cell (physics, servo, ball, referee) and sensing.py (sensor models). The cell is
+engine:=mujoco, stylepong_sim.cell.Cell (analytic ball contacts, as the batched training world), or
+engine:=pybullet, stylepong_sim.bullet_cell.BulletCell (Bullet's own dynamics and contacts; also
+`ros2 run stylepong_sim ur5_bullet`); both behind the same topics, services and parameters. actuator:=ideal
+(world_spec's servo reference) or ur_servoj (the UR controller's servoj: servo_rate_hz, lookahead_s, gain;
+stylepong_sim.ur_servoj states its law).
 Time: the cell's simulated time, from 0 at start. It is published on /clock and stamps every message; nodes
 that run with use_sim_time follow it. real_time_factor 1.0 paces the simulation by the wall clock (a
 schedule: after a stall it catches up, by up to max_lag_s, then gives the backlog up with a warning);
@@ -64,13 +69,16 @@ from stylepong_common.node_support import Param, ParameterError, ThrottledLog, d
 from stylepong_description import robot_model as rm
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
+from stylepong_sim import ur_servoj
 from stylepong_sim import world_spec as ws
-from stylepong_sim.cell import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, Cell, InputError
+from stylepong_sim.cell_inputs import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
 from stylepong_sim.cell_markers import cell_markers
 from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
 from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
 
 PROGRAM = 'ur5_sim'
+MUJOCO, PYBULLET = 'mujoco', 'pybullet'
+ENGINES = (MUJOCO, PYBULLET)
 WARN_PERIOD_S = 2.0
 TIMER_PERIOD_S = 0.002
 # real_time_factor 0: wall time a timer callback may spend stepping before inputs are served again.
@@ -81,8 +89,19 @@ _SENSING_FLOATS = ('ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', '
 
 REAL_TIME_FACTOR = Param('real_time_factor', 1.0, 'Simulated seconds per wall-clock second; 0 = as fast as possible',
                          low=0.0, high=100.0, read_only=False)
+ENGINE = Param('engine', MUJOCO, 'Physics of the cell: mujoco (analytic ball contacts) or pybullet (Bullet contacts)',
+               choices=ENGINES)
 PARAMETERS = (
     REAL_TIME_FACTOR,
+    ENGINE,
+    Param('actuator', ur_servoj.IDEAL, "Command -> joint reference: ideal (world_spec's servo) or ur_servoj (UR)",
+          choices=ur_servoj.ACTUATORS),
+    Param('servo_rate_hz', ur_servoj.ServojSettings.servo_rate_hz, 'ur_servoj: controller rate (CB3 125, e-Series 500)',
+          low=ur_servoj.SERVO_RATE_RANGE_HZ[0], high=ur_servoj.SERVO_RATE_RANGE_HZ[1]),
+    Param('lookahead_s', ur_servoj.ServojSettings.lookahead_s, 'ur_servoj: servoj look-ahead time',
+          low=ur_servoj.LOOKAHEAD_RANGE_S[0], high=ur_servoj.LOOKAHEAD_RANGE_S[1]),
+    Param('gain', ur_servoj.ServojSettings.gain, 'ur_servoj: servoj proportional gain',
+          low=ur_servoj.GAIN_RANGE[0], high=ur_servoj.GAIN_RANGE[1]),
     Param('max_lag_s', 0.25, 'Largest backlog (sim s) caught up after a stall', low=0.001, high=10.0),
     Param('home_joint_positions_rad', list(ws.HOME_JOINT_POSITIONS_RAD),
           'Start and reset pose, 6 joint positions (rad) in URDF order', length=rm.NUM_JOINTS),
@@ -117,13 +136,26 @@ def _stamp(time_s: float) -> Time:
     return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
+def build_cell(engine: str, home_joint_positions_rad, actuator: str, servoj: ur_servoj.ServojSettings):
+    """The cell of `engine` (one of ENGINES); ValueError for a bad home pose."""
+    if engine == PYBULLET:
+        from stylepong_sim.bullet_cell import BulletCell  # pybullet is loaded only when asked for
+        return BulletCell(home_joint_positions_rad, actuator=actuator, servoj=servoj)
+    from stylepong_sim.cell import Cell  # with it the analytic ball contacts, which the Bullet cell must not load
+    return Cell(home_joint_positions_rad=home_joint_positions_rad, actuator=actuator, servoj=servoj)
+
+
 class Ur5SimNode(Node):
     """The ur5_sim node: the cell behind the UR driver's and ros2_control's topics, with ball and sim services."""
-    def __init__(self, **node_kwargs):
+    def __init__(self, default_engine: str = MUJOCO, **node_kwargs):
         super().__init__(PROGRAM, **node_kwargs)
-        value = declare_parameters(self, PARAMETERS)
+        table = tuple(Param(ENGINE.name, default_engine, ENGINE.description, choices=ENGINES) if row is ENGINE
+                      else row for row in PARAMETERS)
+        value = declare_parameters(self, table)
+        self.engine = value['engine']
+        servoj = ur_servoj.ServojSettings(value['servo_rate_hz'], value['lookahead_s'], value['gain'])
         try:
-            self._cell = Cell(home_joint_positions_rad=value['home_joint_positions_rad'])
+            self._cell = build_cell(self.engine, value['home_joint_positions_rad'], value['actuator'], servoj)
         except ValueError as error:
             raise ParameterError(f'parameter home_joint_positions_rad: {error}') from error
         try:
@@ -146,11 +178,16 @@ class Ur5SimNode(Node):
         self._max_lag_s = value['max_lag_s']
         self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
         self._video = None
+        self._video_view = None
         video_path = value['record_video']
         if video_path:
             from stylepong_sim.video import VideoRecorder
             try:
-                self._video = VideoRecorder(self._cell.model, video_path, fps=value['video_fps'],
+                if self.engine == PYBULLET:   # Bullet's state drawn by the MuJoCo scene's renderer
+                    from stylepong_sim.bullet_video import MirroredScene
+                    self._video_view = MirroredScene()
+                model = self._cell.model if self._video_view is None else self._video_view.model
+                self._video = VideoRecorder(model, video_path, fps=value['video_fps'],
                                             width=value['video_width'], height=value['video_height'],
                                             camera=value['video_camera'])
             except Exception as error:  # noqa: BLE001 - any renderer/encoder failure is a configuration problem
@@ -187,7 +224,8 @@ class Ur5SimNode(Node):
         self._timer = self.create_timer(TIMER_PERIOD_S, self._on_timer)
         self._publish_due(self._cell.time_s)
         self.get_logger().info(
-            f'UR5 cell ready: physics step {self._cell.dt_s * 1e3:.1f} ms, real_time_factor {self._real_time_factor}')
+            f'UR5 cell ready ({self.engine}, actuator {value["actuator"]}): '
+            f'physics step {self._cell.dt_s * 1e3:.1f} ms, real_time_factor {self._real_time_factor}')
 
     # --- simulation loop ---------------------------------------------------------------------------
     def _reanchor(self) -> None:
@@ -235,8 +273,8 @@ class Ur5SimNode(Node):
             stamp = _stamp(time_s)
             msg = self._joint_msg
             msg.header.stamp = stamp
-            msg.position = cell.data.qpos[:6].tolist()
-            msg.velocity = cell.data.qvel[:6].tolist()
+            msg.position = cell.joint_positions_rad.tolist()
+            msg.velocity = cell.joint_velocities_rad_s.tolist()
             msg.effort = cell.joint_efforts_nm.tolist()
             self._joint_pub.publish(msg)
         if self._wrench_clock.due(time_s):
@@ -252,7 +290,7 @@ class Ur5SimNode(Node):
             self._clock_msg.clock = stamp or _stamp(time_s)
             self._clock_pub.publish(self._clock_msg)
         if self._tf_clock.due(time_s):
-            self._robot_state.publish_joint_positions(cell.data.qpos[:6], stamp or _stamp(time_s))
+            self._robot_state.publish_joint_positions(cell.joint_positions_rad, stamp or _stamp(time_s))
         if self._marker_clock.due(time_s):
             ball = cell.ball_position_m if cell.ball_in_play else None
             self._marker_pub.publish(cell_markers(ball, stamp or _stamp(time_s)))
@@ -265,7 +303,7 @@ class Ur5SimNode(Node):
             msg.velocity.x, msg.velocity.y, msg.velocity.z = observation.velocity_m_s.tolist()
             self._ball_pub.publish(msg)
         if self._video is not None and self._video.clock.due(time_s):
-            self._video.capture(cell.data)
+            self._video.capture(cell.data if self._video_view is None else self._video_view.show(cell))
 
     def _publish_events(self) -> None:
         for event in self._cell.pop_events():
@@ -348,6 +386,9 @@ class Ur5SimNode(Node):
             self._video.close()
             self.get_logger().info(f'video: {self._video.frames} frames in {self._video.path}')
             self._video = None
+        close_cell = getattr(self._cell, 'close', None)
+        if close_cell is not None:
+            close_cell()
 
 
 def main(args: list[str] | None = None) -> int:
@@ -355,6 +396,11 @@ def main(args: list[str] | None = None) -> int:
     # run_node's events executor costs a fraction of the Python one per wake-up (at the 500 Hz timer about
     # 11 % of a core instead of 26 %).
     return run_node(PROGRAM, Ur5SimNode, args)
+
+
+def main_bullet(args: list[str] | None = None) -> int:
+    """Entry point of ur5_bullet: ur5_sim with engine pybullet by default (same node name and parameters)."""
+    return run_node('ur5_bullet', lambda: Ur5SimNode(default_engine=PYBULLET), args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,504 @@
+"""The table-tennis cell in PyBullet: a second cell that shares no physics code with training, free of ROS.
+
+Same API as cell.Cell (what ur5_sim's node and the tests use), so `ur5_sim --ros-args -p engine:=pybullet`
+(or `ros2 run stylepong_sim ur5_bullet`) serves the same topics from it:
+    cell = BulletCell(home_joint_positions_rad, actuator='ideal'|'ur_servoj', servoj=ServojSettings(...))
+    reset(), set_joint_targets(q), set_hand_wrench(force, torque, frame, duration_s), clear_hand_wrench(),
+    launch_ball(p, v) -> ball_id, remove_ball(), step(n), step_for(s), time_s, dt_s, joint_positions_rad,
+    joint_velocities_rad_s, joint_efforts_nm, joint_targets_rad, tool_wrench(include_inertia), ball_in_play,
+    ball_id, ball_position_m, ball_velocity_m_s, pop_events(), paddle_pose(), tool_pose()
+
+What is Bullet's and what is shared with the other simulators:
+* shared: the URDF and paddle (stylepong_description), the world spec's geometry, masses and coefficients,
+  the referee's rules (referee.Referee), the actuator models (ur_servoj.py: the command -> reference law);
+* Bullet's own: the arm's multibody dynamics (Featherstone) and its joint motors, which track the reference
+  as velocity constraints within the URDF efforts; the ball as a rigid sphere with spin, its contacts with
+  table, net, paddle and arm from Bullet's collision detection and constraint solver. Nothing here imports
+  ball_contacts or batched_world, nor calls world_spec.contact_response.
+
+The arm: URDF loaded with its inertias; every joint's motor gets the reference (q_ref, v_ref) from the
+actuator model each step and solves joint velocity = v_ref + (Kp/Kd)(q_ref - q) (Bullet's positionGain
+(Kp/Kd) dt, velocityGain 1: the corner frequency of world_spec's PD, 20 rad/s big joints, 25 wrists) with
+its torque capped at the URDF effort (gravity included: Bullet has no separate compensation); joint speed
+capped at the URDF velocity limit (maxJointVelocity). No link or joint damping.
+
+The ball: 2.7 g, radius 20 mm, a thin shell (inertia 2/3 m r^2), air drag a = -k|v|v applied as an external
+force before every step (Bullet has no aerodynamics), no Magnus force. Contacts (Bullet multiplies the two
+bodies' coefficients: the ball has restitution 1 and friction 1, so a surface's own values are the pair's):
+* restitution = world_spec's for the surface (table 0.89, blade 0.78, net 0.1, other links 0.6);
+* Coulomb friction from world_spec's tangential factor f: a sliding ball loses mu (1 + e) |v_n| of its
+  tangential speed, so mu = (1 - f) tan(a) / (1 + e) gives f at the reference impact ratio tan(a) =
+  |v_t| / |v_n|: 1.67 for the table (the mean over evaluation seeds 1000-1009's first bounces), 0.5 for blade,
+  net and links (guessed). Steeper impacts stick and roll (a shell then keeps 0.6 of its tangential speed,
+  and spins), which the analytic law does not have;
+* settings that keep Bullet's bounces honest (bullet3 issues on lossy and sticky bounces):
+  restitutionVelocityThreshold 0 (restitution is not zeroed for slow impacts), contactERP 0 and frictionERP 0
+  (Bullet's penetration recovery pushes the ball out with extra speed: a table bounce measured 0.90-0.96 for
+  0.89, with or without split impulse; with 0 it is 0.89 at 1-6 m/s, from 0.5-4 mm above the table), split
+  impulse with contactSlop 0, warmStartingFactor 0, contact processing threshold 0 (only touching contacts are
+  solved), no rolling or spinning friction, no damping, static bodies in maximal coordinates, 1 ms steps.
+  At 1 ms a ball at 15 m/s relative to the blade moves 15 mm per step, less than the 27.5 mm between the blade's
+  mid-plane and the ball's centre at contact, so the discrete collision detection sees every touch; the ball also
+  sweeps a sphere (ccdSweptSphereRadius) against fast static obstacles.
+The referee reads Bullet's contact points after each step: a touch of a body (table, net, blade, another
+robot link) that was not touched in the previous step is a contact event at the ball's centre; a robot link
+touching the table or net is a robot-table contact.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import numpy as np
+
+from stylepong_sim.quiet_stdout import quiet_c_stdout
+
+with quiet_c_stdout():   # its import prints its build time on stdout, which a node's output should not carry
+    import pybullet
+    from pybullet_utils import bullet_client
+
+from stylepong_description import robot_model as rm
+from stylepong_sim import referee as rf
+from stylepong_sim import ur_servoj
+from stylepong_sim import world_spec as ws
+from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
+
+PADDLE_HANDLE_LINK = 'paddle_handle'      # the handle's collision split from the blade's (own restitution)
+TABLE_TANGENT_OVER_NORMAL = 1.67          # mean |v_t|/|v_n| of the incoming balls at their first bounce
+CONTACT_TANGENT_OVER_NORMAL = 0.5         # guessed for blade, net and links
+BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * ws.BALL_MASS_KG * ws.BALL_RADIUS_M ** 2
+SOLVER_ITERATIONS = 50
+
+
+def coulomb_friction(tangential_factor: float, restitution: float, tangent_over_normal: float) -> float:
+    """The Coulomb coefficient with which a sliding ball keeps `tangential_factor` of its tangential speed
+    at an impact of |v_t| / |v_n| = tangent_over_normal (impulse mu (1 + e) |v_n| against it)."""
+    return (1.0 - tangential_factor) * tangent_over_normal / (1.0 + restitution)
+
+
+@dataclass(frozen=True)
+class SurfaceContact:
+    """A surface's Bullet contact coefficients (the ball's are 1: the pair takes these)."""
+    restitution: float
+    friction: float
+
+
+SURFACES = {
+    'table': SurfaceContact(ws.TABLE_RESTITUTION, coulomb_friction(ws.TABLE_TANGENTIAL_FACTOR, ws.TABLE_RESTITUTION,
+                                                                   TABLE_TANGENT_OVER_NORMAL)),
+    'net': SurfaceContact(ws.NET_RESTITUTION, coulomb_friction(ws.NET_TANGENTIAL_FACTOR, ws.NET_RESTITUTION,
+                                                               CONTACT_TANGENT_OVER_NORMAL)),
+    'blade': SurfaceContact(ws.PADDLE_RESTITUTION, coulomb_friction(
+        ws.PADDLE_TANGENTIAL_FACTOR, ws.PADDLE_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
+    'link': SurfaceContact(ws.ROBOT_LINK_RESTITUTION, coulomb_friction(ws.ROBOT_LINK_TANGENTIAL_FACTOR,
+                                                                       ws.ROBOT_LINK_RESTITUTION,
+                                                                       CONTACT_TANGENT_OVER_NORMAL)),
+}
+
+
+def bullet_urdf_xml() -> str:
+    """The robot's URDF for Bullet: the one model, with mesh paths made absolute, the paddle's handle
+    collision moved to a link of its own (so the blade and the handle have their own restitution) and
+    the massless frames (paddle_centre, the handle link) given a zero inertial (Bullet gives 1 kg otherwise)."""
+    share = str(rm.example_robot_data_dir())
+    robot = ET.fromstring(rm.urdf_xml().replace(rm.MESH_PACKAGE_URI, share + '/'))
+    for element in robot.findall('mujoco'):
+        robot.remove(element)
+    paddle = next(link for link in robot.findall('link') if link.get('name') == rm.PADDLE_BODY)
+    handle = ET.SubElement(robot, 'link', name=PADDLE_HANDLE_LINK)
+    for collision in paddle.findall('collision'):
+        if collision.get('name') == 'paddle_handle':
+            paddle.remove(collision)
+            handle.append(collision)
+    joint = ET.SubElement(robot, 'joint', name='paddle-paddle_handle_fixed_joint', type='fixed')
+    ET.SubElement(joint, 'parent', link=rm.PADDLE_BODY)
+    ET.SubElement(joint, 'child', link=PADDLE_HANDLE_LINK)
+    ET.SubElement(joint, 'origin', xyz='0 0 0', rpy='0 0 0')
+    for link in robot.findall('link'):
+        if link.find('inertial') is None:
+            inertial = ET.SubElement(link, 'inertial')
+            ET.SubElement(inertial, 'mass', value='0')
+            ET.SubElement(inertial, 'inertia', ixx='0', ixy='0', ixz='0', iyy='0', iyz='0', izz='0')
+    return ET.tostring(robot, encoding='unicode')
+
+
+def _quaternion_of(rotation: np.ndarray) -> tuple[float, float, float, float]:
+    """Bullet's (x, y, z, w) of a rotation matrix (the base's yaw)."""
+    yaw = math.atan2(rotation[1, 0], rotation[0, 0])
+    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+
+
+class BulletCell:
+    """The cell in PyBullet: UR5 with paddle, table, net, floor and ball, with the referee watching."""
+    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
+                 servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
+        if actuator not in ur_servoj.ACTUATORS:
+            raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
+        self.actuator = actuator
+        self._dt = ws.PHYSICS_DT_S
+        limits = rm.joint_limits()
+        self._lower_rad, self._upper_rad = limits.lower_rad.copy(), limits.upper_rad.copy()
+        self._effort_nm = limits.effort_nm.copy()
+        self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
+        self._reference = ur_servoj.make_reference(actuator, self.home_joint_positions_rad, limits.velocity_rad_s,
+                                                   servoj)
+        kp = np.array(ws.ARM_KP_NM_PER_RAD)
+        kd = np.array(ws.ARM_KD_NMS_PER_RAD)
+        self._position_gains = (kp / kd * self._dt).tolist()
+        self._velocity_gains = [1.0] * rm.NUM_JOINTS
+        self._forces = self._effort_nm.tolist()
+
+        with quiet_c_stdout():   # connecting prints 'argv[0]=' on stdout
+            self._p = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+        p = self._p
+        p.setTimeStep(self._dt)
+        p.setGravity(0.0, 0.0, -ws.GRAVITY_M_S2)
+        p.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, restitutionVelocityThreshold=0.0,
+                                    warmStartingFactor=0.0, useSplitImpulse=1, contactSlop=0.0,
+                                    contactERP=0.0, frictionERP=0.0, enableConeFriction=0,
+                                    deterministicOverlappingPairs=1)
+        self._table = self._static_box((0.0, 0.0, ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M / 2.0),
+                                       (ws.HALF_LENGTH_M, ws.HALF_WIDTH_M, ws.TABLE_THICKNESS_M / 2.0),
+                                       SURFACES['table'])
+        low, high = np.array(ws.NET_BOX_LOW_M), np.array(ws.NET_BOX_HIGH_M)
+        self._net = self._static_box((low + high) / 2.0, (high - low) / 2.0, SURFACES['net'])
+        self._floor = p.createMultiBody(0.0, p.createCollisionShape(pybullet.GEOM_PLANE), useMaximalCoordinates=True)
+        self._robot, self._joints, self._links = self._load_robot()
+        self._blade_link = self._links[rm.PADDLE_BODY]
+        self._handle_link = self._links[PADDLE_HANDLE_LINK]
+        self._tool_link = self._links[rm.TOOL_FRAME]
+        self._centre_link = self._links[rm.PADDLE_CENTRE_FRAME]
+        # The tool's subtree (what a wrist F/T sensor carries): tool0, paddle, handle, paddle_centre.
+        self._tool_links = [self._links[n] for n in (rm.TOOL_FRAME, rm.PADDLE_BODY, PADDLE_HANDLE_LINK,
+                                                      rm.PADDLE_CENTRE_FRAME)]
+        self._tool_mass_kg = sum(p.getDynamicsInfo(self._robot, link)[0] for link in self._tool_links)
+        self._ball_shape = p.createCollisionShape(pybullet.GEOM_SPHERE, radius=ws.BALL_RADIUS_M)
+        self._ball_body: int | None = None
+
+        self._referee = rf.Referee()
+        self._events: list[rf.RallyEvent] = []
+        self._next_ball_id = 1
+        self.ball_id: int | None = None
+        self._ball_p = np.zeros(3)
+        self._ball_v = np.zeros(3)
+        self._ball_launch_time_s = 0.0
+        self._touching: set[str] = set()
+        self._hand: tuple[np.ndarray, np.ndarray, bool, float] | None = None
+        self._q_cmd = self.home_joint_positions_rad.copy()
+        self._time_s = 0.0
+        self._q = np.zeros(6)
+        self._qd = np.zeros(6)
+        self._tau = np.zeros(6)
+        self._tool_velocity_prev: tuple[np.ndarray, np.ndarray] | None = None
+        self._tool_acceleration = (np.zeros(3), np.zeros(3))
+        self._reset_robot()
+
+    # --- construction ------------------------------------------------------------------------------
+    def _static_box(self, centre_m, half_extents_m, surface: SurfaceContact) -> int:
+        p = self._p
+        shape = p.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[float(v) for v in half_extents_m])
+        # Static rigid bodies (maximal coordinates): their contacts with the ball are solved with split impulse.
+        body = p.createMultiBody(0.0, shape, basePosition=[float(v) for v in centre_m], useMaximalCoordinates=True)
+        p.changeDynamics(body, -1, restitution=surface.restitution, lateralFriction=surface.friction,
+                         rollingFriction=0.0, spinningFriction=0.0, contactProcessingThreshold=0.0)
+        return body
+
+    def _load_robot(self) -> tuple[int, list[int], dict[str, int]]:
+        p = self._p
+        rotation, position = ws.robot_base_pose()
+        with tempfile.TemporaryDirectory() as folder:
+            path = os.path.join(folder, 'ur5_paddle.urdf')
+            with open(path, 'w') as file:
+                file.write(bullet_urdf_xml())
+            robot = p.loadURDF(path, basePosition=position.tolist(), baseOrientation=_quaternion_of(rotation),
+                               useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+        joints_by_name, links = {}, {}
+        for index in range(p.getNumJoints(robot)):
+            info = p.getJointInfo(robot, index)
+            joints_by_name[info[1].decode()] = index
+            links[info[12].decode()] = index
+        joints = [joints_by_name[name] for name in rm.JOINT_NAMES]
+        velocity = rm.joint_limits().velocity_rad_s
+        for i, joint in enumerate(joints):
+            p.changeDynamics(robot, joint, maxJointVelocity=float(velocity[i]), jointDamping=0.0)
+        for link in [-1, *links.values()]:
+            surface = SURFACES['blade'] if link == links[rm.PADDLE_BODY] else SURFACES['link']
+            p.changeDynamics(robot, link, restitution=surface.restitution, lateralFriction=surface.friction,
+                             rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
+                             contactProcessingThreshold=0.0)
+        return robot, joints, links
+
+    # --- commands ----------------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.remove_ball()
+        self.clear_hand_wrench()
+        self._reset_robot()
+
+    def set_joint_targets(self, q_rad) -> None:
+        q = self._checked_joint_vector(q_rad, 'joint target')
+        self._q_cmd = q
+        self._reference.command(q)
+
+    def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
+                        duration_s: float = math.inf) -> None:
+        force = np.asarray(force_n, dtype=float).reshape(3)
+        torque = np.asarray(torque_nm, dtype=float).reshape(3)
+        if not (np.isfinite(force).all() and np.isfinite(torque).all()):
+            raise InputError('not_finite', f'hand wrench must be finite, got {force.tolist()} {torque.tolist()}')
+        if frame not in (FRAME_WORLD, FRAME_TOOL):
+            raise InputError('frame', f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
+        if not duration_s > 0.0:
+            raise InputError('duration', 'hand wrench duration must be positive')
+        self._hand = (force, torque, frame == FRAME_TOOL, self._time_s + duration_s)
+
+    def clear_hand_wrench(self) -> None:
+        self._hand = None
+
+    def launch_ball(self, position_m, velocity_m_s) -> int:
+        position = np.asarray(position_m, dtype=float).reshape(3)
+        velocity = np.asarray(velocity_m_s, dtype=float).reshape(3)
+        if not (np.isfinite(position).all() and np.isfinite(velocity).all()):
+            raise InputError('not_finite', 'ball position and velocity must be finite')
+        if np.linalg.norm(velocity) > MAX_LAUNCH_SPEED_M_S:
+            raise InputError('speed',
+                             f'ball speed {np.linalg.norm(velocity):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
+        if rf.ball_is_dead(position):
+            raise InputError('position', f'ball position {position.tolist()} is outside the cell (or below the floor)')
+        self.remove_ball()
+        p = self._p
+        body = p.createMultiBody(ws.BALL_MASS_KG, self._ball_shape, basePosition=position.tolist(),
+                                 useMaximalCoordinates=True)
+        # mass again: on a maximal-coordinates body, changing the inertia alone zeroes the mass (PyBullet 3.2.7).
+        p.changeDynamics(body, -1, mass=ws.BALL_MASS_KG, restitution=1.0, lateralFriction=1.0, rollingFriction=0.0,
+                         spinningFriction=0.0,
+                         linearDamping=0.0, angularDamping=0.0, contactProcessingThreshold=0.0,
+                         localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
+                         ccdSweptSphereRadius=0.9 * ws.BALL_RADIUS_M)
+        p.resetBaseVelocity(body, velocity.tolist(), [0.0, 0.0, 0.0])
+        self._ball_body = body
+        self.ball_id = self._next_ball_id
+        self._next_ball_id += 1
+        self._ball_p, self._ball_v = position.copy(), velocity.copy()
+        self._ball_launch_time_s = self._time_s
+        self._touching = set()
+        self._events += self._referee.launch(self.ball_id, self._time_s, position)
+        return self.ball_id
+
+    def remove_ball(self) -> None:
+        if self.ball_id is None:
+            return
+        self._events += self._referee.abort(self._time_s, self._ball_p)
+        self.ball_id = None
+        self._p.removeBody(self._ball_body)
+        self._ball_body = None
+
+    # --- stepping ----------------------------------------------------------------------------------
+    def step(self, n_steps: int = 1) -> None:
+        for _ in range(n_steps):
+            self._step_once()
+
+    def step_for(self, duration_s: float) -> None:
+        self.step(max(0, round(duration_s / self._dt)))
+
+    # --- state -------------------------------------------------------------------------------------
+    @property
+    def dt_s(self) -> float:
+        return self._dt
+
+    @property
+    def time_s(self) -> float:
+        return self._time_s
+
+    @property
+    def joint_positions_rad(self) -> np.ndarray:
+        return self._q.copy()
+
+    @property
+    def joint_velocities_rad_s(self) -> np.ndarray:
+        return self._qd.copy()
+
+    @property
+    def joint_efforts_nm(self) -> np.ndarray:
+        """The joint motors' torques (gravity included)."""
+        return self._tau.copy()
+
+    @property
+    def joint_targets_rad(self) -> np.ndarray:
+        return self._q_cmd.copy()
+
+    @property
+    def ball_in_play(self) -> bool:
+        return self.ball_id is not None
+
+    @property
+    def ball_position_m(self) -> np.ndarray | None:
+        return self._ball_p.copy() if self.ball_id is not None else None
+
+    @property
+    def ball_velocity_m_s(self) -> np.ndarray | None:
+        return self._ball_v.copy() if self.ball_id is not None else None
+
+    def pop_events(self) -> list[rf.RallyEvent]:
+        events, self._events = self._events, []
+        return events
+
+    def paddle_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._link_pose(self._centre_link)
+
+    def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._link_pose(self._tool_link)
+
+    def tool_wrench(self, include_inertia: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """The wrench the environment applies on the tool (weight, hand, contacts), tool0 axes, about tool0's
+        origin; include_inertia: minus the tool's mass times its acceleration, as a physical sensor reads
+        (the tool's rotational inertia is small and left out)."""
+        origin, rotation = self.tool_pose()
+        force = np.array([0.0, 0.0, -ws.GRAVITY_M_S2 * self._tool_mass_kg])
+        torque = np.zeros(3)
+        com = self._tool_centre_of_mass()
+        torque += np.cross(com - origin, force)
+        if self._hand is not None:
+            hand_force, hand_torque = self._hand_in_world()
+            force += hand_force
+            torque += hand_torque
+        for contact in self._p.getContactPoints(bodyA=self._robot):
+            if contact[3] in self._tool_links:
+                normal = np.array(contact[7])
+                push = contact[9] * normal + contact[10] * np.array(contact[11]) + contact[12] * np.array(contact[13])
+                force += push
+                torque += np.cross(np.array(contact[5]) - origin, push)
+        if include_inertia:
+            inertial = -self._tool_mass_kg * self._tool_acceleration[0]
+            force += inertial
+            torque += np.cross(com - origin, inertial)
+        return rotation.T @ force, rotation.T @ torque
+
+    # --- internals ---------------------------------------------------------------------------------
+    def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
+        q = np.asarray(q_rad, dtype=float)
+        if q.shape != (6,):
+            raise InputError('length', f'{what} needs 6 joint positions, got shape {q.shape}')
+        if not np.isfinite(q).all():
+            raise InputError('not_finite', f'{what} contains NaN or inf: {q.tolist()}')
+        outside = (q < self._lower_rad) | (q > self._upper_rad)
+        if outside.any():
+            names = [rm.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
+            raise InputError('limits', f'{what} outside the joint limits at {names}: {q.tolist()}')
+        return q.copy()
+
+    def _reset_robot(self) -> None:
+        p = self._p
+        for joint, q in zip(self._joints, self.home_joint_positions_rad):
+            p.resetJointState(self._robot, joint, float(q), 0.0)
+        self._q_cmd = self.home_joint_positions_rad.copy()
+        self._reference.reset(self.home_joint_positions_rad, self._time_s)
+        self._tool_velocity_prev = None
+        self._read_joints()
+
+    def _read_joints(self) -> None:
+        states = self._p.getJointStates(self._robot, self._joints)
+        self._q = np.array([s[0] for s in states])
+        self._qd = np.array([s[1] for s in states])
+        self._tau = np.array([s[3] for s in states])
+
+    def _link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
+        state = self._p.getLinkState(self._robot, link, computeForwardKinematics=True)
+        rotation = np.array(self._p.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+        return np.array(state[4]), rotation
+
+    def _tool_centre_of_mass(self) -> np.ndarray:
+        state = self._p.getLinkState(self._robot, self._blade_link, computeForwardKinematics=True)
+        return np.array(state[0])   # the paddle link carries the tool's mass (tool0 and the frames have none)
+
+    def _hand_in_world(self) -> tuple[np.ndarray, np.ndarray]:
+        force, torque, in_tool_frame, _ = self._hand
+        if in_tool_frame:
+            _, rotation = self.tool_pose()
+            return rotation @ force, rotation @ torque
+        return force, torque
+
+    def _apply_hand_wrench(self) -> None:
+        if self._time_s >= self._hand[3]:
+            self.clear_hand_wrench()
+            return
+        force, torque = self._hand_in_world()
+        origin, _ = self.tool_pose()
+        p = self._p
+        p.applyExternalForce(self._robot, self._tool_link, force.tolist(), origin.tolist(), pybullet.WORLD_FRAME)
+        p.applyExternalTorque(self._robot, self._tool_link, torque.tolist(), pybullet.WORLD_FRAME)
+
+    def _step_once(self) -> None:
+        p = self._p
+        q_ref, v_ref = self._reference.step(self._time_s + self._dt, self._dt)
+        p.setJointMotorControlArray(self._robot, self._joints, pybullet.POSITION_CONTROL,
+                                    targetPositions=q_ref.tolist(), targetVelocities=v_ref.tolist(),
+                                    positionGains=self._position_gains, velocityGains=self._velocity_gains,
+                                    forces=self._forces)
+        if self._hand is not None:
+            self._apply_hand_wrench()
+        if self._ball_body is not None:
+            drag = ws.BALL_MASS_KG * ws.drag_acceleration(self._ball_v)
+            p.applyExternalForce(self._ball_body, -1, drag.tolist(), self._ball_p.tolist(), pybullet.WORLD_FRAME)
+        p.stepSimulation()
+        self._time_s += self._dt
+        self._read_joints()
+        self._track_tool_acceleration()
+        if self._referee.rally_open:
+            self._check_robot_table_contacts()
+        if self._ball_body is not None:
+            self._watch_ball()
+
+    def _track_tool_acceleration(self) -> None:
+        state = self._p.getLinkState(self._robot, self._blade_link, computeLinkVelocity=True)
+        velocity = (np.array(state[6]), np.array(state[7]))
+        if self._tool_velocity_prev is not None:
+            self._tool_acceleration = ((velocity[0] - self._tool_velocity_prev[0]) / self._dt,
+                                       (velocity[1] - self._tool_velocity_prev[1]) / self._dt)
+        self._tool_velocity_prev = velocity
+
+    def _check_robot_table_contacts(self) -> None:
+        for obstacle in (self._table, self._net):
+            contacts = self._p.getContactPoints(bodyA=self._robot, bodyB=obstacle)
+            if contacts:
+                self._events += self._referee.robot_table_contact(self._time_s, contacts[0][6])
+                return
+
+    def _contact_kind(self, body: int, link: int) -> str | None:
+        if body == self._table:
+            return 'table'
+        if body == self._net:
+            return 'net'
+        if body == self._robot:
+            return 'blade' if link == self._blade_link else 'link'
+        return None   # the floor: the referee sees a dead ball by its position
+
+    def _watch_ball(self) -> None:
+        p = self._p
+        position, _ = p.getBasePositionAndOrientation(self._ball_body)
+        velocity, _ = p.getBaseVelocity(self._ball_body)
+        self._ball_p, self._ball_v = np.array(position), np.array(velocity)
+        touching = set()
+        for contact in p.getContactPoints(bodyA=self._ball_body):
+            kind = self._contact_kind(contact[2], contact[4])
+            if kind is not None and contact[9] > 0.0:
+                touching.add(kind)
+        time_s = self._time_s
+        report = {'table': self._referee.table_contact, 'net': self._referee.net_contact,
+                  'blade': self._referee.paddle_contact, 'link': self._referee.robot_contact}
+        for kind in ('table', 'net', 'blade', 'link'):   # new touches only: a ball resting on a body is one touch
+            if kind in touching and kind not in self._touching:
+                self._events += report[kind](time_s, self._ball_p)
+        self._touching = touching
+        if self._referee.rally_open:
+            self._events += self._referee.ball_state(time_s, self._ball_p, self._ball_v)
+        elif rf.ball_is_dead(self._ball_p) or time_s - self._ball_launch_time_s >= ws.BALL_LIFETIME_S:
+            self.remove_ball()
+
+    def close(self) -> None:
+        """Disconnect from Bullet (the cell is unusable afterwards)."""
+        if self._p is not None:
+            self._p.disconnect()
+            self._p = None
