@@ -19,6 +19,9 @@ DRAWN_TYPES = {
 }
 
 
+FLUSH_PERIOD_S = 0.1
+
+
 class BagError(RuntimeError):
     """The bag is missing, damaged or holds nothing to show; the message is one line naming it."""
 
@@ -42,6 +45,7 @@ def show_bag(path: pathlib.Path, view: CellView) -> dict[str, int]:
     """Feed every drawable message of the bag into `view`; returns the counts per topic."""
     reader = _open_reader(path)
     counts: dict[str, int] = {}
+    flushed_s = 0.0
     try:
         connections = [c for c in reader.connections if c.msgtype in DRAWN_TYPES]
         if not any(c.msgtype == 'sensor_msgs/msg/JointState' for c in connections):
@@ -52,8 +56,10 @@ def show_bag(path: pathlib.Path, view: CellView) -> dict[str, int]:
                 msg = reader.deserialize(raw, connection.msgtype)
                 _dispatch(view, connection.topic, connection.msgtype, msg, receive_ns * 1e-9)
                 counts[connection.topic] = counts.get(connection.topic, 0) + 1
-                if sum(counts.values()) % 2000 == 0:
+                # As live: a batch per FLUSH_PERIOD_S of message time (a clip that starts again: at once).
+                if not 0.0 <= view.latest_time_s - flushed_s < FLUSH_PERIOD_S:
                     view.flush()
+                    flushed_s = view.latest_time_s
         except BagError:
             raise
         except Exception as error:  # noqa: BLE001 - truncated chunks, corrupt records
@@ -69,15 +75,14 @@ def show_bag(path: pathlib.Path, view: CellView) -> dict[str, int]:
 
 def _dispatch(view: CellView, topic: str, msgtype: str, msg, receive_s: float) -> None:
     if msgtype == 'sensor_msgs/msg/JointState':
-        view.on_joint_state(stamp_seconds(msg.header), list(msg.name), list(msg.position), list(msg.velocity))
+        view.on_joint_state(stamp_seconds(msg.header), lambda: (list(msg.name), list(msg.position), list(msg.velocity)))
     elif msgtype == 'std_msgs/msg/Float64MultiArray' and topic.endswith('/commands'):
-        view.on_command(view.latest_time_s, [float(v) for v in msg.data])
+        view.on_command(lambda: [float(v) for v in msg.data])
     elif msgtype == 'stylepong_msgs/msg/BallState':
-        p = msg.position
-        view.on_ball(stamp_seconds(msg.header), (p.x, p.y, p.z))
+        view.on_ball(stamp_seconds(msg.header), lambda: (msg.position.x, msg.position.y, msg.position.z))
     elif msgtype == 'geometry_msgs/msg/WrenchStamped':
-        f = msg.wrench.force
-        view.on_wrench(stamp_seconds(msg.header), msg.header.frame_id, (f.x, f.y, f.z))
+        f, t = msg.wrench.force, msg.wrench.torque
+        view.on_wrench(stamp_seconds(msg.header), lambda: (f.x, f.y, f.z, t.x, t.y, t.z))
     elif msgtype == 'stylepong_msgs/msg/RallyEvent':
         p = msg.position
         view.on_rally_event(stamp_seconds(msg.header), EVENT_NAMES.get(msg.type, str(msg.type)), msg.reason,

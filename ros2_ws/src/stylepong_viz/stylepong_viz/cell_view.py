@@ -3,14 +3,17 @@
 One CellView is fed by the live node (viewer_node.py) and by a bag (bag_view.py) alike. Every sample carries
 its message time (header stamps: the cell's simulated time with ur5_sim), which is the `time` timeline, so a
 live session and a recorded clip look the same and can be scrubbed. High-rate streams are decimated by
-message time (decimate.py) and plotted in batches at each flush(): the viewer costs the graph little and
-never falls behind 500 Hz joint states.
+message time before anything is decoded (decimate.py; the caller passes a function that reads the values),
+and what is kept is sent at each flush() as one batch per entity: the viewer's work does not grow with the
+graph's 500 Hz streams.
 
 Entities
   /robot/...            the UR5 + paddle URDF (rerun's URDF loader: meshes and fixed joints), its frames
                         named after the links; /tf the moving joints, /tf_static world -> base_link
-  /cell/table, /cell/net, /cell/ball, /cell/ball_trail, /cell/paddle_path, /cell/hand_force  (frame world)
-  /plots/position/<joint>/{measured,commanded}, /plots/speed/<joint>/{speed,limit}, /plots/player/*,
+  /cell/table, /cell/net, /cell/ball, /cell/ball_trail, /cell/paddle_path (frame world)
+  /cell/hand_wrench     the hand's force and torque (hand_wrench.py) as two arrows from tool0, while it pushes
+  /plots/position/{measured,commanded}, /plots/speed/joints (a series per joint; speeds and limits),
+  /plots/player/*,
   /events (rally events, player state changes)
 """
 from __future__ import annotations
@@ -18,6 +21,7 @@ from __future__ import annotations
 import math
 import pathlib
 import tempfile
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import rerun as rr
@@ -26,19 +30,29 @@ import rerun.blueprint as rrb
 from stylepong_description import robot_model as rm
 from stylepong_description.robot_state import RobotState, quaternion_from_matrix, rotate
 from stylepong_sim import world_spec as ws
+from stylepong_viz.batch_transforms import LinkPoses, joint_rotations
 from stylepong_viz.decimate import ColumnBuffer, Decimator, Trail
+from stylepong_viz.hand_wrench import STANDARD_GRAVITY_M_S2, hand_wrench_in_tool, tool_load_from_urdf
 
 FRAME_WORLD = 'world'
 TIMELINE = 'time'
-ARM_RATE_HZ = 30.0         # 3D arm updates: a browser shows ~30-60 frames a second
-PLOT_RATE_HZ = 100.0       # plot points per second per series: a 500 Hz stream decimated 5x
+ARM_RATE_HZ = 30.0         # arm frames a second in the recording (scrubbing); the page shows them as they come
+PLOT_RATE_HZ = 50.0        # plot points a second per series: 500 in a 10 s window, a swing's 0.4 s in 20
+BALL_RATE_HZ = 60.0        # ball positions a second: a 6 m/s ball moves 10 cm between two
 TRAIL_S = 1.5              # ball trail and paddle path length (message time)
-FORCE_SCALE_M_PER_N = 0.02   # the hand force arrow: 10 N draws 0.2 m
+FORCE_SCALE_M_PER_N = 0.02   # the hand's force arrow: 10 N draws 0.2 m
+TORQUE_SCALE_M_PER_NM = 0.5  # the hand's torque arrow (right-hand rule): 0.4 N m draws 0.2 m
+# Below this the sensor's noise and the paddle's model error, not a hand: no arrow (drag_teach ignores the
+# same amount, its force_deadband_n in config/drag_teach.yaml).
+HAND_FORCE_SHOWN_N = 1.0
 TABLE_RGB = (20, 70, 150)
 NET_RGB = (225, 210, 140)   # cream: told apart from the grey arm in screenshots
 BALL_RGB = (255, 140, 0)
 PADDLE_PATH_RGB = (200, 40, 40)
 FORCE_RGB = (230, 30, 200)
+TORQUE_RGB = (40, 200, 230)
+JOINT_RGB = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75))
+LIMIT_RGB = (150, 150, 150)
 BACKGROUND_RGB = (28, 30, 34)
 PLAYER_SERIES = (('period_ms', 'jitter_p99'), ('latency_ms', 'p99'), ('inference_ms', 'p50'))
 # The 3D view's camera: behind the robot on the table's long axis, looking down the table. The robot's base
@@ -77,29 +91,45 @@ def _stamp_s(sec: int, nanosec: int) -> float:
 
 
 class CellView:
-    """Logs the cell into a rerun recording: static scene once, then samples as they come."""
+    """Logs the cell into a rerun recording: the static scene once, then samples as they come.
+
+    Every on_* call takes the sample's time and a `read` function that returns its values: the values
+    are read (a message decoded) only when the sample is kept, so a dropped sample costs a stamp
+    comparison. Kept samples are buffered and sent at flush(), one batch per entity.
+    """
 
     def __init__(self, recording: rr.RecordingStream, arm_rate_hz: float = ARM_RATE_HZ,
-                 plot_rate_hz: float = PLOT_RATE_HZ):
+                 plot_rate_hz: float = PLOT_RATE_HZ, ball_rate_hz: float = BALL_RATE_HZ):
         self.rec = recording
         urdf = rm.urdf_xml_for_display()
         self.robot_state = RobotState(urdf)
         self.joint_names = self.robot_state.moving_joint_names
         self._index = {n: k for k, n in enumerate(self.joint_names)}
-        self._arm = Decimator(arm_rate_hz)
-        self._plot_joint = Decimator(plot_rate_hz)
-        self._plot_force = Decimator(arm_rate_hz)
-        self._measured = ColumnBuffer(len(self.joint_names))
-        self._speed = ColumnBuffer(len(self.joint_names))
-        self._commanded = ColumnBuffer(len(self.joint_names))
+        width = len(self.joint_names)
+        self._arm, self._plot_joint = Decimator(arm_rate_hz), Decimator(plot_rate_hz)
+        self._ball = Decimator(ball_rate_hz)
+        self._arm_frames, self._measured = ColumnBuffer(width), ColumnBuffer(width)
+        self._speed, self._commanded = ColumnBuffer(2 * width), ColumnBuffer(width)
+        self._command_read: Callable[[], Sequence[float]] | None = None   # the latest command, not yet plotted
+        self._wrench: tuple[float, Callable[[], Sequence[float]]] | None = None   # the latest, not yet drawn
+        self._balls = ColumnBuffer(3)
         self._ball_trail = Trail(TRAIL_S)
         self._paddle_path = Trail(TRAIL_S)
         self._player_state = None
+        self._hand_shown = False
         self.latest_time_s = 0.0
-        self.counts = {'joint_states': 0, 'arm_frames': 0}
+        self.latest_q: np.ndarray | None = None
+        self.counts = {'joint_states': 0, 'arm_frames': 0, 'wrenches': 0, 'hand_shown': 0}
         rotation, position = ws.robot_base_pose()
         self._base_rotation_xyzw = quaternion_from_matrix(rotation)
         self._base_position_m = np.asarray(position, dtype=float)
+        # Gravity in the base's axes (the base may be turned about world z): the tool's weight is removed there.
+        self._gravity_base_m_s2 = rotate(self._base_rotation_xyzw * np.array([-1.0, -1.0, -1.0, 1.0]),
+                                         np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2]))
+        self.tool_load = tool_load_from_urdf(urdf, rm.TOOL_FRAME)
+        self._tool_poses = LinkPoses(self.robot_state, rm.TOOL_FRAME)
+        self._paddle_centre_poses = LinkPoses(self.robot_state, rm.PADDLE_CENTRE_FRAME)
+        self._velocity_limits = np.array([j.velocity_limit for j in self.robot_state.moving_joints])
         self._log_static(urdf)
 
     # --- the scene that does not move -----------------------------------------------------------------
@@ -110,6 +140,12 @@ class CellView:
             path = pathlib.Path(folder) / 'ur5_paddle.urdf'
             path.write_text(urdf.replace('file://', ''))
             rr.urdf.UrdfTree.from_file_path(path, entity_path_prefix='robot').log_urdf_to_recording(rec)
+        # The moving joints' frames and their origins' translations do not change: logged once, so that a
+        # flush sends each joint's rotations only.
+        for joint in self.robot_state.moving_joints:
+            rr.log(f'tf/{joint.name}', rr.Transform3D.from_fields(
+                translation=joint.origin_xyz_m, parent_frame=joint.parent, child_frame=joint.child),
+                static=True, recording=rec)
         rr.log('tf_static/world_base', rr.Transform3D(
             translation=self._base_position_m, quaternion=self._base_rotation_xyzw,
             parent_frame=FRAME_WORLD, child_frame=rm.BASE_FRAME), static=True, recording=rec)
@@ -121,19 +157,27 @@ class CellView:
         low, high = np.array(ws.NET_BOX_LOW_M), np.array(ws.NET_BOX_HIGH_M)
         rr.log('cell/net', rr.Boxes3D(centers=[(low + high) / 2.0], half_sizes=[(high - low) / 2.0], colors=[NET_RGB],
                                       fill_mode='solid'), world, static=True, recording=rec)
-        for name in ('ball', 'ball_trail', 'paddle_path', 'hand_force'):
+        for name in ('ball', 'ball_trail', 'paddle_path'):
             rr.log(f'cell/{name}', world, static=True, recording=rec)
-        limits = [j.velocity_limit for j in self.robot_state.moving_joints]
-        for name, limit in zip(self.joint_names, limits):
-            rr.log(f'plots/speed/{name}/limit', rr.SeriesLines(colors=[(150, 150, 150)], names=[f'{name} limit']),
-                   static=True, recording=rec)
-            rr.log(f'plots/position/{name}/commanded', rr.SeriesLines(names=[f'{name} commanded']),
-                   static=True, recording=rec)
-        self._velocity_limits = np.array(limits)
+        # The hand's wrench is drawn where the sensor reads it: at tool0's origin, in tool0's axes.
+        rr.log('cell/hand_wrench', rr.CoordinateFrame(rm.TOOL_FRAME), static=True, recording=rec)
+        colours = [JOINT_RGB[k % len(JOINT_RGB)] for k in range(len(self.joint_names))]
+        short = [n.replace('_joint', '') for n in self.joint_names]
+        # One entity per plot layer, a series per joint: a flush sends each layer as one batch.
+        rr.log('plots/position/measured', rr.SeriesLines(colors=colours, names=[f'{n} measured' for n in short]),
+               static=True, recording=rec)
+        rr.log('plots/position/commanded', rr.SeriesPoints(colors=colours, names=[f'{n} commanded' for n in short],
+                                                           marker_sizes=[1.5] * len(short)), static=True, recording=rec)
+        rr.log('plots/speed/joints', rr.SeriesLines(
+            colors=colours + [LIMIT_RGB] * len(short),
+            names=[f'{n} |speed|' for n in short] + [f'{n} limit' for n in short]), static=True, recording=rec)
 
     # --- samples ----------------------------------------------------------------------------------------
-    def _set_time(self, time_s: float) -> None:
+    def _note_time(self, time_s: float) -> None:
+        """The latest message time (a jump back of more than a second: a restarted cell or a new clip)."""
         self.latest_time_s = max(self.latest_time_s, time_s) if time_s >= self.latest_time_s - 1.0 else time_s
+
+    def _set_time(self, time_s: float) -> None:
         rr.set_time(TIMELINE, duration=time_s, recording=self.rec)
 
     def urdf_order(self, names, values) -> np.ndarray | None:
@@ -145,62 +189,65 @@ class CellView:
                 out[k] = value
         return out if np.all(np.isfinite(out)) else None
 
-    def on_joint_state(self, time_s: float, names, positions, velocities) -> None:
-        """A /joint_states sample: the arm (decimated to arm_rate_hz) and the position/speed plots."""
+    def on_joint_state(self, time_s: float, read: Callable[[], tuple]) -> None:
+        """A /joint_states sample at time_s; read() -> (names, positions, velocities), called only when the
+        sample is kept: for the arm (arm_rate_hz) or the plots (plot_rate_hz), where the latest command
+        since the last plotted sample is plotted beside it."""
         self.counts['joint_states'] += 1
+        plot, arm = self._plot_joint.due(time_s), self._arm.due(time_s)
+        if not (plot or arm):
+            return
+        names, positions, velocities = read()
         q = self.urdf_order(names, positions)
         if q is None:
             return
-        if self._plot_joint.due(time_s):
+        self._note_time(time_s)
+        self.latest_q = q
+        if plot:
             self._measured.add(time_s, q)
             qd = self.urdf_order(names, velocities) if len(velocities) == len(names) else None
             if qd is not None:
-                self._speed.add(time_s, np.abs(qd))
-        if self._arm.due(time_s):
+                self._speed.add(time_s, np.concatenate([np.abs(qd), self._velocity_limits]))
+            if self._command_read is not None:
+                command = self._command_read()
+                self._command_read = None
+                if len(command) == len(self.joint_names) and all(map(math.isfinite, command)):
+                    self._commanded.add(time_s, command)
+        if arm:
             self.counts['arm_frames'] += 1
-            self._set_time(time_s)
-            transforms = self.robot_state.moving_transforms(q)
-            # One entity per joint: an entity holds one transform between two frames.
-            for name, t in zip(self.joint_names, transforms):
-                rr.log(f'tf/{name}', rr.Transform3D(translation=t.translation_m, quaternion=t.rotation_xyzw,
-                                                    parent_frame=t.parent, child_frame=t.child), recording=self.rec)
-            centre, _ = self.robot_state.link_pose_in_base(rm.PADDLE_CENTRE_FRAME, q)
-            self._paddle_path.add(time_s, self._to_world(centre))
-            rr.log('cell/paddle_path', rr.LineStrips3D([self._paddle_path.points()], colors=[PADDLE_PATH_RGB],
-                                                       radii=0.004), recording=self.rec)
+            self._arm_frames.add(time_s, q)
 
-    def _to_world(self, point_in_base_m: np.ndarray) -> np.ndarray:
-        return self._base_position_m + rotate(self._base_rotation_xyzw, point_in_base_m)
+    def on_command(self, read: Callable[[], Sequence[float]]) -> None:
+        """A /forward_position_controller/commands sample: read() -> positions (URDF order). It has no stamp:
+        the latest one is plotted at the next plotted joint state; wrong length or NaN: not drawn."""
+        self._command_read = read
 
-    def on_command(self, time_s: float, positions) -> None:
-        """A /forward_position_controller/commands sample (URDF order); wrong length or NaN: not drawn."""
-        if len(positions) == len(self.joint_names) and all(map(math.isfinite, positions)):
-            self._commanded.add(time_s, positions)
-
-    def on_ball(self, time_s: float, position_m) -> None:
-        """A /ball/state sample: the ball and its trail."""
-        self._set_time(time_s)
-        self._ball_trail.add(time_s, position_m)
-        rr.log('cell/ball', rr.Points3D([position_m], radii=ws.BALL_RADIUS_M, colors=[BALL_RGB]), recording=self.rec)
-        rr.log('cell/ball_trail', rr.LineStrips3D([self._ball_trail.points()], colors=[BALL_RGB], radii=0.003),
-               recording=self.rec)
-
-    def on_wrench(self, time_s: float, frame: str, force_n) -> None:
-        """A wrench on the tool (the F/T sensor while teaching): its force as an arrow from the frame's origin."""
-        if not self._plot_force.due(time_s) or not all(map(math.isfinite, force_n)):
+    def on_ball(self, time_s: float, read: Callable[[], Sequence[float]]) -> None:
+        """A /ball/state sample: read() -> position (m, world); drawn at ball_rate_hz with its trail."""
+        if not self._ball.due(time_s):
             return
-        self._set_time(time_s)
-        vector = np.asarray(force_n, dtype=float) * FORCE_SCALE_M_PER_N
-        rr.log('cell/hand_force', rr.Arrows3D(origins=[(0.0, 0.0, 0.0)], vectors=[vector], colors=[FORCE_RGB],
-                                              radii=0.006), rr.CoordinateFrame(frame or rm.TOOL_FRAME),
-               recording=self.rec)
+        position_m = read()
+        if len(position_m) == 3 and all(map(math.isfinite, position_m)):
+            self._note_time(time_s)
+            self._balls.add(time_s, position_m)
+
+    def on_wrench(self, time_s: float, read: Callable[[], Sequence[float]]) -> None:
+        """An F/T sample: read() -> (force N, torque N m) in tool0 axes about its origin (the sensor's
+        convention). The latest one at each flush is drawn (_send_hand)."""
+        self.counts['wrenches'] += 1
+        self._wrench = (time_s, read)
 
     def on_rally_event(self, time_s: float, name: str, reason: str, success: bool, position_m) -> None:
+        self._note_time(time_s)
         self._set_time(time_s)
         text = f'{name} at ({position_m[0]:.2f}, {position_m[1]:.2f}, {position_m[2]:.2f}) m'
         if name == 'RALLY_END':
             text += f': {"returned" if success else "missed"} ({reason})'
+            self._send_balls()             # the ball's last samples before it goes
             self._ball_trail.clear()
+            self._set_time(time_s)
+            rr.log('cell/ball', rr.Points3D(np.zeros((0, 3))), recording=self.rec)
+            rr.log('cell/ball_trail', rr.LineStrips3D([]), recording=self.rec)
         level = rr.TextLogLevel.INFO if success or name != 'RALLY_END' else rr.TextLogLevel.WARN
         rr.log('events/rally', rr.TextLog(text, level=level), recording=self.rec)
 
@@ -218,21 +265,80 @@ class CellView:
             if isinstance(value, (int, float)) and math.isfinite(value):
                 rr.log(f'plots/player/{group}_{key}', rr.Scalars(float(value)), recording=self.rec)
 
+    # --- sending -----------------------------------------------------------------------------------------
     def flush(self) -> None:
-        """Send the plot points gathered since the last flush, one batch per series."""
-        for buffer, kind in ((self._measured, 'position/{}/measured'), (self._commanded, 'position/{}/commanded'),
-                             (self._speed, 'speed/{}/speed')):
-            if not len(buffer):
-                continue
-            times, values = buffer.take()
-            for k, name in enumerate(self.joint_names):
-                rr.send_columns(f'plots/{kind.format(name)}', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                                columns=rr.Scalars.columns(scalars=values[:, k]), recording=self.rec)
-            if buffer is self._speed:
-                limits = np.broadcast_to(self._velocity_limits, values.shape)
-                for k, name in enumerate(self.joint_names):
-                    rr.send_columns(f'plots/speed/{name}/limit', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                                    columns=rr.Scalars.columns(scalars=limits[:, k]), recording=self.rec)
+        """Send what was kept since the last flush: the arm's frames, the ball, the hand's wrench, the plots
+        (one batch per entity)."""
+        self._send_arm()
+        self._send_balls()
+        self._send_hand()
+        for buffer, entity in ((self._measured, 'position/measured'), (self._commanded, 'position/commanded'),
+                               (self._speed, 'speed/joints')):
+            if len(buffer):
+                times, values = buffer.take()
+                rr.send_columns(f'plots/{entity}', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+                                columns=rr.Scalars.columns(scalars=values), recording=self.rec)
+
+    def _send_hand(self) -> None:
+        """The hand's wrench (the reading less the paddle's weight, hand_wrench.py) as two arrows from tool0
+        while a hand pushes (HAND_FORCE_SHOWN_N or more); none otherwise."""
+        if self._wrench is None or self.latest_q is None:
+            return
+        (time_s, read), self._wrench = self._wrench, None
+        reading = np.asarray(read(), dtype=float)
+        if reading.shape != (6,) or not np.all(np.isfinite(reading)):
+            return
+        _, tool_rotation = self._tool_poses.poses(self.latest_q)
+        hand = hand_wrench_in_tool(reading, self.tool_load, tool_rotation[0], self._gravity_base_m_s2)
+        force_n, torque_nm = float(np.linalg.norm(hand[:3])), float(np.linalg.norm(hand[3:]))
+        shown = force_n >= HAND_FORCE_SHOWN_N
+        if not shown and not self._hand_shown:
+            return
+        self._set_time(time_s)
+        self._hand_shown = shown
+        if not shown:      # the hand let go: the arrows go
+            rr.log('cell/hand_wrench', rr.Arrows3D(vectors=np.zeros((0, 3))), recording=self.rec)
+            return
+        self.counts['hand_shown'] += 1
+        rr.log('cell/hand_wrench', rr.Arrows3D(
+            vectors=[hand[:3] * FORCE_SCALE_M_PER_N, hand[3:] * TORQUE_SCALE_M_PER_NM], origins=[(0, 0, 0)] * 2,
+            colors=[FORCE_RGB, TORQUE_RGB], radii=[0.006, 0.004],
+            labels=[f'hand {force_n:.1f} N', f'{torque_nm:.2f} N m']), recording=self.rec)
+
+    def _send_arm(self) -> None:
+        """The arm's frames as one column of rotations per joint; the paddle's path through them."""
+        if not len(self._arm_frames):
+            return
+        times, qs = self._arm_frames.take()
+        index = [rr.TimeColumn(TIMELINE, duration=times)]
+        # One entity per joint: an entity holds one transform between two frames.
+        for name, rotations in zip(self.joint_names, joint_rotations(self.robot_state, qs)):
+            rr.send_columns(f'tf/{name}', indexes=index, columns=rr.Transform3D.columns(quaternion=rotations),
+                            recording=self.rec)
+        centres, _ = self._paddle_centre_poses.poses(qs)
+        for time_s, centre in zip(times, centres):
+            self._paddle_path.add(time_s, self._to_world(centre))
+        # The path as it stands at the batch's last frame (a strip per frame would cost a log call each).
+        self._set_time(float(times[-1]))
+        rr.log('cell/paddle_path', rr.LineStrips3D([self._paddle_path.points()], colors=[PADDLE_PATH_RGB],
+                                                   radii=0.004), recording=self.rec)
+
+    def _send_balls(self) -> None:
+        """The ball's kept positions as one column; its trail as it stands at the last of them."""
+        if not len(self._balls):
+            return
+        times, positions = self._balls.take()
+        rr.send_columns('cell/ball', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+                        columns=rr.Points3D.columns(positions=positions, radii=[ws.BALL_RADIUS_M] * len(times),
+                                                    colors=[BALL_RGB] * len(times)), recording=self.rec)
+        for time_s, position in zip(times, positions):
+            self._ball_trail.add(time_s, position)
+        self._set_time(float(times[-1]))
+        rr.log('cell/ball_trail', rr.LineStrips3D([self._ball_trail.points()], colors=[BALL_RGB], radii=0.003),
+               recording=self.rec)
+
+    def _to_world(self, point_in_base_m: np.ndarray) -> np.ndarray:
+        return self._base_position_m + rotate(self._base_rotation_xyzw, point_in_base_m)
 
 
 def stamp_seconds(header) -> float:

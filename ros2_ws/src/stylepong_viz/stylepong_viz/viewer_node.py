@@ -2,27 +2,32 @@
 
     ros2 run stylepong_viz viewer                       # live: prints the page's address
     ros2 run stylepong_viz viewer --bag ros2_ws/bags/<clip>   # a recorded clip (mcap or sqlite3)
-    options: --web-port 9090 --grpc-port 9876 --host 127.0.0.1 --memory-limit 512MiB
+    options: --web-port 9090 --grpc-port 9876 --host 127.0.0.1 --memory-limit 512MiB --nice 10
 
-Live, it subscribes (best effort, so that a slow viewer never holds a publisher back; depth 50):
-  /joint_states, /forward_position_controller/commands, /ball/state, /rally/events,
-  /force_torque_sensor_broadcaster/wrench, /player/status
-and only stores each message; a flush_rate_hz timer draws what arrived (decimated by message time,
-cell_view.py). A bad option or a bag that is missing or damaged: one line on stderr, exit code 2.
+Live, it subscribes (best effort, so that a slow viewer never holds a publisher back) to
+  /joint_states, /forward_position_controller/commands, /ball/state, /force_torque_sensor_broadcaster/wrench
+  (raw: a message's stamp is read from its bytes and the message decoded only if the view keeps it),
+  /rally/events, /player/status
+and calls back on none of them: a FLUSH_RATE_HZ timer takes what queued, the view decimates it by message
+time (cell_view.py) and sends what it kept. The process lowers its own CPU priority (--nice): on a busy
+machine the graph's nodes run first and the page waits.
+A bad option or a bag that is missing or damaged: one line on stderr, exit code 2.
 """
 from __future__ import annotations
 
 import argparse
-import collections
+import datetime
 import json
+import os
 import pathlib
 import sys
 import time
 
 EXIT_CONFIG_ERROR = 2
 PROGRAM = 'viewer'
-FLUSH_RATE_HZ = 10.0
-PENDING_LIMIT = 5000      # 10 s of 500 Hz joint states
+FLUSH_RATE_HZ = 10.0      # the page's updates a second: each one a batch per entity
+DEFAULT_NICE = 10         # a display yields the CPU to the nodes it watches
+QUEUE_DEPTH = 100         # messages a subscription holds between two ticks: 500 Hz gives 33
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -41,7 +46,11 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--grpc-port', type=int, default=9876, help="port of the page's data (default 9876)")
     parser.add_argument('--host', default='127.0.0.1', help='host name printed in the address (default 127.0.0.1)')
     parser.add_argument('--memory-limit', default='512MiB', help='data kept for the page; oldest dropped first')
+    parser.add_argument('--nice', type=int, default=DEFAULT_NICE,
+                        help=f'CPU priority given up, live, 0-19 (default {DEFAULT_NICE}; 0 keeps the caller\'s)')
     args = parser.parse_args(argv)
+    if not 0 <= args.nice <= 19:
+        parser.error(f'--nice must be 0-19, got {args.nice}')
     for name in ('web_port', 'grpc_port'):
         if not 1 <= getattr(args, name) <= 65535:
             parser.error(f'--{name.replace("_", "-")} must be 1-65535, got {getattr(args, name)}')
@@ -53,7 +62,9 @@ def _start_page(args: argparse.Namespace):
 
     from stylepong_viz.cell_view import CellView, blueprint
     from stylepong_viz.serve import APPLICATION_ID, serve
-    recording = rr.RecordingStream(APPLICATION_ID)
+    # Rows logged one at a time leave for the page at each flush of the view, not rerun's default 0.2 s.
+    recording = rr.RecordingStream(APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(
+        flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ)))
     page = serve(recording, blueprint(), args.web_port, args.grpc_port, args.memory_limit, args.host)
     view = CellView(recording)
     print(f'{PROGRAM}: open {page.url}', flush=True)
@@ -82,72 +93,130 @@ def run_bag(args: argparse.Namespace) -> int:
     return 0
 
 
+def take_all(subscription) -> list[tuple[int, object]]:
+    """Every message waiting in `subscription`'s queue as (receive time ns, message: bytes when raw), oldest
+    first; taken the way rclpy's executors take one before calling back (rclpy.executors)."""
+    taken = []
+    with subscription.handle:
+        while (message_info := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+            message, info = message_info
+            taken.append((info['received_timestamp'], message))
+    return taken
+
+
 def make_live_node(args: argparse.Namespace):
     """The live viewer node (rclpy imported here: --bag runs without a ROS graph)."""
     from geometry_msgs.msg import WrenchStamped
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import deserialize_message
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray, String
 
     from stylepong_common.node_support import ThrottledLog
+    from stylepong_fdcc.sensor_messages import wrench_from_cdr
     from stylepong_msgs.msg import BallState, RallyEvent
+    from stylepong_recording.joint_state_cdr import CdrLayoutError
     from stylepong_sim.referee import EVENT_NAMES
     from stylepong_viz.cell_view import stamp_seconds
+    from stylepong_viz.raw_messages import JointStateBytes, header_stamp_s
+
+    def never_called(_message) -> None:
+        """rclpy wants a callback; no executor spins the inputs' node, so none is ever called."""
 
     class ViewerNode(Node):
-        """Stores messages in the callbacks; draws them from a timer."""
+        """A timer takes the messages queued since its last tick, hands the view each one's stamp and a reader
+        it calls only for the samples it keeps, and sends what was kept."""
 
         def __init__(self, **node_kwargs):
             super().__init__('stylepong_viewer', **node_kwargs)
             self.view, self.page = _start_page(args)
             self._warnings = ThrottledLog(self.get_logger(), 2.0)
-            # Bounded: if drawing ever falls behind, the oldest undrawn messages go, never the graph's time.
-            self._pending: collections.deque = collections.deque(maxlen=PENDING_LIMIT)
-            qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
-            self.create_subscription(JointState, '/joint_states', self._store('joints'), qos)
-            self.create_subscription(Float64MultiArray, '/forward_position_controller/commands',
-                                     self._store('command'), qos)
-            self.create_subscription(BallState, '/ball/state', self._store('ball'), qos)
-            self.create_subscription(RallyEvent, '/rally/events', self._store('event'), QoSProfile(depth=100))
-            self.create_subscription(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', self._store('wrench'),
-                                     qos)
-            self.create_subscription(String, '/player/status', self._store('status'), QoSProfile(depth=10))
+            self._joint_bytes = JointStateBytes()
+            # The subscriptions hang on a second node that no executor spins: no callback, no wake-up per
+            # message (a Python callback per 500 Hz message was most of the viewer's CPU). Best effort, so
+            # that a slow viewer never holds a publisher back; a queue holds a tick's messages with room to
+            # spare, and a late tick loses the oldest, never the graph's time. The 500 Hz streams are taken
+            # raw: a message the view drops costs its stamp's 8 bytes.
+            self._inputs = Node('stylepong_viewer_inputs', context=self.context)
+            queue = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+            subscribe = self._inputs.create_subscription
+            self._streams = (
+                (subscribe(JointState, '/joint_states', never_called, queue, raw=True), 'joint state',
+                 self._joint_state),
+                (subscribe(Float64MultiArray, '/forward_position_controller/commands', never_called, queue,
+                           raw=True), 'command', self._command),
+                (subscribe(BallState, '/ball/state', never_called, queue, raw=True), 'ball', self._ball),
+                (subscribe(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', never_called, queue, raw=True),
+                 'wrench', self._wrench),
+                (subscribe(RallyEvent, '/rally/events', never_called, QoSProfile(depth=100)), 'rally event',
+                 self._event),
+                (subscribe(String, '/player/status', never_called, QoSProfile(depth=10)), 'player status',
+                 self._status),
+            )
             self.create_timer(1.0 / FLUSH_RATE_HZ, self._draw)
             self.get_logger().info(f'serving {self.page.url}')
 
-        def _store(self, kind: str):
-            pending = self._pending
-            return lambda msg: pending.append((kind, msg))
-
         def _draw(self) -> None:
-            view = self.view
-            for _ in range(len(self._pending)):
-                kind, msg = self._pending.popleft()
+            # In arrival order across topics: a command takes the time of the joint state before it.
+            arrived = [(received_ns, k, message) for k, (subscription, _, _) in enumerate(self._streams)
+                       for received_ns, message in take_all(subscription)]
+            arrived.sort(key=lambda item: item[:2])
+            for _, k, message in arrived:
+                _, kind, show = self._streams[k]
                 try:
-                    self._draw_one(view, kind, msg)
-                except (ValueError, TypeError, AttributeError) as error:   # a malformed message: not drawn
+                    show(message)
+                except (ValueError, TypeError, AttributeError, RuntimeError) as error:   # malformed: not drawn
                     self._warnings.warn(kind, f'{kind} message not drawn: {error}')
-            view.flush()
+            self.view.flush()
 
-        @staticmethod
-        def _draw_one(view, kind: str, msg) -> None:
-            if kind == 'joints':
-                view.on_joint_state(stamp_seconds(msg.header), msg.name, msg.position, msg.velocity)
-            elif kind == 'command':
-                view.on_command(view.latest_time_s, list(msg.data))
-            elif kind == 'ball':
-                p = msg.position
-                view.on_ball(stamp_seconds(msg.header), (p.x, p.y, p.z))
-            elif kind == 'wrench':
-                f = msg.wrench.force
-                view.on_wrench(stamp_seconds(msg.header), msg.header.frame_id, (f.x, f.y, f.z))
-            elif kind == 'event':
-                p = msg.position
-                view.on_rally_event(stamp_seconds(msg.header), EVENT_NAMES.get(msg.type, str(msg.type)), msg.reason,
-                                    msg.success, (p.x, p.y, p.z))
-            elif kind == 'status':
-                view.on_player_status(view.latest_time_s, json.loads(msg.data))
+        def _stamped(self, raw: bytes, msg_type):
+            """(stamp s, None), or (stamp s, message) when the bytes had to be deserialised to find the stamp."""
+            stamp = header_stamp_s(raw)
+            if stamp is not None:
+                return stamp, None
+            msg = deserialize_message(raw, msg_type)
+            return stamp_seconds(msg.header), msg
+
+        def _joint_state(self, raw: bytes) -> None:
+            stamp_s, msg = self._stamped(raw, JointState)
+
+            def read():
+                if msg is None:
+                    try:
+                        return self._joint_bytes.read(raw)
+                    except CdrLayoutError:
+                        pass
+                full = msg or deserialize_message(raw, JointState)
+                return full.name, full.position, full.velocity
+            self.view.on_joint_state(stamp_s, read)
+
+        def _command(self, raw: bytes) -> None:
+            self.view.on_command(lambda: list(deserialize_message(raw, Float64MultiArray).data))
+
+        def _ball(self, raw: bytes) -> None:
+            stamp_s, msg = self._stamped(raw, BallState)
+
+            def read() -> tuple[float, float, float]:
+                p = (msg or deserialize_message(raw, BallState)).position
+                return p.x, p.y, p.z
+            self.view.on_ball(stamp_s, read)
+
+        def _wrench(self, raw: bytes) -> None:
+            stamp_s, _ = self._stamped(raw, WrenchStamped)
+            self.view.on_wrench(stamp_s, lambda: wrench_from_cdr(raw))
+
+        def _event(self, msg: RallyEvent) -> None:
+            p = msg.position
+            self.view.on_rally_event(stamp_seconds(msg.header), EVENT_NAMES.get(msg.type, str(msg.type)), msg.reason,
+                                     msg.success, (p.x, p.y, p.z))
+
+        def _status(self, msg: String) -> None:
+            self.view.on_player_status(self.view.latest_time_s, json.loads(msg.data))
+
+        def close(self) -> None:
+            """On the way out (stylepong_common.node_support.run_node): the inputs' node goes too."""
+            self._inputs.destroy_node()
 
     return ViewerNode
 
@@ -158,6 +227,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.bag is not None:
         return run_bag(args)
+    # Before rclpy and rerun start their threads: they inherit it.
+    os.nice(args.nice)
     from stylepong_common.node_support import run_node
     from stylepong_viz.serve import ServeError
     ros_args = argv[argv.index('--ros-args'):] if '--ros-args' in argv else []
