@@ -9,7 +9,6 @@ PNG is kept (pytest's tmp dir, its path printed) as the test's artefact.
 """
 from __future__ import annotations
 
-import io
 import os
 import pathlib
 import re
@@ -19,7 +18,6 @@ import subprocess
 import time
 import urllib.request
 
-import numpy as np
 import pytest
 
 from stylepong_common.node_process import NodeProcess, free_port
@@ -33,44 +31,8 @@ ARM_RIGHT_FRACTION = 0.45
 # Chromium draws WebGL on the CPU (SwiftShader): with more runnable work than 2x the cores (a training run
 # beside the suite) a frame can take seconds, and the deadline says nothing about the viewer.
 OVERLOADED_PER_CORE = 2.0
-BACKGROUND_RGB = (28, 30, 34)
 URL_LINE = re.compile(r'viewer: open (\S+)')
 CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser') or shutil.which('google-chrome')
-
-
-def cell_view_pixels(png: bytes) -> dict:
-    """The 3D view's region (its dark background's bounding box) split into table, arm and background pixels."""
-    import imageio.v3 as iio
-    image = iio.imread(io.BytesIO(png))[:, :, :3].astype(int)
-    background = np.all(np.abs(image - np.array(BACKGROUND_RGB)) <= 6, axis=2)
-    # The view: the longest run of rows, and then of columns, that are mostly its background colour.
-    y0, y1 = _longest_run(background.mean(axis=1) > 0.5)
-    if y1 - y0 < 100:
-        return {'region': None, 'table': 0, 'arm': 0, 'arm_right_fraction': 0.0}
-    x0, x1 = _longest_run(background[y0:y1 + 1].mean(axis=0) > 0.5)
-    region = image[y0:y1 + 1, x0:x1 + 1]
-    r, g, b = region[:, :, 0], region[:, :, 1], region[:, :, 2]
-    table = (b > r + 50) & (b > g + 30)
-    # The arm's meshes are light grey to white; the table, net (light, but thin and far) and background are not.
-    arm = ~background[y0:y1 + 1, x0:x1 + 1] & ~table & (np.abs(r - b) < 40) & (r > 90)
-    centre_x = (x1 - x0) / 2.0
-    arm_cols = np.nonzero(arm)[1]
-    right = float(np.mean(arm_cols > centre_x + 0.02 * (x1 - x0))) if arm_cols.size else 0.0
-    return {'region': (int(x0), int(y0), int(x1), int(y1)), 'table': int(table.sum()), 'arm': int(arm.sum()),
-            'arm_right_fraction': right}
-
-
-def _longest_run(flags: np.ndarray) -> tuple[int, int]:
-    """First and last index of the longest run of True (0, -1 when none)."""
-    best, start = (0, -1), None
-    for k, flag in enumerate(list(flags) + [False]):
-        if flag and start is None:
-            start = k
-        elif not flag and start is not None:
-            if k - 1 - start > best[1] - best[0]:
-                best = (start, k - 1)
-            start = None
-    return best
 
 
 def _wait_for_url(viewer: NodeProcess, timeout_s: float) -> str:
@@ -86,7 +48,8 @@ def _wait_for_url(viewer: NodeProcess, timeout_s: float) -> str:
 
 @pytest.mark.skipif(CHROMIUM is None, reason='needs Chromium (tools/setup.sh installs it with CI=1)')
 def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
-    from stylepong_viz.browser_shot import HeadlessPage
+    from stylepong_viz.browser_shot import HeadlessPage, cell_view_pixels
+    from stylepong_viz.cell_view import BACKGROUND_RGB
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'home_joint_positions_rad': REACH_RIGHT_RAD}).start()
     player = NodeProcess('stylepong_player', 'player').start()
     web_port, grpc_port = free_port(), free_port()
@@ -100,7 +63,7 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
             shots = []
             while time.monotonic() - started < PAGE_DEADLINE_S + 15.0:   # keeps looking, to say how late it was
                 png = browser.shoot()
-                shots.append((time.monotonic() - started, png, cell_view_pixels(png)))
+                shots.append((time.monotonic() - started, png, cell_view_pixels(png, BACKGROUND_RGB)))
                 found = shots[-1][2]
                 if found['table'] > 2000 and found['arm'] > 1000 and found['arm_right_fraction'] > ARM_RIGHT_FRACTION:
                     break

@@ -3,7 +3,8 @@
 `chromium --screenshot` shoots when the page's load event fires, before rerun's Wasm viewer has connected
 and drawn, so the page is opened in a headless Chromium with a DevTools port and shot when asked
 (Page.captureScreenshot), as often as the caller wants. WebGL runs on SwiftShader (CPU): no GPU needed.
-Used by the system test (tests/test_viewer.py) and for the README's screenshot:
+cell_view_pixels reads what a shot's 3D view shows. Used by the system test (tests/test_viewer.py) and for
+the README's screenshot (demo_shot.py); a page shot by hand:
 
     python3 -m stylepong_viz.browser_shot URL OUT.png [--wait-s 8]
 """
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import io
 import json
 import os
 import shutil
@@ -21,6 +23,8 @@ import sys
 import tempfile
 import time
 import urllib.request
+
+import numpy as np
 
 CHROMIUM_NAMES = ('chromium', 'chromium-browser', 'google-chrome', 'google-chrome-stable')
 
@@ -117,6 +121,44 @@ class HeadlessPage:
 
     def __exit__(self, *_exc) -> None:
         self.close()
+
+
+def _longest_run(flags: np.ndarray) -> tuple[int, int]:
+    """First and last index of the longest run of True (0, -1 when none)."""
+    best, start = (0, -1), None
+    for k, flag in enumerate(list(flags) + [False]):
+        if flag and start is None:
+            start = k
+        elif not flag and start is not None:
+            if k - 1 - start > best[1] - best[0]:
+                best = (start, k - 1)
+            start = None
+    return best
+
+
+def cell_view_pixels(png: bytes, background_rgb: tuple[int, int, int]) -> dict:
+    """What a screenshot's 3D view shows: its region (the bounding box of its dark background) and its table
+    (blue), arm (light grey) and ball (orange: ball and trail) pixel counts, and the share of the arm's pixels
+    right of the view's vertical centre line."""
+    import imageio.v3 as iio
+    image = iio.imread(io.BytesIO(png))[:, :, :3].astype(int)
+    background = np.all(np.abs(image - np.array(background_rgb)) <= 6, axis=2)
+    # The view: the longest run of rows, and then of columns, that are mostly its background colour.
+    y0, y1 = _longest_run(background.mean(axis=1) > 0.5)
+    if y1 - y0 < 100:
+        return {'region': None, 'table': 0, 'arm': 0, 'ball': 0, 'arm_right_fraction': 0.0}
+    x0, x1 = _longest_run(background[y0:y1 + 1].mean(axis=0) > 0.5)
+    region = image[y0:y1 + 1, x0:x1 + 1]
+    r, g, b = region[:, :, 0], region[:, :, 1], region[:, :, 2]
+    table = (b > r + 50) & (b > g + 30)
+    # The arm's meshes are light grey to white; the table, net (light, but thin and far) and background are not.
+    arm = ~background[y0:y1 + 1, x0:x1 + 1] & ~table & (np.abs(r - b) < 40) & (r > 90)
+    ball = (r > 200) & (g > 90) & (g < 190) & (b < 60)
+    centre_x = (x1 - x0) / 2.0
+    arm_cols = np.nonzero(arm)[1]
+    right = float(np.mean(arm_cols > centre_x + 0.02 * (x1 - x0))) if arm_cols.size else 0.0
+    return {'region': (int(x0), int(y0), int(x1), int(y1)), 'table': int(table.sum()), 'arm': int(arm.sum()),
+            'ball': int(ball.sum()), 'arm_right_fraction': right}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,8 +9,8 @@ Live, it subscribes (best effort, so that a slow viewer never holds a publisher 
   (raw: a message's stamp is read from its bytes and the message decoded only if the view keeps it),
   /rally/events, /player/status
 and calls back on none of them: a FLUSH_RATE_HZ timer takes what queued, the view decimates it by message
-time (cell_view.py) and sends what it kept. The process lowers its own CPU priority (--nice): on a busy
-machine the graph's nodes run first and the page waits.
+time (cell_view.py) and sends what it kept. Once serving, the process lowers its CPU priority (--nice): on a
+busy machine the graph's nodes run first and the page waits.
 A bad option or a bag that is missing or damaged: one line on stderr, exit code 2.
 """
 from __future__ import annotations
@@ -66,9 +66,21 @@ def _start_page(args: argparse.Namespace):
     recording = rr.RecordingStream(APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(
         flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ)))
     page = serve(recording, blueprint(), args.web_port, args.grpc_port, args.memory_limit, args.host)
-    view = CellView(recording)
+    # The address first: a browser loads the viewer (tens of MB of Wasm) while the scene is logged.
     print(f'{PROGRAM}: open {page.url}', flush=True)
+    view = CellView(recording)
     return view, page
+
+
+def lower_priority(increment: int) -> None:
+    """Every thread of this process `increment` nicer (at most 19). On Linux a priority is a thread's, and a
+    thread started later takes its starter's: the ones rclpy and rerun start afterwards are nicer too."""
+    for task in pathlib.Path('/proc/self/task').iterdir():
+        tid = int(task.name)
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + increment))
+        except OSError:      # the thread ended meanwhile
+            continue
 
 
 def run_bag(args: argparse.Namespace) -> int:
@@ -155,7 +167,9 @@ def make_live_node(args: argparse.Namespace):
                  self._status),
             )
             self.create_timer(1.0 / FLUSH_RATE_HZ, self._draw)
-            self.get_logger().info(f'serving {self.page.url}')
+            # Started at the caller's priority (the page comes up sooner); from here on the graph goes first.
+            lower_priority(args.nice)
+            self.get_logger().info(f'serving {self.page.url} (nice +{args.nice})')
 
         def _draw(self) -> None:
             # In arrival order across topics: a command takes the time of the joint state before it.
@@ -227,8 +241,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.bag is not None:
         return run_bag(args)
-    # Before rclpy and rerun start their threads: they inherit it.
-    os.nice(args.nice)
     from stylepong_common.node_support import run_node
     from stylepong_viz.serve import ServeError
     ros_args = argv[argv.index('--ros-args'):] if '--ros-args' in argv else []

@@ -1,4 +1,8 @@
 """The viewer's options and its CellView, without a ROS graph or a browser."""
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import rerun as rr
@@ -20,6 +24,25 @@ def test_bad_options_give_one_line_and_exit_code_2(argv, why, capsys):
 def test_ros_args_are_left_to_rclpy():
     args = viewer_node.parse_args(['--web-port', '9191', '--ros-args', '-p', 'use_sim_time:=true'])
     assert args.web_port == 9191 and args.bag is None and args.nice == viewer_node.DEFAULT_NICE
+
+
+def test_lower_priority_makes_every_thread_nicer():
+    # In a child: the test process keeps its priority.
+    script = (
+        'import os, threading, time\n'
+        'from stylepong_viz.viewer_node import lower_priority\n'
+        'stop = threading.Event()\n'
+        'threading.Thread(target=stop.wait).start()\n'
+        'lower_priority(3)\n'
+        'late = threading.Thread(target=lambda: print(os.getpriority(os.PRIO_PROCESS, threading.get_native_id())))\n'
+        'late.start(); late.join()\n'
+        'print(*[os.getpriority(os.PRIO_PROCESS, int(t)) for t in os.listdir("/proc/self/task")])\n'
+        'stop.set()\n')
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    if before > 16:
+        pytest.skip(f'this process runs at nice {before}: no room to see 3 more')
+    out = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, check=True).stdout.split()
+    assert len(out) >= 3 and set(out) == {str(before + 3)}
 
 
 def _view(**rates) -> CellView:
