@@ -17,7 +17,7 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 
 from stylepong_common.node_process import NodeProcess  # noqa: E402
-from stylepong_sim import world_spec as ws  # noqa: E402
+from stylepong_sim import world_spec  # noqa: E402
 from stylepong_sim.cell import Cell  # noqa: E402
 from stylepong_sim.ur5_sim_probe import Ur5SimProbe  # noqa: E402
 
@@ -33,7 +33,7 @@ def cell_alone() -> tuple[float, float]:
     idle = 5000 / (time.perf_counter() - start)
     steps, elapsed = 0, 0.0
     for seed in range(5):
-        launch = ws.incoming_ball_for_seed(seed)
+        launch = world_spec.incoming_ball_for_seed(seed)
         cell.launch_ball(launch.position_m, launch.velocity_m_s)
         start = time.perf_counter()
         cell.step(800)

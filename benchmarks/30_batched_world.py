@@ -25,12 +25,11 @@ THREADS = 2
 
 def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]:
     """Policy steps per second of BatchedWorld (with resets), rallies decided, seconds to the first step."""
-    from stylepong_sim import batched_launcher as bl
-    from stylepong_sim import batched_world as bw
+    from stylepong_sim import batched_launcher, batched_world
 
     started = time.perf_counter()
-    world = bw.BatchedWorld(num_envs, compile=compile)
-    sampler = bl.IncomingBallSampler(seed=0, batch=max(4096, 2 * num_envs))
+    world = batched_world.BatchedWorld(num_envs, compile=compile)
+    sampler = batched_launcher.IncomingBallSampler(seed=0, batch=max(4096, 2 * num_envs))
     ids = torch.arange(num_envs)
     position, velocity, _ = sampler.sample(num_envs)
     world.reset_envs(ids, world.q_rad.clone(), position, velocity)
@@ -40,7 +39,7 @@ def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]
     decided = 0
 
     def one_step() -> int:
-        with bw.torch_threads(1):   # as the task runs it: see batched_world.torch_threads
+        with batched_world.torch_threads(1):   # as the task runs it: see batched_world.torch_threads
             return reset_decided(world.step(next_target()))
 
     def next_target() -> torch.Tensor:

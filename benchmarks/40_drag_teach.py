@@ -34,20 +34,20 @@ STATS = re.compile(r'(\d+) cycles in .*? (\d+) missed, compute mean (\d+) us, p9
 
 
 def controller_cycles() -> np.ndarray:
-    from stylepong_description import robot_model as rm
+    from stylepong_description import robot_model
     from stylepong_fdcc.drag_teach_controller import DragTeachController
     from stylepong_fdcc.fdcc_config import FdccConfig
     from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
     from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
 
     controller = DragTeachController(FdccConfig())
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     data = model.createData()
     load = tool_load_from_model(model)
     q = np.array(HOME_JOINT_POSITIONS_RAD)
     import pinocchio as pin
     pin.framesForwardKinematics(model, data, q)
-    rotation = data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
+    rotation = data.oMf[model.getFrameId(robot_model.TOOL_FRAME)].rotation
     weight = gravity_wrench_on_tool(load, rotation, np.array(model.gravity.linear))
     t = 0.0
     for _ in range(200):                                   # start-up and tare, not timed

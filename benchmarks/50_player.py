@@ -2,7 +2,7 @@
 """player: period jitter, ball-message-to-command latency, inference time per backend and CPU share.
 
 1. The actor alone (no ROS): one observation per call, ONNX (onnxruntime, 1 thread) and TorchScript
-   (torch, 1 thread), and one whole PlayerCore policy step (observation, ONNX actor, decoding, limiter).
+   (torch, 1 thread), and one whole Player policy step (observation, ONNX actor, decoding, limiter).
 2. The node alone, wall clock: `ros2 run stylepong_player player` (enabled) fed by this script with
    /joint_states at 500 Hz and /ball/state at 120 Hz stamped with the wall clock, DURATION_S per backend;
    the figures are the player's own (/player/status): period between policy steps and its jitter
@@ -32,13 +32,12 @@ RALLY_BALLS = 6
 
 
 def actor_alone() -> dict[str, np.ndarray]:
-    from stylepong_player import player_core as pc
-    from stylepong_player import spec
+    from stylepong_player import player_core, spec
     rng = np.random.default_rng(0)
     obs = rng.normal(0, 1, (CALLS, 1, spec.NUM_OBS)).astype(np.float32)
     times = {}
-    for backend in pc.BACKENDS:
-        actor = pc.load_actor(ACTOR, backend)
+    for backend in player_core.BACKENDS:
+        actor = player_core.load_actor(ACTOR, backend)
         for k in range(200):
             actor(obs[k])
         t = np.empty(CALLS)
@@ -47,7 +46,7 @@ def actor_alone() -> dict[str, np.ndarray]:
             actor(obs[k])
             t[k] = time.perf_counter() - started
         times[backend] = t
-    core = pc.PlayerCore(pc.PlayerConfig(), pc.load_actor(ACTOR, 'onnx'))
+    core = player_core.Player(player_core.PlayerConfig(), player_core.load_actor(ACTOR, 'onnx'))
     core.set_enabled(True)
     names, home = list(spec.JOINT_NAMES), list(spec.HOME_JOINT_POSITIONS_RAD)
     steps = []
@@ -58,7 +57,7 @@ def actor_alone() -> dict[str, np.ndarray]:
         started = time.perf_counter()
         core.step(now)
         steps.append(time.perf_counter() - started)
-    times['PlayerCore step (ONNX)'] = np.array(steps)
+    times['Player step (ONNX)'] = np.array(steps)
     return times
 
 
@@ -163,7 +162,7 @@ def main() -> int:
     sim_status, sim_cpu, rally = with_ur5_sim()
     print('## player: period jitter, ball-to-command latency, inference time, CPU share\n')
     print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). '
-          f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole PlayerCore policy steps '
+          f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole Player policy steps '
           '(observation, '
           'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_player player` (enabled, wall clock) fed by '
           f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '

@@ -20,13 +20,13 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from stylepong_common.node_process import NodeProcess, wait_until
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_sim.teacher import CellKinematics
 
 CONTROL_RATE_HZ = 500.0          # drag_teach's default
-LIMITS = rm.joint_limits()
+LIMITS = robot_model.joint_limits()
 KIN = CellKinematics()
-TOOL = KIN.frame_id(rm.TOOL_FRAME)
+TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
 
 
 class CellProbe:
@@ -55,7 +55,7 @@ class CellProbe:
                 return
 
     def _on_joints(self, msg: JointState):
-        index = [list(msg.name).index(n) for n in rm.JOINT_NAMES]
+        index = [list(msg.name).index(n) for n in robot_model.JOINT_NAMES]
         with self.lock:
             self.joints.append((time.monotonic(), np.array(msg.position)[index], np.array(msg.velocity)[index]))
 
@@ -256,7 +256,7 @@ def test_with_stiffness_it_is_a_compliance_controller_around_the_target_pose(ros
         target = start.translation + np.array([0.05, -0.03, 0.04])
         publisher = probe.node.create_publisher(PoseStamped, '/drag_teach/target_pose', 10)
         msg = PoseStamped()
-        msg.header.frame_id = rm.BASE_FRAME
+        msg.header.frame_id = robot_model.BASE_FRAME
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in target)
         x, y, z, w = pin.Quaternion(start.rotation).coeffs()
         msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = x, y, z, w

@@ -28,8 +28,7 @@ from std_msgs.msg import Bool, Float64MultiArray, String
 
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
-from stylepong_player import player_core as pc
-from stylepong_player import spec
+from stylepong_player import player_core, spec
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SHIPPED = ROOT / 'ros2_ws/src/stylepong_policy/models/ppo_actor.pt'
@@ -152,7 +151,7 @@ def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: 
         time.sleep(0.0003)
 
 
-def check_commands(commands: list[Command], limits: pc.JointLimits) -> int:
+def check_commands(commands: list[Command], limits: player_core.JointLimits) -> int:
     """Every command: six finite values within the position limits; between commands of consecutive
     periods, the per-period velocity and acceleration limits. Returns how many pairs were checked.
 
@@ -186,8 +185,8 @@ def test_the_command_check_judges_pairs_by_publish_time():
     """The fuzz test's check: a step too fast between commands published one period apart fails it, even
     when they arrive far apart; the same step after a gap in publishing (a restart) does not, even when
     the two arrive together."""
-    limits = pc.JointLimits.for_commands(pc.PlayerConfig().position_margin_rad, 1.0,
-                                         pc.PlayerConfig().acceleration_limit_rad_s2)
+    limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
+                                                  player_core.PlayerConfig().acceleration_limit_rad_s2)
     too_fast = HOME + 1.1 * limits.velocity_rad_s * PERIOD_S
     with pytest.raises(AssertionError):
         check_commands([Command(0.0, 0.0, list(HOME)), Command(0.5, PERIOD_S, list(too_fast))], limits)
@@ -217,8 +216,8 @@ def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
             run_stream(rig, 1.0, rng, fuzz=False)
             rig.spin(0.5)
             assert player.running(), player.output()
-            limits = pc.JointLimits.for_commands(pc.PlayerConfig().position_margin_rad, 1.0,
-                                                 pc.PlayerConfig().acceleration_limit_rad_s2)
+            limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
+                                                          player_core.PlayerConfig().acceleration_limit_rad_s2)
             pairs = check_commands(rig.commands, limits)
             assert pairs > 300, pairs
             status = rig.status

@@ -12,12 +12,12 @@ import pinocchio as pin
 import pytest
 
 from stylepong_common.node_process import NodeProcess
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_msgs.msg import RallyEvent
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.ur5_sim_probe import Ur5SimProbe, stamp_s
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])   # turned away from the table
 
 
@@ -50,7 +50,7 @@ def test_joint_states_and_wrench_at_500_hz_and_a_clock(sim):
     print(f'/joint_states {joint_rate_hz:.0f} Hz, wrench {wrench_rate_hz:.0f} Hz over {window_s:.1f} s')
     assert joint_rate_hz >= 450.0, joint_rate_hz
     assert wrench_rate_hz >= 450.0, wrench_rate_hz
-    assert probe.joint_names == list(rm.JOINT_NAMES)
+    assert probe.joint_names == list(robot_model.JOINT_NAMES)
     positions, velocities, efforts = probe.joint_states[-1].values
     assert len(positions) == len(velocities) == len(efforts) == 6
     assert probe.wrench_frames == {'tool0'}
@@ -96,10 +96,10 @@ def test_a_30_cm_drop_rebounds_to_an_ittf_height(sim):
     _, probe = sim
     probe.reset()
     first = len(probe.balls)
-    response = probe.launch(randomize=False, position=_point(-0.5, 0.0, ws.TABLE_HEIGHT_M + 0.305))
+    response = probe.launch(randomize=False, position=_point(-0.5, 0.0, world_spec.TABLE_HEIGHT_M + 0.305))
     assert response.success, response.message
     assert probe.spin_until(lambda: _rebound_apex(probe.balls[first:]) is not None, 10.0)
-    apex_m = _rebound_apex(probe.balls[first:])[2] - ws.TABLE_HEIGHT_M
+    apex_m = _rebound_apex(probe.balls[first:])[2] - world_spec.TABLE_HEIGHT_M
     print(f'30.5 cm drop: rebound apex {apex_m:.4f} m above the surface')
     assert 0.215 <= apex_m <= 0.265
     assert probe.ball_frames == {'world'}
@@ -157,7 +157,8 @@ def test_forty_randomized_balls_need_every_stroke(sim):
             (seed, [(e.type, e.reason) for e in _events_of(probe, response.ball_id)])
         bounce, apex = _first_bounce_and_apex(probe, response.ball_id)
         assert bounce.type == RallyEvent.BOUNCE_OWN_SIDE, seed
-        assert -ws.HALF_LENGTH_M <= bounce.position.x < 0.0 and abs(bounce.position.y) <= ws.HALF_WIDTH_M, seed
+        assert -world_spec.HALF_LENGTH_M <= bounce.position.x < 0.0, seed
+        assert abs(bounce.position.y) <= world_spec.HALF_WIDTH_M, seed
         lateral_m.append(apex[1])
     print(f'40 balls: speeds {min(speeds):.2f}-{max(speeds):.2f} m/s, apex y {min(lateral_m):.2f} to '
           f'{max(lateral_m):.2f} m (span {max(lateral_m) - min(lateral_m):.2f} m)')
@@ -183,11 +184,11 @@ def test_seed_7_against_a_motionless_arm_is_no_return(sim):
 
 
 def _tool_rotation_in_world(q) -> np.ndarray:
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     data = model.createData()
     pin.framesForwardKinematics(model, data, np.asarray(q))
-    base_rotation, _ = ws.robot_base_pose()
-    return base_rotation @ data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
+    base_rotation, _ = world_spec.robot_base_pose()
+    return base_rotation @ data.oMf[model.getFrameId(robot_model.TOOL_FRAME)].rotation
 
 
 def _mean_force(samples) -> np.ndarray:

@@ -9,14 +9,14 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from stylepong_common.node_process import NodeProcess, wait_until
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig, sample_variation
 
 KIN = CellKinematics()
-CENTRE = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
-TOOL = KIN.frame_id(rm.TOOL_FRAME)
-HOME_CENTRE = KIN.pose(np.array(ws.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
+CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
+TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
+HOME_CENTRE = KIN.pose(np.array(world_spec.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
 SEED = 0   # the node's default take
 
 
@@ -27,7 +27,7 @@ def read_clip(bag: pathlib.Path):
         rows = []
         for connection, _, raw in reader.messages(connections=connections):
             msg = reader.deserialize(raw, connection.msgtype)
-            index = [list(msg.name).index(n) for n in rm.JOINT_NAMES]
+            index = [list(msg.name).index(n) for n in robot_model.JOINT_NAMES]
             rows.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
                          np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
@@ -47,7 +47,7 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
     recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     hits = {}
     try:
         for swing in SWINGS:

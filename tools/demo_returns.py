@@ -83,11 +83,11 @@ def main() -> int:
 
     from stylepong_policy import evaluate
     from stylepong_policy.dataset import ReferenceDataset
-    from stylepong_sim import world_spec as ws
+    from stylepong_sim import world_spec
 
     torch.set_num_threads(1)
     started = time.perf_counter()
-    speed_range = tuple(ws.SPEED_RANGES_M_S['all'])
+    speed_range = tuple(world_spec.SPEED_RANGES_M_S['all'])
     dataset = ReferenceDataset.load(args.dataset)
     demo_rows = replayed([(f'{dataset.label[i]} x{int(dataset.speed_factor[i])} (clip {i})', dataset.clip(i).q)
                           for i in range(dataset.num_clips)], args.balls, args.seed, speed_range)

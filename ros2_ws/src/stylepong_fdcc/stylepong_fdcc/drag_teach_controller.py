@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.fdcc_solver import FdccSolver
 from stylepong_fdcc.wrench_conditioning import WrenchConditioner, tool_load_from_model, wrench_fault
@@ -42,9 +42,9 @@ class DragTeachController:
     def __init__(self, config: FdccConfig, enabled: bool = True, tare_on_enable: bool = True):
         self.config = config
         self.solver = FdccSolver(config)
-        kinematics = rm.pinocchio_model()
+        kinematics = robot_model.pinocchio_model()
         self._kin_model, self._kin_data = kinematics, kinematics.createData()
-        self._tool_id = kinematics.getFrameId(rm.TOOL_FRAME)
+        self._tool_id = kinematics.getFrameId(robot_model.TOOL_FRAME)
         self.conditioner = WrenchConditioner(config, tool_load_from_model(kinematics),
                                              np.array(kinematics.gravity.linear))
         self.enabled = enabled
@@ -64,7 +64,7 @@ class DragTeachController:
     def on_joint_positions(self, q: np.ndarray, time_s: float) -> str | None:
         """A measured joint state; returns why it was rejected, or None."""
         q = np.asarray(q, dtype=float)
-        if q.shape != (rm.NUM_JOINTS,) or not np.all(np.isfinite(q)):
+        if q.shape != (robot_model.NUM_JOINTS,) or not np.all(np.isfinite(q)):
             self.rejected_joint_states += 1
             return 'non-finite or incomplete joint positions'
         self.measured_q = q

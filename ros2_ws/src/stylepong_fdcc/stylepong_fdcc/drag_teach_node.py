@@ -31,14 +31,14 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.cycle_statistics import CycleStatistics
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import DYNAMICS_MODELS, FdccConfig
 from stylepong_fdcc.sensor_messages import JointStateReader, wrench_from_cdr
 
 PROGRAM = 'drag_teach'
-BASE_FRAMES = ('', rm.BASE_FRAME, 'base')
+BASE_FRAMES = ('', robot_model.BASE_FRAME, 'base')
 WARN_THROTTLE_S = 1.0
 CONTROL_RATE_RANGE_HZ = (10.0, 2000.0)
 
@@ -137,7 +137,7 @@ class DragTeachNode(Node):
                                               tare_on_enable=values['tare_on_enable'])
         self.stats = CycleStatistics(config.nominal_period_s)
         self.warnings = ThrottledLog(self.get_logger(), period_s=WARN_THROTTLE_S)
-        self._joint_reader = JointStateReader(rm.JOINT_NAMES)
+        self._joint_reader = JointStateReader(robot_model.JOINT_NAMES)
         self._clock_handle = self.get_clock().handle
         self._state = ''
         self._command_msg = Float64MultiArray()
@@ -170,7 +170,8 @@ class DragTeachNode(Node):
         positions, _, _ = self._joint_reader.positions(raw)
         if positions is None:
             self.warnings.warn('joint names',
-                               f'joint state rejected: it must name every joint of {rm.JOINT_NAMES} with a position')
+                               f'joint state rejected: it must name every joint of {robot_model.JOINT_NAMES} '
+                               'with a position')
             return
         fault = self.controller.on_joint_positions(positions, self._now_s())
         if fault:
@@ -185,7 +186,8 @@ class DragTeachNode(Node):
     def _on_target_pose(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in BASE_FRAMES:
             self.warnings.warn('target frame',
-                               f'target pose rejected: frame {msg.header.frame_id!r}, expected {rm.BASE_FRAME!r}')
+                               f'target pose rejected: frame {msg.header.frame_id!r}, '
+                               f'expected {robot_model.BASE_FRAME!r}')
             return
         p, o = msg.pose.position, msg.pose.orientation
         rotation = quaternion_to_rotation(o.x, o.y, o.z, o.w)

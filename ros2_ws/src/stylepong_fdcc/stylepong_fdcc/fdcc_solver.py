@@ -59,14 +59,14 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.joint_limits import JointMotionLimits, decelerate, limit_motion
 
 
 def dynamics_model(config: FdccConfig) -> pin.Model:
     """The gravity-free model the solver integrates: the URDF's inertias, or FZI-style light links."""
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     model.gravity = pin.Motion.Zero()
     if config.dynamics_model == 'virtual':
         last = model.njoints - 1
@@ -87,7 +87,7 @@ class FdccSolver:
         self.model = dynamics_model(config)
         self.data = self.model.createData()
         # The control frame is the sensor's: the wrench arrives about tool0's origin.
-        self.frame_id = self.model.getFrameId(rm.TOOL_FRAME)
+        self.frame_id = self.model.getFrameId(robot_model.TOOL_FRAME)
         self.limits = JointMotionLimits.from_config(config)
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 
 
@@ -25,7 +25,7 @@ class JointMotionLimits:
 
     @classmethod
     def from_config(cls, config: FdccConfig) -> 'JointMotionLimits':
-        urdf = rm.joint_limits()
+        urdf = robot_model.joint_limits()
         margin = config.position_margin_rad
         return cls(lower_rad=urdf.lower_rad + margin, upper_rad=urdf.upper_rad - margin,
                    velocity_rad_s=urdf.velocity_rad_s * config.velocity_limit_scale,

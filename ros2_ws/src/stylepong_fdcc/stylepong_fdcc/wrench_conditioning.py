@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 
 
@@ -38,9 +38,9 @@ def tool_load_from_model(model: pin.Model) -> ToolLoad:
     Pinocchio folds fixed links into their parent joint's body but keeps each fixed link's inertia on
     the frame of the fixed joint that attaches it; that is where the paddle's numbers are read.
     """
-    paddle = model.frames[model.getFrameId(rm.PADDLE_BODY)]
+    paddle = model.frames[model.getFrameId(robot_model.PADDLE_BODY)]
     attach = model.frames[paddle.parentFrame]
-    tool = model.frames[model.getFrameId(rm.TOOL_FRAME)]
+    tool = model.frames[model.getFrameId(robot_model.TOOL_FRAME)]
     # Both frames hang on the same joint: tool0 <- joint -> attachment frame.
     tool_m_attach = tool.placement.actInv(attach.placement)
     return ToolLoad(mass_kg=float(attach.inertia.mass), com_m=np.array(tool_m_attach.act(attach.inertia.lever)))

@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
@@ -42,7 +42,7 @@ def sensor_reading(model, data, q: np.ndarray, t_s: float, k: int) -> np.ndarray
     if 250 <= k < 290:
         return None                                           # the wrench goes stale: hold
     pin.framesForwardKinematics(model, data, q)
-    rotation = data.oMf[model.getFrameId(rm.TOOL_FRAME)].rotation
+    rotation = data.oMf[model.getFrameId(robot_model.TOOL_FRAME)].rotation
     push_n = np.array([9.0 * math.sin(2.0 * t_s), 7.0 * math.cos(1.3 * t_s), 3.0])
     if 330 <= k < 360:
         push_n *= 8.0                                          # beyond the clamp
@@ -59,7 +59,7 @@ def sensor_reading(model, data, q: np.ndarray, t_s: float, k: int) -> np.ndarray
 def run_sequence(config: dict, cycles: int) -> tuple[np.ndarray, np.ndarray]:
     """Commands (NaN rows where none is published) and states of a controller on a nearly perfect servo."""
     controller = DragTeachController(FdccConfig(**config))
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     data = model.createData()
     q = HOME.copy()
     t_s = 0.0

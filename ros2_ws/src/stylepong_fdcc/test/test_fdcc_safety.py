@@ -5,7 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.fdcc_solver import FdccSolver
@@ -20,14 +20,14 @@ from stylepong_fdcc.wrench_conditioning import (
 from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD
 
 HOME = np.array(HOME_JOINT_POSITIONS_RAD)
-MODEL = rm.pinocchio_model()
+MODEL = robot_model.pinocchio_model()
 DATA = MODEL.createData()
 GRAVITY = np.array(MODEL.gravity.linear)
 
 
 def tool_rotation(q):
     pin.framesForwardKinematics(MODEL, DATA, q)
-    return DATA.oMf[MODEL.getFrameId(rm.TOOL_FRAME)].rotation.copy()
+    return DATA.oMf[MODEL.getFrameId(robot_model.TOOL_FRAME)].rotation.copy()
 
 
 def weight_reading(q, extra_force_base=np.zeros(3)):
@@ -53,10 +53,10 @@ def test_a_normal_wrench_is_accepted():
 # --- conditioning ---
 def test_tool_load_is_the_paddle_of_the_robot_model():
     load = tool_load_from_model(MODEL)
-    assert load.mass_kg == pytest.approx(rm.PADDLE.mass_kg)
+    assert load.mass_kg == pytest.approx(robot_model.PADDLE.mass_kg)
     # The centre of mass lies on the handle axis (tool0 z), between the flange and the blade centre.
     assert abs(load.com_m[0]) < 1e-12 and abs(load.com_m[1]) < 1e-12
-    assert 0.0 < load.com_m[2] < rm.PADDLE.centre_offset_m
+    assert 0.0 < load.com_m[2] < robot_model.PADDLE.centre_offset_m
 
 
 @pytest.mark.parametrize('q', [HOME, HOME + np.array([0.3, 0.2, -0.4, 0.8, 0.5, 1.0]), np.zeros(6)])
@@ -76,7 +76,7 @@ def test_without_compensation_the_weight_would_push_the_arm():
     conditioner = WrenchConditioner(config, tool_load_from_model(MODEL), GRAVITY)
     for k in range(200):
         conditioner.add_sample(weight_reading(HOME), tool_rotation(HOME), k * 0.002)
-    assert conditioner.output()[2] == pytest.approx(-rm.PADDLE.mass_kg * 9.81, rel=1e-3)
+    assert conditioner.output()[2] == pytest.approx(-robot_model.PADDLE.mass_kg * 9.81, rel=1e-3)
 
 
 def test_tare_removes_a_sensor_bias():
@@ -180,7 +180,7 @@ def test_a_strong_push_stops_the_elbow_inside_its_limit_with_margin():
     q0 = HOME.copy()
     q0[2] = math.pi - 0.3   # elbow close to its +pi limit
     solver.reset(q0)
-    upper = rm.joint_limits().upper_rad - config.position_margin_rad
+    upper = robot_model.joint_limits().upper_rad - config.position_margin_rad
     for _ in range(1000):
         pin.computeJointJacobians(solver.model, solver.data, solver.q)
         jacobian = pin.getFrameJacobian(solver.model, solver.data, solver.frame_id, pin.LOCAL_WORLD_ALIGNED)

@@ -9,16 +9,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import WrenchConditioner, gravity_wrench_on_tool, tool_load_from_model
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.cell import Cell
 
-MODEL = rm.pinocchio_model()
+MODEL = robot_model.pinocchio_model()
 DATA = MODEL.createData()
 GRAVITY = np.array(MODEL.gravity.linear)
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 # Poses that turn the tool through very different orientations (wrist up, sideways, tilted, rolled).
 POSES = {
     'home': HOME,
@@ -28,7 +28,7 @@ POSES = {
     'elbow_up': HOME + np.array([0.2, -0.4, 0.6, -0.6, -0.8, 2.5]),
 }
 # The model's gravity and the cell's agree, so a mismatch below is the compensation's, not the world's.
-assert np.allclose(GRAVITY, [0.0, 0.0, -ws.GRAVITY_M_S2])
+assert np.allclose(GRAVITY, [0.0, 0.0, -world_spec.GRAVITY_M_S2])
 # Agreement at rest: the sensor also carries the residual accelerations of an arm held by its servo.
 FORCE_TOLERANCE_N = 0.01
 TORQUE_TOLERANCE_NM = 0.002
@@ -45,7 +45,7 @@ def held_still(q, hand_force_world=None, settle_s: float = 1.0) -> Cell:
 
 def tool_rotation_base(q) -> np.ndarray:
     pin.framesForwardKinematics(MODEL, DATA, q)
-    return DATA.oMf[MODEL.getFrameId(rm.TOOL_FRAME)].rotation.copy()
+    return DATA.oMf[MODEL.getFrameId(robot_model.TOOL_FRAME)].rotation.copy()
 
 
 def sensor_reading(cell: Cell) -> np.ndarray:

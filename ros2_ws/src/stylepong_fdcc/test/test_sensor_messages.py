@@ -7,10 +7,10 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.sensor_messages import JointStateReader, wrench_from_cdr
 
-NAMES = list(rm.JOINT_NAMES)
+NAMES = list(robot_model.JOINT_NAMES)
 
 
 def joint_state(names, positions, frame_id='', velocities=None) -> bytes:
@@ -29,7 +29,7 @@ def test_positions_come_back_in_urdf_order_bit_for_bit(frame_id, order):
     rng = np.random.default_rng(len(frame_id) + len(order))
     values = {n: float(v) for n, v in zip(order, rng.normal(0.0, 2.0, len(order)))}
     values[order[-1]] = math.nan
-    reader = JointStateReader(rm.JOINT_NAMES)
+    reader = JointStateReader(robot_model.JOINT_NAMES)
     for _ in range(2):   # the second time from the remembered name block
         positions, names, count = reader.positions(joint_state(order, [values[n] for n in order], frame_id))
         expected = np.array([values[n] for n in NAMES])
@@ -38,7 +38,7 @@ def test_positions_come_back_in_urdf_order_bit_for_bit(frame_id, order):
 
 
 def test_a_missing_joint_or_a_short_position_list_gives_none_even_after_good_messages():
-    reader = JointStateReader(rm.JOINT_NAMES)
+    reader = JointStateReader(robot_model.JOINT_NAMES)
     assert reader.positions(joint_state(NAMES, [0.1] * 6))[0] is not None
     assert reader.positions(joint_state(NAMES[1:], [0.1] * 5))[0] is None
     assert reader.positions(joint_state(NAMES, [0.1] * 5)) == (None, 6, 5)
@@ -57,7 +57,7 @@ def test_a_buffer_that_breaks_the_layout_is_read_by_rclpy_instead(monkeypatch):
 
     monkeypatch.setattr(sensor_messages, 'deserialize_message', deserialize)
     raw = joint_state(NAMES, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
-    reader = JointStateReader(rm.JOINT_NAMES)
+    reader = JointStateReader(robot_model.JOINT_NAMES)
     assert reader.positions(bytes([0x00, 0x00]) + raw[2:])[0].tolist() == [0.7] * 6   # says big endian
     assert reader.positions(raw[:40])[0].tolist() == [0.7] * 6                       # truncated
     assert handed_over == [JointState, JointState]

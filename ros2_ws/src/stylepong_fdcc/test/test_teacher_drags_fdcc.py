@@ -3,14 +3,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.teacher import CellKinematics, TeacherConfig, VirtualTeacher
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()
 
 
@@ -19,7 +19,7 @@ def singularity_margins(q: np.ndarray) -> tuple[float, float]:
     model, data = KIN.model, KIN.data
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
-    jacobian = pin.getFrameJacobian(model, data, KIN.frame_id(rm.TOOL_FRAME), pin.LOCAL_WORLD_ALIGNED)
+    jacobian = pin.getFrameJacobian(model, data, KIN.frame_id(robot_model.TOOL_FRAME), pin.LOCAL_WORLD_ALIGNED)
     wrist = data.oMf[KIN.frame_id('wrist_1_link')].translation
     return float(np.linalg.svd(jacobian, compute_uv=False)[-1]), float(np.hypot(wrist[0], wrist[1]))
 
@@ -29,7 +29,7 @@ class DragLoop:
 
     def __init__(self, dt_s: float = 0.002):
         self.kin = KIN
-        self.tool = KIN.frame_id(rm.TOOL_FRAME)
+        self.tool = KIN.frame_id(robot_model.TOOL_FRAME)
         self.load = tool_load_from_model(KIN.model)
         self.controller = DragTeachController(FdccConfig(nominal_period_s=dt_s))
         self.q, self.qdot, self.t, self.dt = HOME.copy(), np.zeros(6), 0.0, dt_s
@@ -78,8 +78,8 @@ def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits(blade_
                                                                          wrist_clearance_m):
     loop = DragLoop()
     config = TeacherConfig(blade_pitch_rad=blade_pitch_rad)
-    centre_id = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
-    limits = rm.joint_limits()
+    centre_id = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
+    limits = robot_model.joint_limits()
     for swing in ('forward', 'leftward', 'rightward', 'forward'):   # each starts where the last one ended
         teacher, record, duration_s = loop.teach(swing, config)
         assert 1.5 <= duration_s <= 3.5

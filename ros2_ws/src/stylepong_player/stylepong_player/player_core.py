@@ -93,8 +93,8 @@ class JointLimits:
         decoding = spec.action_decoding()
         lower = np.asarray(decoding['lower_limit_rad'], dtype=float) + position_margin_rad
         upper = np.asarray(decoding['upper_limit_rad'], dtype=float) - position_margin_rad
-        from stylepong_description import robot_model as rm
-        velocity = np.asarray(rm.joint_limits().velocity_rad_s, dtype=float) * velocity_scale
+        from stylepong_description import robot_model
+        velocity = np.asarray(robot_model.joint_limits().velocity_rad_s, dtype=float) * velocity_scale
         return cls(lower, upper, velocity, np.asarray(acceleration_rad_s2, dtype=float))
 
 
@@ -367,7 +367,7 @@ class _Ball:
     received_s: float
 
 
-class PlayerCore:
+class Player:
     """The player's logic; the caller supplies times (the node's clock, seconds) and calls `step` when
     `ball_step_due` / `fallback_step_due` / `timer_step_due` say so."""
 

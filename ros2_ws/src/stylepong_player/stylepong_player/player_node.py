@@ -94,7 +94,7 @@ class PlayerNode(Node):
             raise ParameterError(str(error)) from error
         actor_path = value['actor'] or _default_actor()
         actor = core.load_actor(actor_path, value['backend'])
-        self.core = core.PlayerCore(config, actor)
+        self.core = core.Player(config, actor)
         self.backend = value['backend']
         self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
         self._command = Float64MultiArray()

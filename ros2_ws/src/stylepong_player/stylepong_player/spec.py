@@ -35,12 +35,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from stylepong_description import robot_cell
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_cell, robot_model
 
 SPEC_VERSION = 1
 ACTION_RATE_HZ = float(robot_cell.POLICY_RATE_HZ)
-JOINT_NAMES: tuple[str, ...] = rm.JOINT_NAMES
+JOINT_NAMES: tuple[str, ...] = robot_model.JOINT_NAMES
 NUM_ACTIONS = len(JOINT_NAMES)
 HOME_JOINT_POSITIONS_RAD: tuple[float, ...] = tuple(float(x) for x in robot_cell.HOME_JOINT_POSITIONS_RAD)
 ACTION_SCALE_RAD: tuple[float, ...] = (1.5,) * NUM_ACTIONS
@@ -74,7 +73,7 @@ if TYPE_CHECKING:
 
 def action_decoding() -> dict:
     """The action's meaning, for the exported actor's sidecar JSON."""
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     return {'kind': 'joint_position_targets', 'home_rad': list(HOME_JOINT_POSITIONS_RAD),
             'scale_rad': list(ACTION_SCALE_RAD), 'clip': ACTION_CLIP,
             'lower_limit_rad': [float(x) for x in limits.lower_rad],
@@ -86,7 +85,7 @@ def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Te
     """(home, scale, lower limit, upper limit) as float32 rows on `device`, made once per device: made
     per call they were a host-to-device copy, a wait on a GPU, at every training step."""
     import torch
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     return tuple(torch.as_tensor(values, dtype=torch.float32, device=device)
                  for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
 

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_player import player_core as pc
-from stylepong_player import spec
+from stylepong_player import player_core, spec
 
 PERIOD_S = 1.0 / spec.ACTION_RATE_HZ
 HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD)
@@ -35,11 +34,11 @@ class WildActor:
         return (self.rng.normal(0.0, 50.0, (1, 6)) * (-1) ** self.calls).astype(np.float32)
 
 
-def make_core(actor=None, **config) -> pc.PlayerCore:
-    return pc.PlayerCore(pc.PlayerConfig(**config), actor or WildActor())
+def make_core(actor=None, **config) -> player_core.Player:
+    return player_core.Player(player_core.PlayerConfig(**config), actor or WildActor())
 
 
-def check_commands(commands: list[np.ndarray], limits: pc.JointLimits) -> None:
+def check_commands(commands: list[np.ndarray], limits: player_core.JointLimits) -> None:
     """Six finite values within the position limits; per-period velocity and acceleration limits."""
     tol = 1e-9
     previous_velocity = np.zeros(6)
@@ -67,9 +66,10 @@ def test_training_and_player_build_the_same_observation_from_random_inputs():
     assert training.dtype == np.float32 and training.shape == (rows, spec.NUM_OBS)
     order = rng.permutation(6)
     names = [NAMES[i] for i in order]
-    index = pc.JointOrder().index(names)
+    index = player_core.JointOrder().index(names)
     for i in range(rows):
-        got = pc.build_observation(q[i][order][index], qd[i][order][index], ball_p[i], ball_v[i], goal[i], last[i])
+        got = player_core.build_observation(q[i][order][index], qd[i][order][index], ball_p[i], ball_v[i], goal[i],
+                                            last[i])
         assert got.dtype == np.float32 and got.shape == (1, spec.NUM_OBS)
         np.testing.assert_array_equal(got[0], training[i])
 
@@ -77,7 +77,7 @@ def test_training_and_player_build_the_same_observation_from_random_inputs():
 def test_numpy_decoding_equals_the_spec_decoding():
     actions = np.random.default_rng(2).normal(0, 2, (200, 6)).astype(np.float32)
     expected = spec.decode_action(torch.from_numpy(actions)).numpy()
-    got = np.stack([pc.decode_action(a) for a in actions])
+    got = np.stack([player_core.decode_action(a) for a in actions])
     np.testing.assert_array_equal(got.astype(np.float32), expected)
 
 
@@ -85,10 +85,10 @@ def test_state_machine_disabled_ready_playing_ready_disabled():
     core = make_core()
     t = 10.0
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
-    assert core.step(t).command is None and core.state == pc.State.DISABLED
+    assert core.step(t).command is None and core.state == player_core.State.DISABLED
     assert not core.ball_step_due(t) and not core.timer_step_due(t)
     core.set_enabled(True)
-    assert core.state == pc.State.READY and core.timer_step_due(t)
+    assert core.state == player_core.State.READY and core.timer_step_due(t)
     result = core.step(t)
     np.testing.assert_allclose(result.command, HOME, atol=1e-12)   # already home: holds it
     assert core.at_home()
@@ -98,15 +98,15 @@ def test_state_machine_disabled_ready_playing_ready_disabled():
     assert core.on_ball('world', t, BALL_P, BALL_V, t) is None
     assert core.ball_step_due(t)
     result = core.step(t)
-    assert result.state == pc.State.PLAYING and result.policy
+    assert result.state == player_core.State.PLAYING and result.policy
     # The ball goes (no message for ball_timeout_s): back to ready on the timer.
     t += core.config.ball_timeout_s + 0.01
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
     assert core.timer_step_due(t)
     result = core.step(t)
-    assert result.state == pc.State.READY and not result.policy and result.command is not None
+    assert result.state == player_core.State.READY and not result.policy and result.command is not None
     core.set_enabled(False)
-    assert core.step(t).command is None and core.state == pc.State.DISABLED
+    assert core.step(t).command is None and core.state == player_core.State.DISABLED
 
 
 def test_playing_starts_with_a_zero_last_action_and_feeds_back_the_clipped_action():
@@ -153,8 +153,8 @@ def test_every_command_is_within_the_limits_for_adversarial_inputs():
 
 @pytest.mark.parametrize('start', ['lower', 'upper'])
 def test_limiter_brakes_before_position_limits_without_exceeding_the_acceleration(start):
-    limits = pc.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
-    limiter = pc.CommandLimiter(limits, PERIOD_S)
+    limits = player_core.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
+    limiter = player_core.CommandLimiter(limits, PERIOD_S)
     limiter.start(limits.lower_rad + 0.5 if start == 'lower' else limits.upper_rad - 0.5)
     target = limits.upper_rad + 10 if start == 'lower' else limits.lower_rad - 10   # beyond the far limit
     commands = [limiter.position_rad.copy()] + [limiter.step(target) for _ in range(600)]
@@ -164,8 +164,8 @@ def test_limiter_brakes_before_position_limits_without_exceeding_the_acceleratio
 
 
 def test_limiter_reaches_a_target_and_stops_there():
-    limits = pc.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
-    limiter = pc.CommandLimiter(limits, PERIOD_S)
+    limits = player_core.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
+    limiter = player_core.CommandLimiter(limits, PERIOD_S)
     limiter.start(HOME)
     target = HOME + np.array([1.0, -0.7, 0.3, 1.2, -1.4, 0.05])
     commands = [limiter.step(target) for _ in range(120)]
@@ -240,7 +240,7 @@ def test_bad_ball_states_are_rejected_and_never_reach_the_actor(frame, stamp, po
     assert core.rejected[kind] == 1
     assert not core.ball_step_due(1.0) and not core.ball_fresh(1.0)
     core.step(1.0)
-    assert actor.calls == 0 and core.state == pc.State.READY
+    assert actor.calls == 0 and core.state == player_core.State.READY
 
 
 def test_goal_messages_are_checked():
@@ -289,7 +289,7 @@ def test_a_lost_frame_shifts_the_phase_and_a_burst_does_not_speed_the_loop_up():
         if core.on_ball('world', t, BALL_P, BALL_V, t) is None and core.ball_step_due(t):
             core.step(t)
             steps += 1
-    assert steps <= 0.2 / (pc.MIN_STEP_SPACING_PERIODS * PERIOD_S) and steps >= 0.2 / PERIOD_S - 2
+    assert steps <= 0.2 / (player_core.MIN_STEP_SPACING_PERIODS * PERIOD_S) and steps >= 0.2 / PERIOD_S - 2
 
 
 def test_fallback_steps_on_the_latest_ball_when_frames_stop():
@@ -298,15 +298,15 @@ def test_fallback_steps_on_the_latest_ball_when_frames_stop():
     core.on_joint_state(NAMES, HOME, np.zeros(6), 1.0)
     core.on_ball('world', 1.0, BALL_P, BALL_V, 1.0)
     core.step(1.0)
-    t = 1.0 + (pc.FALLBACK_PERIODS - 0.01) * PERIOD_S
+    t = 1.0 + (player_core.FALLBACK_PERIODS - 0.01) * PERIOD_S
     assert not core.fallback_step_due(t)
-    t = 1.0 + (pc.FALLBACK_PERIODS + 0.01) * PERIOD_S
+    t = 1.0 + (player_core.FALLBACK_PERIODS + 0.01) * PERIOD_S
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
     assert core.fallback_step_due(t) and core.step(t).policy
 
 
 def test_config_refuses_another_rate_and_a_goal_off_the_table():
     with pytest.raises(ValueError, match='rate_hz'):
-        pc.PlayerConfig(rate_hz=50.0).validate()
+        player_core.PlayerConfig(rate_hz=50.0).validate()
     with pytest.raises(ValueError, match="opponent's half"):
-        pc.PlayerConfig(goal_xy_m=(-0.5, 0.0)).validate()
+        player_core.PlayerConfig(goal_xy_m=(-0.5, 0.0)).validate()

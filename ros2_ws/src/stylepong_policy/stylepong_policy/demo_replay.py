@@ -17,9 +17,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from stylepong_sim import batched_launcher as bl
-from stylepong_sim import batched_world as bw
-from stylepong_sim import referee as rf
+from stylepong_sim import batched_launcher, batched_world, referee
 
 
 @dataclass(frozen=True)
@@ -61,8 +59,8 @@ def replay_clip(q_rad: np.ndarray, balls: int, hit_steps: Sequence[int], seed: i
         raise ValueError('need at least one ball and one start time')
     starts = len(hit_steps)
     n = balls * starts
-    world = bw.BatchedWorld(n)
-    position, velocity, _ = bl.IncomingBallSampler(speed_range_m_s, seed=seed).sample(balls)
+    world = batched_world.BatchedWorld(n)
+    position, velocity, _ = batched_launcher.IncomingBallSampler(speed_range_m_s, seed=seed).sample(balls)
     ball_of_env = torch.arange(n) // starts          # every ball repeated once per start time
     start_q = torch.as_tensor(q_rad[0])[:, None].expand(-1, n)
     world.reset_envs(torch.arange(n), start_q, position[:, ball_of_env], velocity[:, ball_of_env])
@@ -84,4 +82,4 @@ def replay_clip(q_rad: np.ndarray, balls: int, hit_steps: Sequence[int], seed: i
     verdicts = reason[hit]
     return ReplayOutcome(balls=balls, hit=int(hit.view(balls, starts).any(1).sum()),
                          returned=int(success.view(balls, starts).any(1).sum()),
-                         hit_verdicts={rf.REASONS[int(k)]: int((verdicts == k).sum()) for k in verdicts.unique()})
+                         hit_verdicts={referee.REASONS[int(k)]: int((verdicts == k).sum()) for k in verdicts.unique()})

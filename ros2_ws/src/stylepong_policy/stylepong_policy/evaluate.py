@@ -40,9 +40,20 @@ import torch
 
 from stylepong_common.command_line import print_and_write_json, require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
-from stylepong_policy import strokes as st
-from stylepong_policy import style_metrics as sm
+from stylepong_policy import style_metrics
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
+from stylepong_policy.strokes import (
+    DIRECTIONS,
+    LEFTWARD_ABOVE_M,
+    NO_FRAME,
+    RIGHTWARD_BELOW_M,
+    Stroke,
+    arrival_y_m,
+    direction_of,
+    paddle_home_position_m,
+    save_strokes,
+    stroke_end_frame,
+)
 from stylepong_sim.referee import REASON_RETURNED
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
@@ -67,7 +78,7 @@ class SeedResult:
     hits: int
     reasons: dict[str, int]
     wall_time_s: float
-    strokes: list[st.Stroke] = field(default_factory=list)
+    strokes: list[Stroke] = field(default_factory=list)
 
     @property
     def success_rate(self) -> float:
@@ -85,7 +96,7 @@ class Evaluation:
     results: list[SeedResult]
 
     @property
-    def strokes(self) -> list[st.Stroke]:
+    def strokes(self) -> list[Stroke]:
         return [s for r in self.results for s in r.strokes]
 
 
@@ -120,8 +131,8 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
     success = torch.zeros_like(decided)
     hit = torch.zeros_like(decided)
     reason = torch.full((balls,), -1, dtype=torch.int64, device=env.device)
-    verdict_frame = torch.full((balls,), st.NO_FRAME, dtype=torch.int64, device=env.device)
-    hit_frame = torch.full_like(verdict_frame, st.NO_FRAME)
+    verdict_frame = torch.full((balls,), NO_FRAME, dtype=torch.int64, device=env.device)
+    hit_frame = torch.full_like(verdict_frame, NO_FRAME)
     # A generous bound on steps until every first ball is decided: three episodes' time plus a second.
     max_steps = int(3 * float(cfg.episode_length_s) * ACTION_RATE_HZ) + int(ACTION_RATE_HZ)
     with torch.inference_mode():
@@ -142,7 +153,7 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
             ball_frames.append(extras['ball_state'].cpu())
             open_ = ~decided
             outcome = extras['outcome']
-            hit_frame = torch.where(extras['paddle_hit'] & open_ & (hit_frame == st.NO_FRAME),
+            hit_frame = torch.where(extras['paddle_hit'] & open_ & (hit_frame == NO_FRAME),
                                     torch.full_like(hit_frame, step), hit_frame)
             ball_done = outcome['done'] & open_
             success |= outcome['success'] & ball_done
@@ -164,18 +175,18 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
 
 
 def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.ndarray, outcomes: list[str],
-             success: list[bool], hit: list[bool], hit_frame: list[int], verdict_frame: list[int]) -> list[st.Stroke]:
+             success: list[bool], hit: list[bool], hit_frame: list[int], verdict_frame: list[int]) -> list[Stroke]:
     """Cut each environment's stroke from the frames [F, N, ...] of its world."""
-    plane_x, home_y, _ = st.paddle_home_position_m()
+    plane_x, home_y, _ = paddle_home_position_m()
     result = []
     for i in range(q.shape[1]):
-        end = st.stroke_end_frame(verdict_frame[i], hit_frame[i], ACTION_RATE_HZ)
+        end = stroke_end_frame(verdict_frame[i], hit_frame[i], ACTION_RATE_HZ)
         # Frames before the first paddle contact and before the verdict (which may be a robot contact).
-        free = verdict_frame[i] if hit_frame[i] == st.NO_FRAME else min(hit_frame[i], verdict_frame[i])
-        y = st.arrival_y_m(ball[:free, i, :3], ball[:free, i, 3:], free, plane_x)
-        result.append(st.Stroke(
+        free = verdict_frame[i] if hit_frame[i] == NO_FRAME else min(hit_frame[i], verdict_frame[i])
+        y = arrival_y_m(ball[:free, i, :3], ball[:free, i, 3:], free, plane_x)
+        result.append(Stroke(
             seed=seed, ball=i, joint_positions_rad=q[:end + 1, i].copy(), ball_position_m=ball[:end + 1, i, :3].copy(),
-            direction=st.direction_of(y, home_y), arrival_y_m=y,
+            direction=direction_of(y, home_y), arrival_y_m=y,
             launch_velocity_m_s=launch_velocity[i].copy(), outcome=outcomes[i], success=bool(success[i]),
             hit=bool(hit[i]), hit_frame=int(hit_frame[i]), verdict_frame=int(verdict_frame[i])))
     return result
@@ -206,10 +217,10 @@ def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
 # Summaries
 
 
-def direction_table(strokes: Sequence[st.Stroke]) -> dict[str, dict]:
+def direction_table(strokes: Sequence[Stroke]) -> dict[str, dict]:
     """Balls, success and hit rate of each direction."""
     table = {}
-    for direction in st.DIRECTIONS:
+    for direction in DIRECTIONS:
         chosen = [s for s in strokes if s.direction == direction]
         n = len(chosen)
         table[direction] = {'balls': n,
@@ -218,34 +229,34 @@ def direction_table(strokes: Sequence[st.Stroke]) -> dict[str, dict]:
     return table
 
 
-def smoothness_table(strokes: Sequence[st.Stroke], rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict | None]:
+def smoothness_table(strokes: Sequence[Stroke], rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict | None]:
     """Mean smoothness measures of each direction's strokes and of all of them."""
-    measured = [(s.direction, sm.smoothness(s.joint_positions_rad, rate_hz)) for s in strokes
+    measured = [(s.direction, style_metrics.smoothness(s.joint_positions_rad, rate_hz)) for s in strokes
                 if len(s.joint_positions_rad) >= 4]
-    table = {d: sm.mean_smoothness(m for direction, m in measured if direction == d) for d in st.DIRECTIONS}
-    table['all'] = sm.mean_smoothness(m for _, m in measured)
+    table = {d: style_metrics.mean_smoothness(m for direction, m in measured if direction == d) for d in DIRECTIONS}
+    table['all'] = style_metrics.mean_smoothness(m for _, m in measured)
     return table
 
 
 def references_by_direction(dataset) -> dict[str, list[tuple[int, np.ndarray]]]:
     """The reference clips (index, joint positions) of each direction's label, all speed factors."""
-    return {direction: sm.reference_clips(dataset, direction) for direction in st.DIRECTIONS}
+    return {direction: style_metrics.reference_clips(dataset, direction) for direction in DIRECTIONS}
 
 
-def nearest_matches(strokes: Sequence[st.Stroke], references: dict[str, list]) -> list[sm.DtwMatch | None]:
+def nearest_matches(strokes: Sequence[Stroke], references: dict[str, list]) -> list[style_metrics.DtwMatch | None]:
     """Each stroke's nearest reference clip of its own label (None where the dataset has no such clip)."""
-    return [sm.nearest_reference(s.joint_positions_rad, references[s.direction]) if references[s.direction]
+    return [style_metrics.nearest_reference(s.joint_positions_rad, references[s.direction]) if references[s.direction]
             else None for s in strokes]
 
 
-def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None], references: dict[str, list],
+def dtw_table(strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatch | None], references: dict[str, list],
               rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
     """Per direction: every stroke against every reference clip of that label, the mean of the smallest,
     and the summed distance split by joint and by phase of the stroke (style_metrics.cost_breakdown)."""
     from stylepong_description.robot_model import JOINT_NAMES
 
     table = {}
-    for direction in st.DIRECTIONS:
+    for direction in DIRECTIONS:
         clips = dict(references[direction])
         chosen = [(s, m) for s, m in zip(strokes, matches) if s.direction == direction and m is not None]
         entry = {'strokes': sum(s.direction == direction for s in strokes), 'reference_clips': len(clips),
@@ -253,19 +264,19 @@ def dtw_table(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None
                  'sum_by_phase_rad': None}
         if chosen:
             distances = np.array([m.distance for _, m in chosen])
-            parts = [sm.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
+            parts = [style_metrics.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
                      for s, m in chosen]
             by_joint = np.sum([p.by_joint_rad for p in parts], axis=0)
             entry.update(mean_rad=float(distances.mean()), std_rad=float(distances.std()),
                          mean_per_path_step_rad=float(np.mean([m.distance_per_step for _, m in chosen])),
                          sum_by_joint_rad=dict(zip(JOINT_NAMES, by_joint.tolist())),
                          sum_by_phase_rad={phase: float(sum(p.by_phase_rad[phase] for p in parts))
-                                           for phase in sm.PHASES})
+                                           for phase in style_metrics.PHASES})
         table[direction] = entry
     return table
 
 
-def dtw_by_lateral_offset(strokes: Sequence[st.Stroke], matches: Sequence[sm.DtwMatch | None],
+def dtw_by_lateral_offset(strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatch | None],
                           paddle_home_y_m: float) -> dict[str, dict]:
     """Mean DTW distance of the strokes grouped by how far to the side of the paddle's home the ball
     arrives (|arrival y - home y|, LATERAL_OFFSET_BANDS_M): whether strokes far from the demonstrated
@@ -300,7 +311,7 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
             failures[name] = failures.get(name, 0) + count
     balls = sum(r.balls for r in results)
     strokes = evaluation.strokes
-    plane_x, home_y, _ = st.paddle_home_position_m()
+    plane_x, home_y, _ = paddle_home_position_m()
     summary = {
         'success_rate': float(np.mean(rates)), 'success_rate_std': float(np.std(rates)),
         'per_seed': [round(x, 4) for x in rates],
@@ -312,7 +323,7 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'actor_spec_version': evaluation.actor_spec_version,
         'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
         'direction_rule': {'plane_x_m': round(plane_x, 4), 'paddle_home_y_m': round(home_y, 4),
-                           'leftward_above_m': st.LEFTWARD_ABOVE_M, 'rightward_below_m': st.RIGHTWARD_BELOW_M},
+                           'leftward_above_m': LEFTWARD_ABOVE_M, 'rightward_below_m': RIGHTWARD_BELOW_M},
         'directions': direction_table(strokes),
         'smoothness': smoothness_table(strokes),
     }
@@ -342,7 +353,7 @@ def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
 # Video
 
 
-def render_video(strokes: Sequence[st.Stroke], path: pathlib.Path, camera: str = 'overview',
+def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'overview',
                  hold_s: float = 0.5) -> int:
     """Replay strokes in the cell's MuJoCo model (kinematics only: joint positions and the ball marker
     set each frame) and encode them with the cell's video recorder. Returns frames written."""
@@ -440,8 +451,8 @@ def main(argv: list[str] | None = None) -> int:
                                 speed=args.speed, randomize=args.randomize, device=device, progress=report)
     summary = summarise(evaluation, dataset=dataset, dataset_path=args.dtw)
     if args.save_strokes is not None:
-        st.save_strokes(args.save_strokes, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
-                        joint_names=actor.metadata['joint_names'], actor=evaluation.actor, speed=args.speed)
+        save_strokes(args.save_strokes, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
+                     joint_names=actor.metadata['joint_names'], actor=evaluation.actor, speed=args.speed)
         summary['strokes_file'] = portable_path(args.save_strokes)
     if args.video is not None:
         shown = evaluation.results[0].strokes[:args.video_strokes]

@@ -39,16 +39,16 @@ import torch
 
 from stylepong_common.command_line import require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
-from stylepong_policy import evaluate as ev
+from stylepong_policy import evaluate, style_metrics
 from stylepong_policy import paper_charts as charts
 from stylepong_policy import paper_figures as paper
-from stylepong_policy import strokes as st
-from stylepong_policy import style_metrics as sm
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
+from stylepong_policy.strokes import DIRECTIONS, FOLLOW_THROUGH_S, save_strokes
+from stylepong_policy.train import actor_name
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED, SPEED_RANGES_M_S
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')
-SHIPPED_FILES = {'ppo': 'ppo_actor.pt', 'amp-noaug': 'amp_noaug_actor.pt', 'amp': 'amp_actor.pt'}
+SHIPPED_FILES = {name: actor_name(name) for name in ACTOR_NAMES}    # amp-noaug: amp_noaug_actor.pt
 DEFAULT_MODELS_DIR = pathlib.Path('ros2_ws/src/stylepong_policy/models')
 DEFAULT_BAGS = pathlib.Path('ros2_ws/bags')
 BAND_FIRST_SEED = 2000          # Table III's bands: seeds of their own, as for the shipped high-speed evaluation
@@ -151,19 +151,19 @@ def build_reference(bags: pathlib.Path, out_path: pathlib.Path) -> pathlib.Path:
 
 
 def run_all(actors: dict[str, LoadedActor], paths: dict[str, pathlib.Path], protocol: Protocol,
-            log: Callable[[str], None]) -> dict[tuple[str, str], ev.Evaluation]:
+            log: Callable[[str], None]) -> dict[tuple[str, str], evaluate.Evaluation]:
     """Every actor in every band (all; low and high for Table III). An actor file given for several
     names is evaluated once per band: the balls, and so the results, would be the same."""
-    done: dict[tuple[pathlib.Path, str], ev.Evaluation] = {}
+    done: dict[tuple[pathlib.Path, str], evaluate.Evaluation] = {}
     evaluations = {}
     for band in BANDS:
         for name in ACTOR_NAMES:
             key = (paths[name].resolve(), band)
             if key not in done:
                 started = time.perf_counter()
-                done[key] = ev.evaluate_actor(actors[name], seeds=protocol.seeds,
-                                              first_seed=protocol.first_seed_of(band), balls=protocol.balls,
-                                              speed=band, device=protocol.device)
+                done[key] = evaluate.evaluate_actor(actors[name], seeds=protocol.seeds,
+                                                    first_seed=protocol.first_seed_of(band), balls=protocol.balls,
+                                                    speed=band, device=protocol.device)
                 rates = [r.success_rate for r in done[key].results]
                 log(f'{name} {band}: success {np.mean(rates):.4f} over {sum(r.balls for r in done[key].results)} '
                     f'balls, {time.perf_counter() - started:.1f} s')
@@ -171,7 +171,7 @@ def run_all(actors: dict[str, LoadedActor], paths: dict[str, pathlib.Path], prot
     return evaluations
 
 
-def summarise_all(evaluations: dict[tuple[str, str], ev.Evaluation], dataset, dataset_path: str | None,
+def summarise_all(evaluations: dict[tuple[str, str], evaluate.Evaluation], dataset, dataset_path: str | None,
                   log: Callable[[str], None]) -> dict[str, dict[str, dict]]:
     """evaluate's summary of each (actor, band); DTW for the all-speeds runs (Table II)."""
     summaries: dict[str, dict[str, dict]] = {name: {} for name in ACTOR_NAMES}
@@ -181,7 +181,8 @@ def summarise_all(evaluations: dict[tuple[str, str], ev.Evaluation], dataset, da
         key = (id(evaluation), with_dtw)
         if key not in cache:
             started = time.perf_counter()
-            cache[key] = ev.summarise(evaluation, dataset=dataset if with_dtw else None, dataset_path=dataset_path)
+            cache[key] = evaluate.summarise(evaluation, dataset=dataset if with_dtw else None,
+                                            dataset_path=dataset_path)
             if with_dtw:
                 log(f'{name}: DTW of {len(evaluation.strokes)} strokes, {time.perf_counter() - started:.1f} s')
         summaries[name][band] = cache[key]
@@ -191,11 +192,11 @@ def summarise_all(evaluations: dict[tuple[str, str], ev.Evaluation], dataset, da
 def reference_smoothness(dataset, speed_factor: int) -> dict[str, dict | None]:
     """The demonstrations' own smoothness per label (clips of one speed factor), for scale."""
     table = {}
-    for direction in st.DIRECTIONS:
+    for direction in DIRECTIONS:
         clips = dataset.select(labels=[direction], speed_factors=[speed_factor])
-        values = [sm.smoothness(dataset.clip(int(c)).q, dataset.rate_hz) for c in clips
+        values = [style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz) for c in clips
                   if dataset.clip_length[c] >= 4]
-        table[direction] = sm.mean_smoothness(values)
+        table[direction] = style_metrics.mean_smoothness(values)
     return table
 
 
@@ -288,36 +289,36 @@ def dtw_ratio(summaries: dict[str, dict[str, dict]], direction: str) -> float | 
 
 def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
     """Table II: DTW distance to the demonstrations per direction, the paper's and ours."""
-    header = ['Method'] + [f'{d.capitalize()} ({who})' for d in st.DIRECTIONS for who in ('paper', 'ours')]
+    header = ['Method'] + [f'{d.capitalize()} ({who})' for d in DIRECTIONS for who in ('paper', 'ours')]
     rows = []
     for name in ('ppo', 'amp'):
         dtw = summaries[name]['all']['dtw']
         rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)'] +
-                    [cell for d in st.DIRECTIONS
+                    [cell for d in DIRECTIONS
                      for cell in (number(paper.TABLE_II[name][d]), number(dtw[d]['mean_rad']))])
-    rows.append(['ratio amp / ppo'] + [cell for d in st.DIRECTIONS for cell in (
+    rows.append(['ratio amp / ppo'] + [cell for d in DIRECTIONS for cell in (
         number(paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d], 3), number(dtw_ratio(summaries, d), 3))])
     extra = []
     for name in ACTOR_NAMES:
         dtw = summaries[name]['all']['dtw']
         extra.append([f'`{name}`']
-                     + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in st.DIRECTIONS]
-                     + [number(dtw[d]['mean_per_path_step_rad'], 4) for d in st.DIRECTIONS]
-                     + [' / '.join(str(dtw[d]['strokes']) for d in st.DIRECTIONS)])
+                     + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in DIRECTIONS]
+                     + [number(dtw[d]['mean_per_path_step_rad'], 4) for d in DIRECTIONS]
+                     + [' / '.join(str(dtw[d]['strokes']) for d in DIRECTIONS)])
     dtw_ppo = summaries['ppo']['all']['dtw']
-    clip_counts = ', '.join(f'{d} {dtw_ppo[d]["reference_clips"]}' for d in st.DIRECTIONS)
+    clip_counts = ', '.join(f'{d} {dtw_ppo[d]["reference_clips"]}' for d in DIRECTIONS)
     return ['## Table II: DTW distance to the demonstrations (lower is better)', '',
             f'Setting: {protocol.setting("all")}; every ball\'s stroke, labelled by the direction it came from.', '',
             *table(header, rows), '',
             'Ours in every actor, with the spread over strokes and the distance per warping-path step '
             '(rad; strokes per direction forward / leftward / rightward):', '',
-            *table(['Actor'] + [f'{d} (rad)' for d in st.DIRECTIONS] + [f'{d} per step' for d in st.DIRECTIONS]
+            *table(['Actor'] + [f'{d} (rad)' for d in DIRECTIONS] + [f'{d} per step' for d in DIRECTIONS]
                    + ['strokes'], extra), '',
-            f'DTW: joint positions (rad, 6 joints) at 60 Hz from the ball\'s launch to {st.FOLLOW_THROUGH_S} s after '
+            f'DTW: joint positions (rad, 6 joints) at 60 Hz from the ball\'s launch to {FOLLOW_THROUGH_S} s after '
             'the paddle\'s first contact, against every demonstration clip of the same label (all speed factors: '
             f'{clip_counts} clips), the smallest per '
             'stroke, the mean over strokes. Local cost the Euclidean distance, symmetric unweighted steps, not '
-            f'normalised: `{ev.DTW_CALL}`. The paper does not give its DTW convention or sequence lengths, so '
+            f'normalised: `{evaluate.DTW_CALL}`. The paper does not give its DTW convention or sequence lengths, so '
             'its absolute numbers are not comparable with ours; the ratio amp / ppo is.', '',
             '![Table II](table2_dtw.png)', '']
 
@@ -329,15 +330,17 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
     rows = []
     for name in ACTOR_NAMES:
         dtw = summaries[name]['all']['dtw']
-        strokes = sum(dtw[d]['strokes'] for d in st.DIRECTIONS if dtw[d]['sum_by_joint_rad'] is not None)
+        strokes = sum(dtw[d]['strokes'] for d in DIRECTIONS if dtw[d]['sum_by_joint_rad'] is not None)
         if not strokes:
             continue
-        per_stroke = {part: sum(dtw[d][key][part] for d in st.DIRECTIONS if dtw[d][key] is not None) / strokes
-                      for key, parts in (('sum_by_joint_rad', JOINT_NAMES), ('sum_by_phase_rad', sm.PHASES))
+        per_stroke = {part: sum(dtw[d][key][part] for d in DIRECTIONS if dtw[d][key] is not None) / strokes
+                      for key, parts in (('sum_by_joint_rad', JOINT_NAMES), ('sum_by_phase_rad', style_metrics.PHASES))
                       for part in parts}
         total = sum(per_stroke[joint] for joint in JOINT_NAMES)
-        rows.append([f'`{name}`', number(total)] + [number(per_stroke[part], 1) for part in (*JOINT_NAMES, *sm.PHASES)])
-    header = ['Actor', 'DTW (rad)'] + [f'`{joint}`' for joint in JOINT_NAMES] + [p.replace('_', '-') for p in sm.PHASES]
+        columns = (*JOINT_NAMES, *style_metrics.PHASES)
+        rows.append([f'`{name}`', number(total)] + [number(per_stroke[column], 1) for column in columns])
+    header = (['Actor', 'DTW (rad)'] + [f'`{joint}`' for joint in JOINT_NAMES]
+              + [p.replace('_', '-') for p in style_metrics.PHASES])
     offsets = summaries['ppo']['all']['dtw_by_lateral_offset']
     offset_rows = [[f'`{name}`'] + [f'{number(entry["mean_rad"])} ({entry["strokes"]})'
                                      for entry in summaries[name]['all']['dtw_by_lateral_offset'].values()]
@@ -347,8 +350,8 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
             *table(header, rows), '',
             'Per stroke, the mean over the strokes of all three directions (rad): each frame pair on the optimal '
             'warping path adds its Euclidean distance |d|, shared among the joints as d_k^2 / |d| and given to the '
-            f'phase of its stroke frame: waiting until {sm.SWING_S} s before the paddle\'s hit, the swing from '
-            'there to the hit, the follow-through after it (`stylepong_policy.style_metrics.cost_breakdown`). '
+            f'phase of its stroke frame: waiting until {style_metrics.SWING_S} s before the paddle\'s hit, the swing '
+            'from there to the hit, the follow-through after it (`stylepong_policy.style_metrics.cost_breakdown`). '
             'The joints add up to the DTW column, and so do the phases.', '',
             'By how far to the side of the paddle\'s home the ball arrives (|arrival y - home y|; the demonstrated '
             'hits lie within 0.18 m of it): mean DTW distance (rad) and strokes.', '',
@@ -419,7 +422,7 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
     rows = []
     for name in ACTOR_NAMES:
         summary = summaries[name]['all']
-        for d in st.DIRECTIONS:
+        for d in DIRECTIONS:
             s = summary['smoothness'][d]
             dtw = summary['dtw'][d]
             rows.append([f'`{name}`', d, str(summary['directions'][d]['balls']),
@@ -427,7 +430,7 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
                          number(s and s['peak_joint_acceleration_rad_s2'], 1),
                          number(s and s['mean_abs_jerk_rad_s3'], 1), number(dtw['mean_rad']),
                          number(dtw['mean_per_path_step_rad'], 4)])
-    for d in st.DIRECTIONS:
+    for d in DIRECTIONS:
         s = reference[d]
         rows.append(['demonstrations (x1)', d, '-', number(s and s['peak_joint_speed_rad_s']),
                      number(s and s['peak_joint_acceleration_rad_s2'], 1), number(s and s['mean_abs_jerk_rad_s3'], 1),
@@ -449,9 +452,9 @@ def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol
     for name in ACTOR_NAMES:
         directions = summaries[name]['all']['directions']
         rows.append([f'`{name}`'] + [f'{directions[d]["balls"]}: {percent(directions[d]["success_rate"])}'
-                                     for d in st.DIRECTIONS])
+                                     for d in DIRECTIONS])
     return ['## Success per direction', '', f'Setting: {protocol.setting("all")}.', '',
-            *table(['Actor'] + [f'{d} (balls: success)' for d in st.DIRECTIONS], rows), '',
+            *table(['Actor'] + [f'{d} (balls: success)' for d in DIRECTIONS], rows), '',
             f'A ball\'s direction is where it crosses the paddle\'s home plane x = {rule["plane_x_m"]} m after its '
             f'bounce, relative to the paddle\'s home y = {rule["paddle_home_y_m"]} m (world +y is the robot\'s left): '
             f'leftward above +{rule["leftward_above_m"]} m, rightward below {rule["rightward_below_m"]} m, forward '
@@ -528,9 +531,9 @@ def write_charts(out: pathlib.Path, summaries, reference_rows, protocol: Protoco
                          [summaries[n]['all']['success_rate_std'] for n in ACTOR_NAMES],
                          'Table I: success rate, all speeds', protocol.setting('all'))
     charts.dtw_chart(out / 'table2_dtw.png',
-                     [paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d] for d in st.DIRECTIONS],
-                     [dtw_ratio(summaries, d) for d in st.DIRECTIONS],
-                     {n: [summaries[n]['all']['dtw'][d]['mean_rad'] for d in st.DIRECTIONS] for n in ACTOR_NAMES},
+                     [paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d] for d in DIRECTIONS],
+                     [dtw_ratio(summaries, d) for d in DIRECTIONS],
+                     {n: [summaries[n]['all']['dtw'][d]['mean_rad'] for d in DIRECTIONS] for n in ACTOR_NAMES},
                      'Table II: ' + protocol.setting('all'))
     pairs = [(n, b) for b in ('low', 'high') for n in ('amp-noaug', 'amp', 'ppo')]
     charts.success_chart(out / 'table3_speed.png', [f'{n}\n{b}' for n, b in pairs],
@@ -564,7 +567,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     source.add_argument('--dataset', type=pathlib.Path, help='reference dataset (.npz from build_dataset) for DTW')
     source.add_argument('--bags', type=pathlib.Path, default=DEFAULT_BAGS, help='demonstration bags to build it from')
     parser.add_argument('--no-figure', action='store_true', help='skip Fig. 2 (rendering)')
-    parser.add_argument('--figure-direction', choices=st.DIRECTIONS, default='forward', help='the ball of Fig. 2')
+    parser.add_argument('--figure-direction', choices=DIRECTIONS, default='forward', help='the ball of Fig. 2')
     parser.add_argument('--camera', default='figure', help="Fig. 2's camera: figure (close to the robot), or the "
                         "scene's overview or robot_view")
     parser.add_argument('--save-strokes', action='store_true',
@@ -582,16 +585,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def command_line(args: argparse.Namespace) -> str:
     """The command as a person would type it again, with paths as given (none absolute)."""
-    parts = ['ros2 run stylepong_policy paper_tables', f'--out {ev.portable_path(args.out)}']
+    parts = ['ros2 run stylepong_policy paper_tables', f'--out {evaluate.portable_path(args.out)}']
     if args.actor_overrides:
-        parts.append('--actors ' + ','.join(f'{n}={ev.portable_path(p)}' for n, p in args.actor_overrides.items()))
+        overrides = ','.join(f'{n}={evaluate.portable_path(p)}' for n, p in args.actor_overrides.items())
+        parts.append(f'--actors {overrides}')
     for flag, value, default in (('--seeds', args.seeds, 10), ('--balls', args.balls, 200),
                                  ('--first-seed', args.first_seed, FIRST_EVALUATION_SEED),
                                  ('--band-first-seed', args.band_first_seed, BAND_FIRST_SEED)):
         if value != default:
             parts.append(f'{flag} {value}')
     if args.dataset is not None:
-        parts.append(f'--dataset {ev.portable_path(args.dataset)}')
+        parts.append(f'--dataset {evaluate.portable_path(args.dataset)}')
     if args.no_figure:
         parts.append('--no-figure')
     return ' '.join(parts)
@@ -619,19 +623,19 @@ def main(argv: list[str] | None = None) -> int:
         actors = load_actors(paths)
         out.mkdir(parents=True, exist_ok=True)
         dataset_path = args.dataset if args.dataset is not None else build_reference(args.bags, out / REFERENCE_NAME)
-        dataset = ev.load_reference(dataset_path)
+        dataset = evaluate.load_reference(dataset_path)
     except (SetupError, OSError, KeyError, ValueError) as err:
         print(f'paper_tables: {err}', file=sys.stderr)
         return 2
-    log(f'reference clips: {dataset.num_clips} from {ev.portable_path(dataset_path)}')
+    log(f'reference clips: {dataset.num_clips} from {evaluate.portable_path(dataset_path)}')
 
     evaluations = run_all(actors, paths, protocol, log)
-    summaries = summarise_all(evaluations, dataset, ev.portable_path(dataset_path), log)
+    summaries = summarise_all(evaluations, dataset, evaluate.portable_path(dataset_path), log)
     reference_rows = reference_smoothness(dataset, speed_factor=1)
     if args.save_strokes:
         for (name, band), evaluation in evaluations.items():
-            st.save_strokes(out / f'strokes_{name}_{band}.npz', evaluation.strokes, rate_hz=ACTION_RATE_HZ,
-                            joint_names=dataset.joint_names, actor=ev.portable_path(paths[name]), speed=band)
+            save_strokes(out / f'strokes_{name}_{band}.npz', evaluation.strokes, rate_hz=ACTION_RATE_HZ,
+                         joint_names=dataset.joint_names, actor=evaluate.portable_path(paths[name]), speed=band)
         log('strokes written')
     figure = None
     if not args.no_figure:
@@ -640,17 +644,17 @@ def main(argv: list[str] | None = None) -> int:
     images = write_charts(out, summaries, reference_rows, protocol)
     sim2sim = load_sim2sim(out)
     wall_time_s = time.perf_counter() - started
-    context = {'command': command_line(args), 'actors': {n: ev.portable_path(p) for n, p in paths.items()},
+    context = {'command': command_line(args), 'actors': {n: evaluate.portable_path(p) for n, p in paths.items()},
                'generated': datetime.date.today().isoformat(), 'wall_time_s': wall_time_s,
                'machine': f'{os.cpu_count()} CPU cores, {args.num_threads} torch threads, device {args.device}'}
     (out / 'README.md').write_text(render_markdown(summaries, reference_rows, sim2sim, figure, protocol, context))
     record = {'command': context['command'], 'actors': context['actors'], 'protocol': protocol.__dict__,
               'settings': {band: protocol.setting(band) for band in BANDS},
-              'reference_dataset': ev.portable_path(dataset_path), 'evaluations': summaries,
+              'reference_dataset': evaluate.portable_path(dataset_path), 'evaluations': summaries,
               'reference_smoothness_x1': reference_rows, 'sim2sim': sim2sim, 'figure': figure,
               'charts': images, 'wall_time_s': round(wall_time_s, 1)}
     (out / 'paper_tables.json').write_text(json.dumps(record, indent=2) + '\n')
-    log(f'wrote {ev.portable_path(out / "README.md")} and the charts; {wall_time_s:.0f} s in all')
+    log(f'wrote {evaluate.portable_path(out / "README.md")} and the charts; {wall_time_s:.0f} s in all')
     return 0
 
 

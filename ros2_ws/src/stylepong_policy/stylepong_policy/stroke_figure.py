@@ -19,8 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_policy import strokes as st
-from stylepong_policy import style_metrics as sm
+from stylepong_policy import strokes, style_metrics
 
 FRAMES_PER_ROW = 7
 SWING_LEAD_S = 0.45           # the back-swing starts about this long before a 5 m/s ball is met
@@ -44,7 +43,8 @@ class FigureRow:
     times_s: np.ndarray                 # [7] time of each frame relative to the paddle's contact (or the clip start)
 
 
-def choose_ball(first: Sequence[st.Stroke], second: Sequence[st.Stroke], direction: str) -> tuple[int, int] | None:
+def choose_ball(first: Sequence[strokes.Stroke], second: Sequence[strokes.Stroke],
+                direction: str) -> tuple[int, int] | None:
     """(seed, ball) of the first ball of `direction` that both actors returned, else the first of that
     direction; None when no ball has it. Both lists are strokes of the same seeds and balls."""
     first_by_key = {(s.seed, s.ball): s for s in first}
@@ -55,28 +55,28 @@ def choose_ball(first: Sequence[st.Stroke], second: Sequence[st.Stroke], directi
     return chosen[0] if chosen else None
 
 
-def stroke_frames(stroke: st.Stroke, rate_hz: float, count: int = FRAMES_PER_ROW) -> np.ndarray:
+def stroke_frames(stroke: strokes.Stroke, rate_hz: float, count: int = FRAMES_PER_ROW) -> np.ndarray:
     """Indices of `count` frames spread over the swing: SWING_LEAD_S before the first contact to the end."""
     last = len(stroke.joint_positions_rad) - 1
-    contact = stroke.hit_frame if stroke.hit_frame != st.NO_FRAME else last
+    contact = stroke.hit_frame if stroke.hit_frame != strokes.NO_FRAME else last
     first = max(0, contact - int(round(SWING_LEAD_S * rate_hz)))
     return np.round(np.linspace(first, last, count)).astype(int)
 
 
-def policy_row(label: str, stroke: st.Stroke, rate_hz: float) -> FigureRow:
+def policy_row(label: str, stroke: strokes.Stroke, rate_hz: float) -> FigureRow:
     """The figure row of a policy stroke, timed relative to the paddle's first contact."""
     frames = stroke_frames(stroke, rate_hz)
-    contact = stroke.hit_frame if stroke.hit_frame != st.NO_FRAME else frames[-1]
+    contact = stroke.hit_frame if stroke.hit_frame != strokes.NO_FRAME else frames[-1]
     return FigureRow(label=label, joint_positions_rad=stroke.joint_positions_rad[frames],
                      ball_position_m=stroke.ball_position_m[frames], times_s=(frames - contact) / rate_hz)
 
 
-def reference_row(label: str, dataset, direction: str, near: st.Stroke) -> FigureRow:
+def reference_row(label: str, dataset, direction: str, near: strokes.Stroke) -> FigureRow:
     """The original clip of `direction` nearest (DTW) to the stroke `near`, seven frames over its length."""
-    originals = sm.reference_clips(dataset, direction, speed_factors=[1])
+    originals = style_metrics.reference_clips(dataset, direction, speed_factors=[1])
     if not originals:
         raise ValueError(f'the reference dataset has no original clip labelled {direction!r}')
-    match = sm.nearest_reference(near.joint_positions_rad, originals)
+    match = style_metrics.nearest_reference(near.joint_positions_rad, originals)
     q = dataset.clip(match.clip).q
     frames = np.round(np.linspace(0, len(q) - 1, FRAMES_PER_ROW)).astype(int)
     return FigureRow(label=f'{label} (clip {match.clip}, x1)', joint_positions_rad=q[frames], ball_position_m=None,
@@ -155,7 +155,7 @@ def save_grid(path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequen
     return path
 
 
-def stroke_figure(path: str | os.PathLike, ppo: Sequence[st.Stroke], amp: Sequence[st.Stroke], dataset,
+def stroke_figure(path: str | os.PathLike, ppo: Sequence[strokes.Stroke], amp: Sequence[strokes.Stroke], dataset,
                   rate_hz: float, direction: str = 'forward', camera: str = FIGURE_CAMERA,
                   setting: str = '') -> dict | None:
     """Render the 3x7 grid to `path`; returns what was shown (None when no ball of that direction came)."""

@@ -61,14 +61,14 @@ def paddle_home_position_m() -> tuple[float, float, float]:
     """World position of the paddle centre at the home pose (the robot model placed by the world spec)."""
     import pinocchio as pin
 
-    from stylepong_description import robot_model as rm
-    from stylepong_sim import world_spec as ws
+    from stylepong_description import robot_model
+    from stylepong_sim import world_spec
 
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     data = model.createData()
-    pin.framesForwardKinematics(model, data, np.asarray(ws.HOME_JOINT_POSITIONS_RAD, dtype=float))
-    base = pin.SE3(*ws.robot_base_pose())
-    position = (base * data.oMf[model.getFrameId(rm.PADDLE_CENTRE_FRAME)]).translation
+    pin.framesForwardKinematics(model, data, np.asarray(world_spec.HOME_JOINT_POSITIONS_RAD, dtype=float))
+    base = pin.SE3(*world_spec.robot_base_pose())
+    position = (base * data.oMf[model.getFrameId(robot_model.PADDLE_CENTRE_FRAME)]).translation
     return float(position[0]), float(position[1]), float(position[2])
 
 

@@ -34,9 +34,9 @@ from typing import NoReturn
 import numpy as np
 
 from stylepong_common.command_line import exit_with_run, require_counts
-from stylepong_policy import evaluate as ev
-from stylepong_policy import strokes as st
+from stylepong_policy import evaluate
 from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.strokes import DIRECTIONS, Stroke
 from stylepong_recording.bag_errors import one_line
 
 BASELINE = 'baseline'
@@ -58,11 +58,11 @@ class SetDistance:
     strokes_compared: int
 
 
-def set_distance(strokes: Sequence[st.Stroke], dataset: ReferenceDataset) -> SetDistance:
+def set_distance(strokes: Sequence[Stroke], dataset: ReferenceDataset) -> SetDistance:
     """Each stroke's DTW to the nearest clip of its own label in `dataset` (evaluate's), averaged."""
-    matches = ev.nearest_matches(strokes, ev.references_by_direction(dataset))
+    matches = evaluate.nearest_matches(strokes, evaluate.references_by_direction(dataset))
     by_direction = {}
-    for direction in st.DIRECTIONS:
+    for direction in DIRECTIONS:
         distances = [m.distance for s, m in zip(strokes, matches) if m is not None and s.direction == direction]
         by_direction[direction] = float(np.mean(distances)) if distances else None
     compared = [m.distance for m in matches if m is not None]
@@ -118,7 +118,7 @@ def load_set(name: str, path: pathlib.Path, folder: pathlib.Path) -> ReferenceDa
     if not path.exists():
         raise ValueError(f'set {name}: {path} does not exist')
     if path.is_file() and path.suffix == '.npz':
-        return ev.load_reference(path)
+        return evaluate.load_reference(path)
     output = folder / f'{name}.npz'
     log = io.StringIO()
     with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
@@ -126,13 +126,13 @@ def load_set(name: str, path: pathlib.Path, folder: pathlib.Path) -> ReferenceDa
     if status != 0 or not output.is_file():
         last = log.getvalue().strip().splitlines()[-1:] or ['no output']
         raise ValueError(f'set {name}: build_dataset found no usable clip in {path} ({last[0]})')
-    return ev.load_reference(output)
+    return evaluate.load_reference(output)
 
 
 def clips_per_label(dataset: ReferenceDataset) -> dict[str, int]:
     """Original (x1) clips of each direction's label."""
     labels = dataset.label[dataset.speed_factor == 1].tolist()
-    return {d: labels.count(d) for d in st.DIRECTIONS}
+    return {d: labels.count(d) for d in DIRECTIONS}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -157,11 +157,12 @@ def render_markdown(record: dict) -> str:
     lines = ['# Style confusion: each actor\'s strokes against each demonstration set', '',
              f'Generated {record["generated"]} by `{record["command"]}` ({record["wall_time_s"]:.0f} s).', '',
              f'Setting: {record["setting"]}. Each stroke is compared by DTW with the clips of its own label in a '
-             f'set (all speed factors, the nearest counts: `{ev.DTW_CALL}`); an actor\'s distance to a set is the '
-             f'mean over its strokes whose label the set has. Normalised: over the baseline (`{record["baseline"]}`, '
-             'no style) on the same set, since unnormalised DTW grows with the clips\' length.', '',
+             f'set (all speed factors, the nearest counts: `{evaluate.DTW_CALL}`); an actor\'s distance to a set is '
+             f'the mean over its strokes whose label the set has. Normalised: over the baseline '
+             f'(`{record["baseline"]}`, no style) on the same set, since unnormalised DTW grows with the clips\' '
+             'length.', '',
              'Sets (original clips per label forward / leftward / rightward):', '']
-    lines += [f'- `{name}`: `{info["path"]}`, ' + ' / '.join(str(info['clips_per_label'][d]) for d in st.DIRECTIONS)
+    lines += [f'- `{name}`: `{info["path"]}`, ' + ' / '.join(str(info['clips_per_label'][d]) for d in DIRECTIONS)
               for name, info in record['sets'].items()]
     rows = []
     for a in actors:
@@ -182,8 +183,8 @@ def render_markdown(record: dict) -> str:
                       [[f'`{a}`'] + [_number(raw[a][s][OVERALL], 2) for s in sets]
                        for a in [*actors, BASELINE]]), '',
               '## Normalised distance per direction', '',
-              *_table(['Actor', 'Set'] + list(st.DIRECTIONS),
-                      [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in st.DIRECTIONS]
+              *_table(['Actor', 'Set'] + list(DIRECTIONS),
+                      [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS]
                        for a in actors for s in sets]), '']
     return '\n'.join(lines)
 
@@ -294,17 +295,17 @@ def run(argv: Sequence[str] | None = None) -> int:
         log(f'set {name}: {dataset.num_clips} clips, originals per label {clips_per_label(dataset)}')
 
     # One evaluation per actor file: an actor given twice (or the baseline among the actors) runs once.
-    strokes_of_file: dict[pathlib.Path, list[st.Stroke]] = {}
+    strokes_of_file: dict[pathlib.Path, list[Stroke]] = {}
     success_of_file: dict[pathlib.Path, float] = {}
-    strokes: dict[str, list[st.Stroke]] = {}
+    strokes: dict[str, list[Stroke]] = {}
     success: dict[str, float] = {}
     for name, actor in loaded.items():
         key = pathlib.Path(actor.path).resolve()
         if key not in strokes_of_file:
-            evaluation = ev.evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
-                                           device=args.device)
+            evaluation = evaluate.evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
+                                                 device=args.device)
             strokes_of_file[key] = evaluation.strokes
-            success_of_file[key] = ev.summarise(evaluation)['success_rate']
+            success_of_file[key] = evaluate.summarise(evaluation)['success_rate']
             log(f'{name}: evaluated, success {success_of_file[key]:.3f} over {len(evaluation.strokes)} balls')
         strokes[name], success[name] = strokes_of_file[key], success_of_file[key]
 
@@ -316,7 +317,7 @@ def run(argv: Sequence[str] | None = None) -> int:
             raw[name][set_name] = {**distance.by_direction_rad, OVERALL: distance.overall_rad,
                                    'strokes_compared': distance.strokes_compared}
         log(f'{name}: DTW to every set measured')
-    columns = (*st.DIRECTIONS, OVERALL)
+    columns = (*DIRECTIONS, OVERALL)
     norm = {name: {s: {c: normalised(raw[name][s][c], raw[BASELINE][s][c]) for c in columns} for s in datasets}
             for name in actor_paths}
     verdicts = {name: verdict(name, {s: norm[name][s][OVERALL] for s in datasets}).__dict__ for name in actor_paths}
@@ -325,14 +326,14 @@ def run(argv: Sequence[str] | None = None) -> int:
     seeds = f'seed {args.first_seed}' if args.seeds == 1 else f'seeds {args.first_seed}-{last_seed}'
     record = {
         'command': command_line(argv), 'generated': datetime.date.today().isoformat(),
-        'setting': f'{ev.WORLDS[False]}; {seeds} x {args.balls} balls; all speeds; deterministic actors',
-        'baseline': ev.portable_path(args.baseline),
-        'actors': {name: {'path': ev.portable_path(path), 'success_rate': success[name]}
+        'setting': f'{evaluate.WORLDS[False]}; {seeds} x {args.balls} balls; all speeds; deterministic actors',
+        'baseline': evaluate.portable_path(args.baseline),
+        'actors': {name: {'path': evaluate.portable_path(path), 'success_rate': success[name]}
                    for name, path in actor_paths.items()},
         'baseline_success_rate': success[BASELINE],
-        'sets': {name: {'path': ev.portable_path(path), 'clips': datasets[name].num_clips,
+        'sets': {name: {'path': evaluate.portable_path(path), 'clips': datasets[name].num_clips,
                         'clips_per_label': clips_per_label(datasets[name])} for name, path in set_paths.items()},
-        'dtw_rad': raw, 'normalised': norm, 'verdicts': verdicts, 'dtw_call': ev.DTW_CALL,
+        'dtw_rad': raw, 'normalised': norm, 'verdicts': verdicts, 'dtw_call': evaluate.DTW_CALL,
         'wall_time_s': round(time.perf_counter() - started, 1),
     }
     args.out.mkdir(parents=True, exist_ok=True)
@@ -341,7 +342,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     heatmap(args.out / PNG_NAME, record)
     for name, v in verdicts.items():
         log(f'{name}: nearest {v["nearest"]} (margin {_number(v["margin"])})')
-    log(f'wrote {ev.portable_path(args.out / MARKDOWN_NAME)}, {JSON_NAME} and {PNG_NAME}')
+    log(f'wrote {evaluate.portable_path(args.out / MARKDOWN_NAME)}, {JSON_NAME} and {PNG_NAME}')
     return 0
 
 

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_policy import strokes as st
-from stylepong_policy import style_metrics as sm
+from stylepong_policy import style_metrics
+from stylepong_policy.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
 
 ACTORS = ('style', 'ppo', 'shipped')
 ACTOR_TITLES = {'style': 'new style actor', 'ppo': 'PPO (no style)', 'shipped': 'shipped style actor'}
@@ -69,7 +69,7 @@ class ActorResults:
     name: str
     all_speeds: dict
     high_speeds: dict | None
-    strokes: list[st.Stroke]
+    strokes: list[Stroke]
     rate_hz: float                # the strokes' frame rate
 
 
@@ -83,7 +83,7 @@ def load_actor_results(run_dir: str | os.PathLike, actor: str, *, high_required:
     if not isinstance(all_speeds.get('dtw'), dict):
         raise ValueError(f'{files.all_speeds_json}: no DTW in it (evaluate it with --dtw DATASET)')
     high = json.loads(files.high_speeds_json.read_text()) if files.high_speeds_json.is_file() else None
-    stroke_file = st.load_strokes(files.strokes_npz)
+    stroke_file = load_strokes(files.strokes_npz)
     return ActorResults(name=actor, all_speeds=all_speeds, high_speeds=high, strokes=stroke_file.strokes,
                         rate_hz=stroke_file.rate_hz)
 
@@ -103,7 +103,7 @@ def overall_dtw_rad(dtw: Mapping[str, dict]) -> float | None:
 
 def dtw_by_direction(summary: dict) -> dict[str, float | None]:
     """Mean DTW (rad) per direction and OVERALL of an all-speeds summary."""
-    table = {d: summary['dtw'][d]['mean_rad'] for d in st.DIRECTIONS}
+    table = {d: summary['dtw'][d]['mean_rad'] for d in DIRECTIONS}
     table[OVERALL] = overall_dtw_rad(summary['dtw'])
     return table
 
@@ -115,7 +115,7 @@ def ratio(numerator: float | None, denominator: float | None) -> float | None:
 
 def dtw_ratios(distances: Mapping[str, Mapping[str, float | None]]) -> dict[str, dict[str, float | None]]:
     """The new actor's DTW over PPO's and over the shipped actor's, and the shipped over PPO's, per column."""
-    columns = (*st.DIRECTIONS, OVERALL)
+    columns = (*DIRECTIONS, OVERALL)
     pairs = {'style / ppo': ('style', 'ppo'), 'style / shipped': ('style', 'shipped'),
              'shipped / ppo': ('shipped', 'ppo')}
     return {name: {c: ratio(distances[a][c], distances[b][c]) for c in columns} for name, (a, b) in pairs.items()}
@@ -131,10 +131,11 @@ def setting_text(summary: dict) -> str:
 def demonstration_smoothness(dataset) -> dict[str, dict | None]:
     """The demonstrations' own smoothness per label (original clips), for scale."""
     table = {}
-    for direction in st.DIRECTIONS:
+    for direction in DIRECTIONS:
         clips = dataset.select(labels=[direction], speed_factors=[1])
-        values = [sm.smoothness(dataset.clip(int(c)).q, dataset.rate_hz) for c in clips if dataset.clip_length[c] >= 4]
-        table[direction] = sm.mean_smoothness(values)
+        values = [style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
+                  for c in clips if dataset.clip_length[c] >= 4]
+        table[direction] = style_metrics.mean_smoothness(values)
     return table
 
 
@@ -189,7 +190,7 @@ def dtw_chart(path: pathlib.Path, distances: Mapping[str, Mapping[str, float | N
               ratios: Mapping[str, Mapping[str, float | None]], setting: str) -> pathlib.Path:
     """Left: mean DTW per direction of each actor; right: the ratios."""
     plt = _pyplot()
-    columns = [*st.DIRECTIONS, OVERALL]
+    columns = [*DIRECTIONS, OVERALL]
     figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.4))
     _grouped_bars(left, columns, {ACTOR_TITLES[a]: [distances[a][c] for c in columns] for a in distances}, digits=1)
     left.set_ylabel('mean DTW to the demonstrations (rad)')
@@ -203,7 +204,7 @@ def dtw_chart(path: pathlib.Path, distances: Mapping[str, Mapping[str, float | N
     return _save(figure, path)
 
 
-def joints_chart(path: pathlib.Path, stroke: st.Stroke, clip_q_rad: np.ndarray, rate_hz: float,
+def joints_chart(path: pathlib.Path, stroke: Stroke, clip_q_rad: np.ndarray, rate_hz: float,
                  title: str) -> pathlib.Path:
     """Each joint's angle over the stroke and over the demonstration clip, their hits at time 0."""
     from stylepong_description.robot_model import JOINT_NAMES
@@ -212,7 +213,7 @@ def joints_chart(path: pathlib.Path, stroke: st.Stroke, clip_q_rad: np.ndarray, 
     plt = _pyplot()
     figure, axes = plt.subplots(2, 3, figsize=(12, 5.5), sharex=True)
     stroke_q = stroke.joint_positions_rad
-    stroke_hit = stroke.hit_frame if stroke.hit_frame != st.NO_FRAME else len(stroke_q) - 1
+    stroke_hit = stroke.hit_frame if stroke.hit_frame != NO_FRAME else len(stroke_q) - 1
     clip_hit = hit_frame(np.gradient(clip_q_rad, 1.0 / rate_hz, axis=0))
     stroke_t = (np.arange(len(stroke_q)) - stroke_hit) / rate_hz
     clip_t = (np.arange(len(clip_q_rad)) - clip_hit) / rate_hz
@@ -249,8 +250,8 @@ def strip_for_direction(run_dir: pathlib.Path, results: Mapping[str, ActorResult
     rows = [fig.policy_row(f'PPO ({ppo.outcome})', ppo, rate_hz),
             fig.policy_row(f'new style actor ({ours.outcome})', ours, rate_hz),
             fig.reference_row(f'demonstration, {direction}', dataset, direction, ours)]
-    originals = sm.reference_clips(dataset, direction, speed_factors=[1])
-    match = sm.nearest_reference(ours.joint_positions_rad, originals)
+    originals = style_metrics.reference_clips(dataset, direction, speed_factors=[1])
+    match = style_metrics.nearest_reference(ours.joint_positions_rad, originals)
     entry = {'direction': direction, 'seed': key[0], 'ball': key[1],
              'launch_speed_m_s': round(ours.launch_speed_m_s, 3),
              'outcomes': {'ppo': ppo.outcome, 'style': ours.outcome}, 'demonstration_clip': match.clip,
@@ -317,18 +318,18 @@ def success_section(results: Mapping[str, ActorResults]) -> list[str]:
 def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_name: str,
                 clips: Mapping[str, int]) -> list[str]:
     """DTW per direction of each actor, and the ratios."""
-    columns = (*st.DIRECTIONS, OVERALL)
+    columns = (*DIRECTIONS, OVERALL)
     rows = [[ACTOR_TITLES[name]] + [_number(distances[name][c]) for c in columns]
-            + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in st.DIRECTIONS)]
+            + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in DIRECTIONS)]
             for name, r in results.items()]
     rows += [[f'ratio {name}'] + [_number(values[c], 3) for c in columns] + ['']
              for name, values in ratios.items()]
-    missing = [d for d in st.DIRECTIONS if not clips.get(d)]
+    missing = [d for d in DIRECTIONS if not clips.get(d)]
     lines = ['## DTW to the demonstrations', '',
              f'Mean over strokes of each stroke\'s DTW distance (rad) to the nearest clip of its own label in '
              f'`{dataset_name}` (all speed factors), by the direction the ball came from; `{OVERALL}` is the mean '
              'over every stroke that had clips of its label. Demonstration clips per label (originals): '
-             + ', '.join(f'{d} {clips.get(d, 0)}' for d in st.DIRECTIONS) + '.', '',
+             + ', '.join(f'{d} {clips.get(d, 0)}' for d in DIRECTIONS) + '.', '',
              *_table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
     if missing:
         lines += [f'No demonstration labelled {", ".join(missing)}: those strokes have no DTW here.', '']
@@ -340,10 +341,10 @@ def smoothness_section(results: Mapping[str, ActorResults], reference: Mapping[s
     measures = ('peak_joint_speed_rad_s', 'peak_joint_acceleration_rad_s2', 'mean_abs_jerk_rad_s3')
     rows = []
     for name, r in results.items():
-        for d in (*st.DIRECTIONS, 'all'):
+        for d in (*DIRECTIONS, 'all'):
             values = r.all_speeds['smoothness'].get(d)
             rows.append([ACTOR_TITLES[name], d] + [_number(values and values[m], 1) for m in measures])
-    for d in st.DIRECTIONS:
+    for d in DIRECTIONS:
         values = reference.get(d)
         rows.append(['demonstrations (x1)', d] + [_number(values and values[m], 1) for m in measures])
     return ['## Smoothness', '', 'Per stroke from the 60 Hz joint positions (style_metrics), mean over strokes.', '',
@@ -400,7 +401,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     distances = {name: dtw_by_direction(r.all_speeds) for name, r in results.items()}
     ratios = dtw_ratios(distances)
     originals = dataset.label[dataset.speed_factor == 1].tolist()
-    clips = {d: originals.count(d) for d in st.DIRECTIONS}
+    clips = {d: originals.count(d) for d in DIRECTIONS}
     reference = demonstration_smoothness(dataset)
     setting = setting_text(results['style'].all_speeds)
 
@@ -409,8 +410,8 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     dtw_chart(run_dir / DTW_PNG, distances, ratios, setting)
     paper_charts.smoothness_chart(run_dir / SMOOTHNESS_PNG, {ACTOR_TITLES[n]: r.all_speeds['smoothness']
                                                              for n, r in results.items()}, reference, setting)
-    shown = st.DIRECTIONS if strip_directions is None else tuple(strip_directions)
-    strips = [entry for d in st.DIRECTIONS if clips[d] and d in shown
+    shown = DIRECTIONS if strip_directions is None else tuple(strip_directions)
+    strips = [entry for d in DIRECTIONS if clips[d] and d in shown
               for entry in [strip_for_direction(run_dir, results, dataset, d, rate_hz, render_strips)] if entry]
 
     dataset_name = pathlib.Path(dataset_path).name

@@ -7,9 +7,9 @@ import torch
 
 from stylepong_policy import demo_replay
 from stylepong_policy.dataset import ReferenceDataset
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 
-ALL_SPEEDS = tuple(ws.SPEED_RANGES_M_S['all'])
+ALL_SPEEDS = tuple(world_spec.SPEED_RANGES_M_S['all'])
 HIT_STEPS = list(range(20, 66))
 WRIST_1 = 3
 
@@ -28,7 +28,7 @@ def test_the_fastest_frame_and_the_targets_around_it():
 
 
 def test_an_arm_held_at_home_returns_nothing():
-    home = np.tile(np.array(ws.HOME_JOINT_POSITIONS_RAD), (5, 1))
+    home = np.tile(np.array(world_spec.HOME_JOINT_POSITIONS_RAD), (5, 1))
     outcome = demo_replay.replay_clip(home, 20, [30, 40], 900, ALL_SPEEDS)
     assert outcome.balls == 20 and outcome.returned == 0 and outcome.hit <= 20
     assert sum(outcome.hit_verdicts.values()) >= outcome.hit

@@ -80,7 +80,7 @@ def test_json_has_directions_smoothness_dtw_and_no_absolute_path(evaluated):
 
 
 def test_dtw_in_the_json_is_recomputable_from_the_stroke_file(evaluated):
-    from stylepong_policy import style_metrics as sm
+    from stylepong_policy import style_metrics
     from stylepong_policy.dataset import ReferenceDataset
 
     result = json.loads((evaluated / 'out' / 'eval.json').read_text())
@@ -91,7 +91,7 @@ def test_dtw_in_the_json_is_recomputable_from_the_stroke_file(evaluated):
         if not chosen:
             continue
         clips = [dataset.clip(int(c)).q for c in dataset.select(labels=[direction])]
-        distances = [min(sm.dtw_distance_rad(s.joint_positions_rad, c) for c in clips) for s in chosen]
+        distances = [min(style_metrics.dtw_distance_rad(s.joint_positions_rad, c) for c in clips) for s in chosen]
         assert np.mean(distances) == pytest.approx(result['dtw'][direction]['mean_rad'], rel=1e-12)
 
 

@@ -11,7 +11,7 @@ import onnx
 import pytest
 import torch
 
-from stylepong_player import player_core as pc
+from stylepong_player import player_core
 from stylepong_player.actor_contract import ActorMismatchError, current_spec_contract, onnx_path
 from stylepong_policy.rl.export import export_actor, write_onnx_for
 from stylepong_policy.rl.networks import ActorCritic
@@ -20,8 +20,8 @@ SHIPPED = pathlib.Path(__file__).resolve().parent.parent / 'models' / 'ppo_actor
 
 
 def test_shipped_actor_onnx_and_torchscript_agree_on_random_observations():
-    onnx_actor = pc.load_actor(SHIPPED, 'onnx')
-    torch_actor = pc.load_actor(SHIPPED, 'torchscript')
+    onnx_actor = player_core.load_actor(SHIPPED, 'onnx')
+    torch_actor = player_core.load_actor(SHIPPED, 'torchscript')
     rng = np.random.default_rng(0)
     for scale in (0.1, 1.0, 5.0, 50.0):
         for _ in range(50):
@@ -51,7 +51,7 @@ def exported(tmp_path):
 def test_export_writes_an_onnx_file_equal_to_the_model(exported):
     path, model = exported
     assert onnx_path(path).is_file()
-    actor = pc.load_actor(path, 'onnx')
+    actor = player_core.load_actor(path, 'onnx')
     obs = torch.randn(1, 26) * 3
     with torch.no_grad():
         np.testing.assert_allclose(actor(obs.numpy()), model.act_deterministic(obs).numpy(), atol=1e-5)
@@ -72,7 +72,7 @@ def test_onnx_actor_with_another_contract_is_refused_in_one_line(exported, key, 
     path, _ = exported
     _rewrite_onnx_metadata(onnx_path(path), **{key: value})
     with pytest.raises(ActorMismatchError, match=key) as error:
-        pc.load_actor(path, 'onnx')
+        player_core.load_actor(path, 'onnx')
     assert '\n' not in str(error.value)
 
 
@@ -83,16 +83,16 @@ def test_torchscript_actor_with_another_contract_is_refused_in_one_line(exported
     meta['joint_names'] = list(reversed(meta['joint_names']))
     sidecar.write_text(json.dumps(meta))
     with pytest.raises(ActorMismatchError, match='joint_names') as error:
-        pc.load_actor(path, 'torchscript')
+        player_core.load_actor(path, 'torchscript')
     assert '\n' not in str(error.value)
 
 
 def test_missing_or_foreign_files_are_refused(tmp_path):
     with pytest.raises(ActorMismatchError, match='does not exist'):
-        pc.load_actor(tmp_path / 'none.pt', 'onnx')
+        player_core.load_actor(tmp_path / 'none.pt', 'onnx')
     (tmp_path / 'junk.onnx').write_bytes(b'not a model')
     with pytest.raises(ActorMismatchError, match='not a loadable ONNX'):
-        pc.load_actor(tmp_path / 'junk.onnx', 'onnx')
+        player_core.load_actor(tmp_path / 'junk.onnx', 'onnx')
 
 
 def test_write_onnx_for_an_exported_actor(exported):
@@ -106,8 +106,8 @@ def test_the_onnx_path_runs_without_torch():
     code = (
         "import sys; sys.modules['torch'] = None\n"
         "import numpy as np\n"
-        "from stylepong_player import player_core as pc, spec\n"
-        f"core = pc.PlayerCore(pc.PlayerConfig(), pc.load_actor({str(SHIPPED)!r}, 'onnx'))\n"
+        "from stylepong_player import player_core, spec\n"
+        f"core = player_core.Player(player_core.PlayerConfig(), player_core.load_actor({str(SHIPPED)!r}, 'onnx'))\n"
         "core.set_enabled(True)\n"
         "core.on_joint_state(list(spec.JOINT_NAMES), list(spec.HOME_JOINT_POSITIONS_RAD), [0.0] * 6, 1.0)\n"
         "core.on_ball('world', 1.0, (-0.9, 0.1, 1.0), (-5.0, 0.0, 0.5), 1.0)\n"

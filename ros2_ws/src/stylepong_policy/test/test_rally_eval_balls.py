@@ -2,13 +2,12 @@
 import numpy as np
 
 from stylepong_policy import task
-from stylepong_sim import rally_eval
-from stylepong_sim import world_spec as ws
+from stylepong_sim import rally_eval, world_spec
 
 
 def test_rally_eval_balls_are_the_evaluation_balls_of_the_seed():
     for speed in ('all', 'high'):
-        cfg = task.TaskConfig(num_envs=6, randomize=False, speed_range_m_s=tuple(ws.SPEED_RANGES_M_S[speed]))
+        cfg = task.TaskConfig(num_envs=6, randomize=False, speed_range_m_s=tuple(world_spec.SPEED_RANGES_M_S[speed]))
         env = task.make_env(cfg, 'cpu', 901)
         env.reset()
         positions, velocities = rally_eval.balls_for_seed(901, 6, speed)
@@ -18,7 +17,7 @@ def test_rally_eval_balls_are_the_evaluation_balls_of_the_seed():
 
 def test_goals_lie_on_the_opponents_half_with_their_region():
     goals = rally_eval.goals_for_seed(3, 500)
-    r = ws.GOAL_RADIUS_M
-    assert (goals[:, 0] >= r).all() and (goals[:, 0] <= ws.HALF_LENGTH_M - r).all()
-    assert (np.abs(goals[:, 1]) <= ws.HALF_WIDTH_M - r).all()
+    r = world_spec.GOAL_RADIUS_M
+    assert (goals[:, 0] >= r).all() and (goals[:, 0] <= world_spec.HALF_LENGTH_M - r).all()
+    assert (np.abs(goals[:, 1]) <= world_spec.HALF_WIDTH_M - r).all()
     assert task.TaskConfig().goal_radius_m == r      # the task rewards the region rally_eval sends

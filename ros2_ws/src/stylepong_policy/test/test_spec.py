@@ -6,15 +6,14 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_description import robot_model as rm
-from stylepong_player import player_core as pc
-from stylepong_player import spec
+from stylepong_description import robot_model
+from stylepong_player import player_core, spec
 from stylepong_policy import task
 
 
 def test_layout_and_contract():
     assert spec.NUM_OBS == sum(size for _, size in spec.OBS_LAYOUT) == 26
-    assert spec.JOINT_NAMES == rm.JOINT_NAMES and spec.NUM_ACTIONS == 6
+    assert spec.JOINT_NAMES == robot_model.JOINT_NAMES and spec.NUM_ACTIONS == 6
     assert spec.ACTION_RATE_HZ == 60.0
     decoding = json.loads(json.dumps(spec.action_decoding()))
     assert decoding['home_rad'] == list(spec.HOME_JOINT_POSITIONS_RAD)
@@ -30,7 +29,7 @@ def test_observation_slices_tile_the_layout_in_order():
 
 
 def test_decode_action_is_home_plus_scaled_clipped_action_within_limits():
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     zero = spec.decode_action(torch.zeros(1, 6))
     assert torch.equal(zero[0], torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, dtype=torch.float32))
     big = spec.decode_action(torch.full((1, 6), 50.0))
@@ -53,11 +52,11 @@ def _player_inputs(env, i, order):
 
 def _player_observation(names, positions, velocities, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action):
     """What the player builds from those messages: its joint order, then its observation."""
-    index = pc.JointOrder().index(names)
+    index = player_core.JointOrder().index(names)
     assert index is not None, names
-    return pc.build_observation(np.asarray(positions)[index], np.asarray(velocities)[index],
-                                np.asarray(ball_position_m), np.asarray(ball_velocity_m_s), np.asarray(goal_xy_m),
-                                np.asarray(last_action))
+    return player_core.build_observation(np.asarray(positions)[index], np.asarray(velocities)[index],
+                                         np.asarray(ball_position_m), np.asarray(ball_velocity_m_s),
+                                         np.asarray(goal_xy_m), np.asarray(last_action))
 
 
 def test_player_path_and_env_path_give_identical_observations():
@@ -87,11 +86,11 @@ def test_env_sends_the_decoded_action_to_the_servo():
 
 def test_player_path_rejects_bad_input():
     names, zeros = list(spec.JOINT_NAMES), np.zeros(6)
-    assert pc.JointOrder().index(names[:5]) is None                       # an arm joint missing
+    assert player_core.JointOrder().index(names[:5]) is None                       # an arm joint missing
     with pytest.raises(ValueError, match='goal_xy_m'):
-        pc.build_observation(zeros, zeros, np.zeros(3), np.zeros(3), np.zeros(3), zeros)
+        player_core.build_observation(zeros, zeros, np.zeros(3), np.zeros(3), np.zeros(3), zeros)
     with pytest.raises(ValueError, match='joint_velocity_rad_s'):
-        pc.build_observation(zeros, zeros[:4], np.zeros(3), np.zeros(3), np.zeros(2), zeros)
+        player_core.build_observation(zeros, zeros[:4], np.zeros(3), np.zeros(3), np.zeros(2), zeros)
     with pytest.raises(ValueError, match='ball_position_m'):
         spec.build_observation(torch.zeros(2, 6), torch.zeros(2, 6), torch.zeros(2, 2), torch.zeros(2, 3),
                                torch.zeros(2, 2), torch.zeros(2, 6))

@@ -7,9 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from stylepong_policy import evaluate
-from stylepong_policy import strokes as st
-from stylepong_policy import style_metrics as sm
+from stylepong_policy import evaluate, strokes, style_metrics
 from stylepong_policy import style_report as report
 from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.demo_check import check_demonstrations
@@ -53,7 +51,7 @@ def test_the_file_names_are_the_constants(tmp_path):
 
 
 def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
-    saved = st.load_strokes(report.eval_files(run_dir, 'style').strokes_npz).strokes
+    saved = strokes.load_strokes(report.eval_files(run_dir, 'style').strokes_npz).strokes
     shown = saved[0].direction    # one strip: each takes seconds to draw
     path = report.write_report(run_dir, dataset_path=run_dir / 'dataset.npz',
                                timings_s={'check': 0.4, 'dataset': 0.3, 'stage 1': 1234.0},
@@ -73,7 +71,7 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     high = json.loads(report.eval_files(run_dir, 'style').high_speeds_json.read_text())
     assert record['success']['style'] == {'all': style['success_rate'], 'high': high['success_rate']}
     assert record['success']['ppo']['high'] is None and 'not evaluated' in text
-    for d in st.DIRECTIONS:
+    for d in strokes.DIRECTIONS:
         expected = style['dtw'][d]['mean_rad'] / ppo['dtw'][d]['mean_rad'] if style['dtw'][d]['strokes'] else None
         assert record['dtw_ratios']['style / ppo'][d] == pytest.approx(expected)
         assert record['dtw_ratios']['style / shipped'][d] in (None, pytest.approx(1.0))
@@ -90,15 +88,16 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     # The demonstration beside it is the original clip of its label nearest to its stroke.
     dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
     originals = [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[shown], speed_factors=[1])]
-    nearest = sm.nearest_reference(stroke.joint_positions_rad, originals)
+    nearest = style_metrics.nearest_reference(stroke.joint_positions_rad, originals)
     assert entry['demonstration_clip'] == nearest.clip and entry['dtw_to_it_rad'] == round(nearest.distance, 2)
 
 
 def test_overall_dtw_is_the_mean_over_every_stroke(run_dir):
     """Recomputed stroke by stroke from the strokes file and the dataset, not from the summary."""
     dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
-    saved = st.load_strokes(report.eval_files(run_dir, 'ppo').strokes_npz).strokes
-    distances = [sm.nearest_reference(s.joint_positions_rad, sm.reference_clips(dataset, s.direction)).distance
+    saved = strokes.load_strokes(report.eval_files(run_dir, 'ppo').strokes_npz).strokes
+    distances = [style_metrics.nearest_reference(s.joint_positions_rad,
+                                                 style_metrics.reference_clips(dataset, s.direction)).distance
                  for s in saved]
     summary = json.loads(report.eval_files(run_dir, 'ppo').all_speeds_json.read_text())
     assert report.dtw_by_direction(summary)[report.OVERALL] == pytest.approx(np.mean(distances))

@@ -6,8 +6,7 @@ import torch
 
 from stylepong_player import spec
 from stylepong_policy import task
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_sim import referee, world_spec
 
 
 def _env(n=16, seed=0, **overrides):
@@ -29,7 +28,7 @@ def test_interface_shapes_and_types():
     assert outcome['reason'].dtype == torch.int64 and extras['arm_state'].shape == (8, 12)
     assert extras['style_state'] is extras['arm_state'] and extras['ball_state'].shape == (8, 6)
     assert isinstance(extras['log'], dict) and extras['log_weight'] == len(extras['log']) * 0
-    assert task.FAILURE_REASONS[task.SUCCESS_INDEX] == rf.REASON_RETURNED
+    assert task.FAILURE_REASONS[task.SUCCESS_INDEX] == referee.REASON_RETURNED
     assert torch.isfinite(obs).all() and torch.isfinite(critic).all()
 
 
@@ -52,8 +51,8 @@ def test_goals_lie_on_the_opponents_half_and_are_redrawn_each_episode():
     env.reset()
     goal = env.goal_xy_m.clone()
     r = env.cfg.goal_radius_m
-    assert (goal[:, 0] >= r).all() and (goal[:, 0] <= ws.HALF_LENGTH_M - r).all()
-    assert (goal[:, 1].abs() <= ws.HALF_WIDTH_M - r).all()
+    assert (goal[:, 0] >= r).all() and (goal[:, 0] <= world_spec.HALF_LENGTH_M - r).all()
+    assert (goal[:, 1].abs() <= world_spec.HALF_WIDTH_M - r).all()
     assert goal[:, 0].max() - goal[:, 0].min() > 0.5 and goal[:, 1].max() - goal[:, 1].min() > 0.5
     ended = torch.zeros(256, dtype=torch.bool)
     for _ in range(120):
@@ -77,7 +76,7 @@ def test_domain_randomisation_within_ranges_and_off_when_disabled():
     assert env.episode.noise_std.max() > 0 and env.episode.action_delay_physics_steps.max() > 0
     nominal = _env(16, randomize=False)
     nominal.reset()
-    assert (nominal.world.params.table_restitution == ws.TABLE_RESTITUTION).all()
+    assert (nominal.world.params.table_restitution == world_spec.TABLE_RESTITUTION).all()
     assert (nominal.episode.noise_std == 0).all() and (nominal.episode.ball_delay_steps == 0).all()
 
 
@@ -182,9 +181,9 @@ def test_rewards_for_a_return_a_miss_and_illegal_contact():
                                   float(info['reward_terms']['success'][i]), float(info['reward_terms']['illegal'][i]))
         if all(o is not None for o in outcome):
             break
-    assert outcome[0][:2] == (rf.REASON_RETURNED, True) and outcome[0][2] == env.cfg.w_success
-    assert outcome[1][:2] == (rf.REASON_NET, False) and outcome[1][2] == 0.0 and outcome[1][3] == 0.0
-    assert outcome[2][:2] == (rf.REASON_ROBOT_CONTACT, False) and outcome[2][3] == -env.cfg.w_illegal
+    assert outcome[0][:2] == (referee.REASON_RETURNED, True) and outcome[0][2] == env.cfg.w_success
+    assert outcome[1][:2] == (referee.REASON_NET, False) and outcome[1][2] == 0.0 and outcome[1][3] == 0.0
+    assert outcome[2][:2] == (referee.REASON_ROBOT_CONTACT, False) and outcome[2][3] == -env.cfg.w_illegal
     assert totals[0] > totals[1] > totals[2]
     del goal
 
@@ -239,7 +238,7 @@ def test_timeouts_are_reported_for_bootstrapping():
         if dones.any():
             break
     assert dones.all() and info['time_outs'].all()
-    assert task.FAILURE_REASONS[int(info['outcome']['reason'][0])] == rf.REASON_TIMEOUT
+    assert task.FAILURE_REASONS[int(info['outcome']['reason'][0])] == referee.REASON_TIMEOUT
     assert info['log_weight'] == 2 and info['log']['ball/timeout'] == 1.0 and info['log']['success_rate'] == 0.0
 
 
@@ -286,7 +285,7 @@ def test_aim_credits_a_stroke_towards_the_goal_only_over_the_net():
     w.ball_pos_m[:] = torch.tensor([[-1.3, 0.0, 1.0]] * 3).T
     # Drag-free: 4 m/s forward for 0.525 s lands on the goal; vz from z(T) = table + radius.
     t = 2.1 / 4.0
-    vz = (ws.TABLE_CONTACT_HEIGHT_M - 1.0 + 0.5 * ws.GRAVITY_M_S2 * t * t) / t
+    vz = (world_spec.TABLE_CONTACT_HEIGHT_M - 1.0 + 0.5 * world_spec.GRAVITY_M_S2 * t * t) / t
     w.ball_vel_m_s[:] = torch.tensor([[4.0, 0.0, vz], [-4.0, 0.0, vz], [6.0, 0.0, -1.0]]).T
     quality = env._aim_quality(torch.ones(3, dtype=torch.bool))
     assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0   # over, away, into the net
@@ -308,12 +307,12 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
     from its launch. Balls that fly past an arm held at home cross the paddle's home plane at the y that
     strokes.direction_of labels the same way, in the nominal and in the randomised world (drag, gravity and
     restitution change the flight, not its heading)."""
-    from stylepong_policy import strokes as st
-    plane_x_m, home_y_m, _ = st.paddle_home_position_m()
+    from stylepong_policy import strokes
+    plane_x_m, home_y_m, _ = strokes.paddle_home_position_m()
     for randomize in (False, True):
         env = _env(256, seed=3, randomize=randomize, reset_joint_noise_rad=0.0)
         env.reset()
-        assert env.style_labels == st.DIRECTIONS
+        assert env.style_labels == strokes.DIRECTIONS
         asked = env.episode.direction.clone()
         crossed = torch.full((256,), math.nan, dtype=torch.float64)
         touched = torch.zeros(256, dtype=torch.bool)
@@ -335,7 +334,7 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
                 break
         checked = ~torch.isnan(crossed) & ~touched
         assert int(checked.sum()) > 150
-        expected = [st.DIRECTIONS.index(st.direction_of(float(y), home_y_m)) for y in crossed[checked]]
+        expected = [strokes.DIRECTIONS.index(strokes.direction_of(float(y), home_y_m)) for y in crossed[checked]]
         agree = (asked[checked] == torch.tensor(expected)).float().mean()
         assert agree > 0.98, (randomize, float(agree))    # a ball a hair from a threshold may fall either side
         assert set(asked.tolist()) == {0, 1, 2}

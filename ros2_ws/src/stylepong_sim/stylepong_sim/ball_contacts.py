@@ -19,17 +19,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 
 TABLE, NET, PADDLE, ROBOT = 'table', 'net', 'paddle', 'robot'
 
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
-_NET_LOW_M = np.array(ws.NET_BOX_LOW_M)
-_NET_HIGH_M = np.array(ws.NET_BOX_HIGH_M)
-BLADE_HALF_THICKNESS_M = rm.PADDLE.blade_thickness_m / 2.0
-BLADE_RADIUS_M = rm.PADDLE.blade_radius_m
+_NET_LOW_M = np.array(world_spec.NET_BOX_LOW_M)
+_NET_HIGH_M = np.array(world_spec.NET_BOX_HIGH_M)
+BLADE_HALF_THICKNESS_M = robot_model.PADDLE.blade_thickness_m / 2.0
+BLADE_RADIUS_M = robot_model.PADDLE.blade_radius_m
 # The blade's bounding sphere about its centre: a ball further away cannot touch it.
 _BLADE_BOUND_M = math.hypot(BLADE_RADIUS_M, BLADE_HALF_THICKNESS_M)
 
@@ -51,19 +51,19 @@ class Contact:
 
 def table_contact(p0: np.ndarray, p1: np.ndarray) -> Contact | None:
     """The ball's bottom crossing the table top's plane over the table."""
-    if not (p0[2] >= ws.TABLE_CONTACT_HEIGHT_M > p1[2]):
+    if not (p0[2] >= world_spec.TABLE_CONTACT_HEIGHT_M > p1[2]):
         return None
-    fraction = (p0[2] - ws.TABLE_CONTACT_HEIGHT_M) / (p0[2] - p1[2])
+    fraction = (p0[2] - world_spec.TABLE_CONTACT_HEIGHT_M) / (p0[2] - p1[2])
     centre = p0 + fraction * (p1 - p0)
-    if not ws.on_table(centre[0], centre[1]):
+    if not world_spec.on_table(centre[0], centre[1]):
         return None
-    centre[2] = ws.TABLE_CONTACT_HEIGHT_M
+    centre[2] = world_spec.TABLE_CONTACT_HEIGHT_M
     return Contact(TABLE, fraction, centre, _UP, _ZERO3)
 
 
 def net_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray) -> Contact | None:
     """The ball crossing one of the net's faces, or its end position against the net's top edge and ends."""
-    r, face_x = ws.BALL_RADIUS_M, ws.NET_FACE_CONTACT_X_M
+    r, face_x = world_spec.BALL_RADIUS_M, world_spec.NET_FACE_CONTACT_X_M
     if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
         return None   # on one side of the net, not touching it
     for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x
@@ -92,14 +92,14 @@ def paddle_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, before: Pose,
     a face crossed in the blade's frame, or the end position against the rim."""
     (c0, rot0), (c1, rot1) = before, after
     # Far from the blade's bounding sphere, even allowing for this step's motion of ball and blade?
-    reach = (_BLADE_BOUND_M + ws.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0))
+    reach = (_BLADE_BOUND_M + world_spec.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0))
              + float(np.linalg.norm(c1 - c0)))
     offset = p1 - c1
     if offset @ offset > reach * reach:
         return None
     local0 = rot0.T @ (p0 - c0)   # ball centre in the blade's frame (z = face normal) before the step
     local1 = rot1.T @ (p1 - c1)   # and after it: the segment between them is the relative motion
-    h, radius, r = BLADE_HALF_THICKNESS_M, BLADE_RADIUS_M, ws.BALL_RADIUS_M
+    h, radius, r = BLADE_HALF_THICKNESS_M, BLADE_RADIUS_M, world_spec.BALL_RADIUS_M
     face_z = h + r
     for side in (-1.0, 1.0):
         s0, s1 = side * local0[2], side * local1[2]

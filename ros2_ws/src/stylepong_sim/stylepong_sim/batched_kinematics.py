@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 
-NUM_JOINTS = rm.NUM_JOINTS
+NUM_JOINTS = robot_model.NUM_JOINTS
 LINK_BODIES = ('shoulder_link', 'upper_arm_link', 'forearm_link', 'wrist_1_link', 'wrist_2_link',
                'wrist_3_link')
 
@@ -155,7 +155,7 @@ def link_capsules() -> tuple[Capsule, ...]:
     is not among them: the world treats it exactly, as a disc.
     """
     import mujoco
-    mj = rm.mujoco_model()
+    mj = robot_model.mujoco_model()
     capsules = []
     for joint, body in enumerate(LINK_BODIES):
         body_id = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, body)
@@ -171,17 +171,17 @@ def link_capsules() -> tuple[Capsule, ...]:
             a, b, radius = _fit_capsule(np.concatenate(points))
             capsules.append(Capsule(joint, tuple(a), tuple(b), radius, body))
     # The handle: from the paddle body's origin (tool0) along its z axis, in the last joint's frame.
-    model = rm.pinocchio_model()
-    placement = model.frames[model.getFrameId(rm.PADDLE_BODY)].placement
+    model = robot_model.pinocchio_model()
+    placement = model.frames[model.getFrameId(robot_model.PADDLE_BODY)].placement
     a = placement.translation
-    b = a + placement.rotation @ np.array([0.0, 0.0, rm.PADDLE.handle_length_m])
-    capsules.append(Capsule(NUM_JOINTS - 1, tuple(a), tuple(b), rm.PADDLE.handle_radius_m, 'paddle_handle'))
+    b = a + placement.rotation @ np.array([0.0, 0.0, robot_model.PADDLE.handle_length_m])
+    capsules.append(Capsule(NUM_JOINTS - 1, tuple(a), tuple(b), robot_model.PADDLE.handle_radius_m, 'paddle_handle'))
     return tuple(capsules)
 
 
 def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32) -> ArmModel:
     """Read the one robot model into tensors on `device` (the base placement from the world spec)."""
-    model = rm.pinocchio_model()
+    model = robot_model.pinocchio_model()
     rot_a, rot_b, rot_c, origins, axes, masses, coms, inertia_axes, moments = ([] for _ in range(9))
     for i in range(1, NUM_JOINTS + 1):
         placement = model.jointPlacements[i]
@@ -198,12 +198,12 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
         values, vectors = np.linalg.eigh(inertia.inertia)
         moments.append(values)
         inertia_axes.append(vectors)
-    paddle = model.frames[model.getFrameId(rm.PADDLE_CENTRE_FRAME)]
+    paddle = model.frames[model.getFrameId(robot_model.PADDLE_CENTRE_FRAME)]
     if paddle.parentJoint != NUM_JOINTS:
         raise RuntimeError('the paddle centre must hang on the last joint')
     capsules = link_capsules()
-    limits = rm.joint_limits()
-    base_rot, base_pos_m = ws.robot_base_pose()
+    limits = robot_model.joint_limits()
+    base_rot, base_pos_m = world_spec.robot_base_pose()
 
     def t(x) -> torch.Tensor:
         return torch.as_tensor(np.asarray(x, dtype=float), dtype=dtype, device=device)

@@ -23,9 +23,9 @@ import math
 
 import torch
 
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 
-MIN_ELEVATION_RAD, MAX_ELEVATION_RAD = ws.AIM_ELEVATION_RANGE_RAD
+MIN_ELEVATION_RAD, MAX_ELEVATION_RAD = world_spec.AIM_ELEVATION_RANGE_RAD
 FLIGHT_DT_S = 0.04             # RK4 + Hermite crossings: within 1 um of a 1 ms flight
 ILLINOIS_ITERATIONS = 16           # at most; stops once all land within 1 um
 
@@ -73,8 +73,8 @@ def _rk4_flight_step(s, z, vs, vz, dt: float, drag_k_per_m, gravity_m_s2):
 
 
 def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad: torch.Tensor,
-                  net_distance_m: torch.Tensor, gravity_m_s2: float = ws.GRAVITY_M_S2,
-                  drag_k_per_m: float = ws.DRAG_K_PER_M) -> tuple[torch.Tensor, torch.Tensor]:
+                  net_distance_m: torch.Tensor, gravity_m_s2: float = world_spec.GRAVITY_M_S2,
+                  drag_k_per_m: float = world_spec.DRAG_K_PER_M) -> tuple[torch.Tensor, torch.Tensor]:
     """Fly balls in their vertical plane until the ball's bottom reaches the table.
 
     height_m: launch height of the ball centre above the contact level (table + radius);
@@ -93,10 +93,10 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
     clearance = torch.full_like(s, math.inf)
     active = torch.ones_like(s, dtype=torch.bool)
     # Heights are of the ball centre above (table + radius), i.e. of the ball's bottom above the table.
-    net_top = ws.NET_HEIGHT_M
+    net_top = world_spec.NET_HEIGHT_M
     dt = FLIGHT_DT_S
 
-    for step in range(int(ws.MAX_FLIGHT_S / dt)):
+    for step in range(int(world_spec.MAX_FLIGHT_S / dt)):
         s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, drag_k_per_m, gravity_m_s2)
         crosses_net = active & (s < net_distance_m) & (s1 >= net_distance_m)
         if bool(crosses_net.any()):
@@ -118,7 +118,7 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
 
 
 def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: torch.Tensor, vz_m_s: torch.Tensor,
-                    distribution: ws.IncomingBallDistribution = ws.INCOMING) -> torch.Tensor:
+                    distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING) -> torch.Tensor:
     """world_spec.rebound_reaches for many balls: after a nominal table bounce at bounce_xy [2, n] with
     contact velocity (vs along the unit heading [2, n], vz), does the ball pass through the paddle's
     reachable region before falling back to table level?
@@ -126,13 +126,13 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
     The tangential contact response keeps the heading, so the rebound stays in the same vertical plane.
     Positions are checked four times per integration step (Hermite interpolation), i.e. every 5 ms.
     """
-    out_s = ws.TABLE_TANGENTIAL_FACTOR * vs_m_s
-    out_z = -ws.TABLE_RESTITUTION * vz_m_s
+    out_s = world_spec.TABLE_TANGENTIAL_FACTOR * vs_m_s
+    out_z = -world_spec.TABLE_RESTITUTION * vz_m_s
     centre = torch.tensor(distribution.reach_centre_m, dtype=vs_m_s.dtype, device=vs_m_s.device)
     # Offsets from the reach centre at the bounce (the ball centre sits at table + radius).
     dx0 = bounce_xy_m[0] - centre[0]
     dy0 = bounce_xy_m[1] - centre[1]
-    z_contact = ws.TABLE_CONTACT_HEIGHT_M
+    z_contact = world_spec.TABLE_CONTACT_HEIGHT_M
     dt = 0.02
     s = torch.zeros_like(vs_m_s)
     z = torch.full_like(vs_m_s, z_contact)
@@ -140,8 +140,8 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
     reached = torch.zeros_like(s, dtype=torch.bool)
     active = torch.ones_like(reached)
 
-    for step in range(int(ws.REBOUND_HORIZON_S / dt)):
-        s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, ws.DRAG_K_PER_M, ws.GRAVITY_M_S2)
+    for step in range(int(world_spec.REBOUND_HORIZON_S / dt)):
+        s1, z1, vs1, vz1 = _rk4_flight_step(s, z, vs, vz, dt, world_spec.DRAG_K_PER_M, world_spec.GRAVITY_M_S2)
         for tau in (0.25, 0.5, 0.75, 1.0):
             zi = _hermite(z, z1, vz, vz1, tau, dt)
             si = _hermite(s, s1, vs, vs1, tau, dt)
@@ -167,7 +167,7 @@ class IncomingBallSampler:
 
     def __init__(self, speed_range_m_s: tuple[float, float] | None = None, seed: int = 0,
                  device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
-                 distribution: ws.IncomingBallDistribution = ws.INCOMING, batch: int = 4096):
+                 distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING, batch: int = 4096):
         self.distribution = distribution
         self.speed_range_m_s = tuple(speed_range_m_s or distribution.speed_m_s)
         if not self.speed_range_m_s[0] <= self.speed_range_m_s[1]:
@@ -195,7 +195,7 @@ class IncomingBallSampler:
         offset = bounce - start[:2]
         distance = torch.linalg.vector_norm(offset, dim=0)
         heading = offset / distance
-        height = start[2] - ws.TABLE_CONTACT_HEIGHT_M
+        height = start[2] - world_spec.TABLE_CONTACT_HEIGHT_M
         # The net plane x = 0 along the heading (launches are on the far side, bounces on the near one).
         net_distance = -start[0] / heading[0]
 

@@ -35,10 +35,9 @@ from typing import NamedTuple
 
 import torch
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import batched_kinematics as bk
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import batched_kinematics, referee, world_spec
+from stylepong_sim.batched_kinematics import Kinematics
 
 # The world's default step rates (the task's TaskConfig takes them from here): physics at 120 Hz, two
 # steps per 60 Hz policy step, and the arm at 4 sub-steps per physics step (480 Hz); see the docstring.
@@ -105,11 +104,13 @@ class PhysicsParams:
             return torch.tensor(values, device=device, dtype=dtype)[:, None].repeat(1, num_envs)
 
         return PhysicsParams(
-            gravity_m_s2=full(ws.GRAVITY_M_S2), drag_k_per_m=full(ws.DRAG_K_PER_M),
-            table_restitution=full(ws.TABLE_RESTITUTION), table_tangential_factor=full(ws.TABLE_TANGENTIAL_FACTOR),
-            paddle_restitution=full(ws.PADDLE_RESTITUTION),
-            paddle_tangential_factor=full(ws.PADDLE_TANGENTIAL_FACTOR),
-            kp_nm_per_rad=per_joint(ws.ARM_KP_NM_PER_RAD), kd_nms_per_rad=per_joint(ws.ARM_KD_NMS_PER_RAD))
+            gravity_m_s2=full(world_spec.GRAVITY_M_S2), drag_k_per_m=full(world_spec.DRAG_K_PER_M),
+            table_restitution=full(world_spec.TABLE_RESTITUTION),
+            table_tangential_factor=full(world_spec.TABLE_TANGENTIAL_FACTOR),
+            paddle_restitution=full(world_spec.PADDLE_RESTITUTION),
+            paddle_tangential_factor=full(world_spec.PADDLE_TANGENTIAL_FACTOR),
+            kp_nm_per_rad=per_joint(world_spec.ARM_KP_NM_PER_RAD),
+            kd_nms_per_rad=per_joint(world_spec.ARM_KD_NMS_PER_RAD))
 
     def assign(self, env_ids: torch.Tensor, other: 'PhysicsParams') -> None:
         """Copy `other`'s values (for len(env_ids) environments) into these environments."""
@@ -139,9 +140,9 @@ class BatchedWorld:
     """
 
     def __init__(self, num_envs: int, device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
-                 policy_rate_hz: float = ws.POLICY_RATE_HZ, physics_rate_hz: float = PHYSICS_RATE_HZ,
+                 policy_rate_hz: float = world_spec.POLICY_RATE_HZ, physics_rate_hz: float = PHYSICS_RATE_HZ,
                  arm_substeps: int = ARM_SUBSTEPS,
-                 timeout_s: float = ws.BALL_TIMEOUT_S, dynamics_every: int | None = None,
+                 timeout_s: float = world_spec.BALL_TIMEOUT_S, dynamics_every: int | None = None,
                  cpu_threads: int | None = 1, compile: bool = False):
         if num_envs < 1:
             raise ValueError('num_envs must be positive')
@@ -166,10 +167,10 @@ class BatchedWorld:
         self.dynamics_every = self.physics_steps if dynamics_every is None else int(dynamics_every)
         if self.dynamics_every < 1:
             raise ValueError('dynamics_every must be at least 1')
-        self.model = bk.build_arm_model(self.device, dtype)
+        self.model = batched_kinematics.build_arm_model(self.device, dtype)
         self.params = PhysicsParams.nominal(num_envs, self.device, dtype)
         n, kw = self.num_envs, dict(device=self.device, dtype=dtype)
-        home = torch.tensor(ws.HOME_JOINT_POSITIONS_RAD, **kw)[:, None]
+        home = torch.tensor(world_spec.HOME_JOINT_POSITIONS_RAD, **kw)[:, None]
         self.q_rad = home.repeat(1, n)
         self.qd_rad_s = torch.zeros(6, n, **kw)
         self.q_ref_rad = self.q_rad.clone()
@@ -182,17 +183,17 @@ class BatchedWorld:
         self.own_bounces = torch.zeros(n, dtype=torch.long, device=self.device)
         self.open = torch.zeros(n, dtype=torch.bool, device=self.device)
         self.success = torch.zeros(n, dtype=torch.bool, device=self.device)
-        self.reason = torch.full((n,), rf.NO_VERDICT, dtype=torch.long, device=self.device)
+        self.reason = torch.full((n,), referee.NO_VERDICT, dtype=torch.long, device=self.device)
         self.landing_xy_m = torch.zeros(2, n, **kw)
-        self._armature = torch.diag(torch.tensor(ws.ARM_ARMATURE_KG_M2, **kw))[..., None]   # [6, 6, 1]
+        self._armature = torch.diag(torch.tensor(world_spec.ARM_ARMATURE_KG_M2, **kw))[..., None]   # [6, 6, 1]
         self.table_contact_pos_m = torch.zeros(3, n, **kw)
-        self._kin = bk.forward_kinematics(self.model, self.q_rad)
+        self._kin = batched_kinematics.forward_kinematics(self.model, self.q_rad)
         self._constants()
-        self._forward_kinematics = bk.forward_kinematics
+        self._forward_kinematics = batched_kinematics.forward_kinematics
         if compile:
             # torch.compile (inductor) fuses each stage's hundreds of small operations into a few loops:
             # measured 3-4x faster per stage on this CPU, after 1-2 minutes of compilation at start.
-            self._forward_kinematics = torch.compile(bk.forward_kinematics, dynamic=False)
+            self._forward_kinematics = torch.compile(batched_kinematics.forward_kinematics, dynamic=False)
             self._arm_dynamics = torch.compile(self._arm_dynamics, dynamic=False)
             self._arm_step = torch.compile(self._arm_step, dynamic=False)
             self._ball_step = torch.compile(self._ball_step, dynamic=False)
@@ -200,15 +201,15 @@ class BatchedWorld:
     def _constants(self) -> None:
         kw = dict(device=self.device, dtype=self.dtype)
         self._up = torch.tensor([0.0, 0.0, 1.0], **kw)[:, None]
-        r = ws.BALL_RADIUS_M
-        self._net_lo = torch.tensor(ws.NET_BOX_LOW_M, **kw)[:, None]
-        self._net_hi = torch.tensor(ws.NET_BOX_HIGH_M, **kw)[:, None]
+        r = world_spec.BALL_RADIUS_M
+        self._net_lo = torch.tensor(world_spec.NET_BOX_LOW_M, **kw)[:, None]
+        self._net_hi = torch.tensor(world_spec.NET_BOX_HIGH_M, **kw)[:, None]
         self._link_reach_sq_m2 = (self.model.capsule_radius_m + r) ** 2       # [L, 1]
         # Both end spheres of every capsule, in the order capsule_segments' a, b are concatenated.
         radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))   # [2L, 1]
         self._capsule_end_radius_sq_m2 = radius * radius
-        self._blade_radius_m = rm.PADDLE.blade_radius_m
-        self._blade_half_thickness_m = rm.PADDLE.blade_thickness_m / 2.0
+        self._blade_radius_m = robot_model.PADDLE.blade_radius_m
+        self._blade_half_thickness_m = robot_model.PADDLE.blade_thickness_m / 2.0
 
     # --- public views (environment axis first, for the task) ---------------------------------------
     @property
@@ -220,7 +221,7 @@ class BatchedWorld:
         return self._kin.paddle_rot
 
     @property
-    def kinematics(self) -> bk.Kinematics:
+    def kinematics(self) -> Kinematics:
         return self._kin
 
     # --- resets --------------------------------------------------------------------------------------
@@ -243,11 +244,11 @@ class BatchedWorld:
         self.own_bounces[env_ids] = 0
         self.open[env_ids] = True
         self.success[env_ids] = False
-        self.reason[env_ids] = rf.NO_VERDICT
+        self.reason[env_ids] = referee.NO_VERDICT
         self.landing_xy_m[:, env_ids] = 0.0
         if params is not None:
             self.params.assign(env_ids, params)
-        self._kin = bk.forward_kinematics(self.model, self.q_rad)
+        self._kin = batched_kinematics.forward_kinematics(self.model, self.q_rad)
 
     # --- stepping ------------------------------------------------------------------------------------
     def step(self, q_cmd_rad: torch.Tensor, delay_steps: torch.Tensor | None = None) -> StepEvents:
@@ -281,15 +282,15 @@ class BatchedWorld:
             own_bounce = own_bounce | bounce
         decided = was_open & ~self.open
         return StepEvents(paddle_hit=paddle_hit, own_bounce=own_bounce, decided=decided,
-                          success=self.success & decided, reason=torch.where(decided, self.reason, rf.NO_VERDICT))
+                          success=self.success & decided, reason=torch.where(decided, self.reason, referee.NO_VERDICT))
 
     # --- the arm -------------------------------------------------------------------------------------
-    def _arm_dynamics(self, kin: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
+    def _arm_dynamics(self, kin: Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
         """(M(q) + armature)^-1 [6, 6, N] and the Coriolis/centrifugal torques [6, N] at the current state."""
-        sp = bk.spatial(self.model, kin)
-        inertia = bk.mass_matrix(sp) + self._armature
+        sp = batched_kinematics.spatial(self.model, kin)
+        inertia = batched_kinematics.mass_matrix(sp) + self._armature
         inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)
-        return inverse, bk.bias_torques(sp, self.qd_rad_s)   # gravity: ideally compensated
+        return inverse, batched_kinematics.bias_torques(sp, self.qd_rad_s)   # gravity: ideally compensated
 
     def _arm_step(self, inverse: torch.Tensor, bias: torch.Tensor) -> None:
         """One physics step of the servo law (world_spec) in arm_substeps sub-steps, with the inertia and
@@ -327,13 +328,13 @@ class BatchedWorld:
         k = self.params.drag_k_per_m
 
         def accel(u):
-            a = -k * torch.sqrt(bk.dot(u, u)) * u
+            a = -k * torch.sqrt(batched_kinematics.dot(u, u)) * u
             return torch.stack((a[0], a[1], a[2] - g))
 
         v_half = v + 0.5 * dt * accel(v)
         return v_half * dt, v + dt * accel(v_half)
 
-    def _ball_step(self, kin0: bk.Kinematics, kin1: bk.Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
+    def _ball_step(self, kin0: Kinematics, kin1: Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
         """One physics step of the ball and the referee; returns (paddle hit, own-side bounce) flags."""
         p0, v0 = self.ball_pos_m, self.ball_vel_m_s
         displacement, v1 = self._free_flight(v0, self.physics_dt_s)
@@ -344,45 +345,45 @@ class BatchedWorld:
 
     def _table_contact(self, p0: torch.Tensor, p1: torch.Tensor) -> torch.Tensor:
         """Fraction of the step [N] at which the ball's bottom crosses the table top's plane over the table."""
-        contact_z = ws.TABLE_CONTACT_HEIGHT_M
+        contact_z = world_spec.TABLE_CONTACT_HEIGHT_M
         f_table = (p0[2] - contact_z) / (p0[2] - p1[2])
         at = p0 + f_table * (p1 - p0)
-        table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & ws.on_table(at[0], at[1])
+        table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & world_spec.on_table(at[0], at[1])
         return torch.where(table_ok, f_table, _NO_CONTACT)
 
     def _net_contact(self, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """The net: its two faces swept exactly; its top and ends by the end position against its box.
         Returns (fraction [N], normal [3, N], ball centre at the contact [3, N])."""
-        r = ws.BALL_RADIUS_M
-        face_x = ws.NET_FACE_CONTACT_X_M
+        r = world_spec.BALL_RADIUS_M
+        face_x = world_spec.NET_FACE_CONTACT_X_M
         side_net = torch.where(p0[0] >= 0.0, 1.0, -1.0).to(self.dtype)
         s0, s1 = side_net * p0[0], side_net * p1[0]
         f_net = (s0 - face_x) / (s0 - s1)
         at = p0 + f_net * (p1 - p0)
-        net_face = (s0 >= face_x) & (s1 < face_x) & (at[1].abs() <= ws.NET_LENGTH_M / 2) \
-            & (at[2] > ws.TABLE_HEIGHT_M) & (at[2] <= ws.NET_TOP_HEIGHT_M)
+        net_face = (s0 >= face_x) & (s1 < face_x) & (at[1].abs() <= world_spec.NET_LENGTH_M / 2) \
+            & (at[2] > world_spec.TABLE_HEIGHT_M) & (at[2] <= world_spec.NET_TOP_HEIGHT_M)
         closest_net = torch.maximum(torch.minimum(p1, self._net_hi), self._net_lo)
         offset_net = p1 - closest_net
-        dist_net = torch.sqrt(bk.dot(offset_net, offset_net))
+        dist_net = torch.sqrt(batched_kinematics.dot(offset_net, offset_net))
         normal_net_box = offset_net / dist_net.clamp_min(1e-9)
-        net_box = ~net_face & (dist_net < r) & (dist_net > 0.0) & (bk.dot(v1, normal_net_box) < 0.0)
+        net_box = ~net_face & (dist_net < r) & (dist_net > 0.0) & (batched_kinematics.dot(v1, normal_net_box) < 0.0)
         f_net = torch.where(net_face, f_net, torch.where(net_box, torch.ones_like(f_net), _NO_CONTACT))
         normal_net = torch.where(net_face, torch.stack((side_net, 0.0 * side_net, 0.0 * side_net)), normal_net_box)
         centre_net = torch.where(net_face, p0 + f_net.clamp(max=1.0) * (p1 - p0), closest_net + normal_net_box * r)
         centre_net[0] = torch.where(net_face, side_net * face_x, centre_net[0])
         return f_net, normal_net, centre_net
 
-    def _blade_contact(self, kin0: bk.Kinematics, kin1: bk.Kinematics, p0: torch.Tensor, p1: torch.Tensor,
+    def _blade_contact(self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor,
                        v1: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """The blade: its faces swept in its moving frame (positions relative to the blade before and after
         the step), its rim by the end position. Returns (fraction [N], normal, ball centre at the contact,
         the blade's velocity there [3, N])."""
-        r = ws.BALL_RADIUS_M
+        r = world_spec.BALL_RADIUS_M
         c0, rot0 = kin0.paddle_pos_m, kin0.paddle_rot
         c1, rot1 = kin1.paddle_pos_m, kin1.paddle_rot
-        local0 = bk.mat_t_vec(rot0, p0 - c0)
-        local1 = bk.mat_t_vec(rot1, p1 - c1)
+        local0 = batched_kinematics.mat_t_vec(rot0, p0 - c0)
+        local1 = batched_kinematics.mat_t_vec(rot1, p1 - c1)
         h, radius = self._blade_half_thickness_m, self._blade_radius_m
         face_z = h + r
         side_pad = torch.where(local0[2] >= 0.0, 1.0, -1.0).to(self.dtype)
@@ -396,19 +397,19 @@ class BatchedWorld:
         scale = (radius / rho.clamp_min(1e-9)).clamp(max=1.0)
         closest_rim = torch.stack((local1[0] * scale, local1[1] * scale, local1[2].clamp(-h, h)))
         offset_rim = local1 - closest_rim
-        dist_rim = torch.sqrt(bk.dot(offset_rim, offset_rim))
+        dist_rim = torch.sqrt(batched_kinematics.dot(offset_rim, offset_rim))
         face_normal_local = torch.stack((0.0 * side_pad, 0.0 * side_pad, side_pad))
         rim_normal_local = torch.where(dist_rim > 0.0, offset_rim / dist_rim.clamp_min(1e-9), face_normal_local)
-        normal_pad = bk.mat_vec(rot1, torch.where(face_hit, face_normal_local, rim_normal_local))
+        normal_pad = batched_kinematics.mat_vec(rot1, torch.where(face_hit, face_normal_local, rim_normal_local))
         surface_local = torch.where(face_hit, local_face - torch.stack((0.0 * s0, 0.0 * s0, side_pad * r)), closest_rim)
-        surface_pad = c1 + bk.mat_vec(rot1, surface_local)
+        surface_pad = c1 + batched_kinematics.mat_vec(rot1, surface_local)
         u_pad = self._point_velocity(kin1, surface_pad)
-        rim_hit = ~face_hit & (dist_rim < r) & (bk.dot(v1 - u_pad, normal_pad) < 0.0)
+        rim_hit = ~face_hit & (dist_rim < r) & (batched_kinematics.dot(v1 - u_pad, normal_pad) < 0.0)
         f_pad = torch.where(face_hit, f_face, torch.where(rim_hit, torch.ones_like(f_face), _NO_CONTACT))
         centre_pad = surface_pad + normal_pad * r
         return f_pad, normal_pad, centre_pad, u_pad
 
-    def _earliest_contact(self, kin0: bk.Kinematics, kin1: bk.Kinematics, p0: torch.Tensor, p1: torch.Tensor,
+    def _earliest_contact(self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor,
                           v1: torch.Tensor) -> tuple[_Contact, torch.Tensor, torch.Tensor]:
         """The earliest of the table, net and blade contacts in the step; robot links only when nothing else
         was touched. Returns it with the robot's capsules [3, L, N] (end points a, b) at the step's end."""
@@ -417,13 +418,13 @@ class BatchedWorld:
         f_pad, normal_pad, centre_pad, u_pad = self._blade_contact(kin0, kin1, p0, p1, v1)
         f = torch.minimum(torch.minimum(f_table, f_net), f_pad)
         kind = torch.where(f > 1.0, _NONE, torch.where(f == f_table, _TABLE, torch.where(f == f_net, _NET, _PADDLE)))
-        capsule_a, capsule_b = bk.capsule_segments(self.model, kin1)
+        capsule_a, capsule_b = batched_kinematics.capsule_segments(self.model, kin1)
         robot = (kind == _NONE) & self._touches_links(capsule_a, capsule_b, p1)
         f = torch.where(kind == _NONE, torch.ones_like(f), f)
         is_table, is_net, is_pad = kind == _TABLE, kind == _NET, kind == _PADDLE
         normal = torch.where(is_table, self._up, torch.where(is_net, normal_net, normal_pad))
         centre = torch.where(is_table, p0 + f * (p1 - p0), torch.where(is_net, centre_net, centre_pad))
-        centre[2] = torch.where(is_table, torch.full_like(f, ws.TABLE_CONTACT_HEIGHT_M), centre[2])
+        centre[2] = torch.where(is_table, torch.full_like(f, world_spec.TABLE_CONTACT_HEIGHT_M), centre[2])
         surface_velocity = torch.where(is_pad, u_pad, torch.zeros_like(u_pad))
         contact = _Contact(kind=kind, fraction=f, robot_link=robot, centre_m=centre, normal=normal,
                            surface_velocity_m_s=surface_velocity)
@@ -436,92 +437,92 @@ class BatchedWorld:
         f, kind = contact.fraction, contact.kind
         is_table, is_net = kind == _TABLE, kind == _NET
         restitution = torch.where(is_table, self.params.table_restitution,
-                                  torch.where(is_net, torch.full_like(f, ws.NET_RESTITUTION),
+                                  torch.where(is_net, torch.full_like(f, world_spec.NET_RESTITUTION),
                                               self.params.paddle_restitution))
         tangential = torch.where(is_table, self.params.table_tangential_factor,
-                                 torch.where(is_net, torch.full_like(f, ws.NET_TANGENTIAL_FACTOR),
+                                 torch.where(is_net, torch.full_like(f, world_spec.NET_TANGENTIAL_FACTOR),
                                              self.params.paddle_tangential_factor))
         surface_velocity = contact.surface_velocity_m_s
         v_at = v0 + f * (v1 - v0)
         relative = (v_at - surface_velocity).T
-        v_out = surface_velocity + ws.contact_response(relative, contact.normal.T, restitution[:, None],
-                                                       tangential[:, None]).T
+        v_out = surface_velocity + world_spec.contact_response(relative, contact.normal.T, restitution[:, None],
+                                                               tangential[:, None]).T
         rest = (1.0 - f) * self.physics_dt_s
         displacement, v_after = self._free_flight(v_out, rest)
         touched = kind != _NONE
         return torch.where(touched, contact.centre_m + displacement, p1), torch.where(touched, v_after, v1)
 
-    def _judge(self, kin1: bk.Kinematics, capsule_a: torch.Tensor, capsule_b: torch.Tensor, contact: _Contact,
+    def _judge(self, kin1: Kinematics, capsule_a: torch.Tensor, capsule_b: torch.Tensor, contact: _Contact,
                p_new: torch.Tensor, v_new: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The referee's rules (stylepong_sim.referee, the same functions and order as the cell's referee) for
         this step's contact and the ball's state after it; updates the rally state and returns the flags
         (paddle's first hit, own-side bounce) [N]."""
         open_ = self.open
-        verdict = torch.full((self.num_envs,), rf.NO_VERDICT, dtype=torch.long, device=self.device)
+        verdict = torch.full((self.num_envs,), referee.NO_VERDICT, dtype=torch.long, device=self.device)
 
         def decide(mask: torch.Tensor, reason: str) -> None:
             nonlocal verdict
-            verdict = torch.where(mask & (verdict == rf.NO_VERDICT), rf.REASON_INDEX[reason], verdict)
+            verdict = torch.where(mask & (verdict == referee.NO_VERDICT), referee.REASON_INDEX[reason], verdict)
 
-        def decide_all(event: torch.Tensor, verdicts: rf.Verdicts) -> None:
+        def decide_all(event: torch.Tensor, verdicts: referee.Verdicts) -> None:
             for reason, holds in verdicts:
                 decide(event & holds, reason)
 
-        decide(open_ & self._robot_touches_table(kin1, capsule_a, capsule_b), rf.REASON_TABLE_CONTACT_BY_ROBOT)
+        decide(open_ & self._robot_touches_table(kin1, capsule_a, capsule_b), referee.REASON_TABLE_CONTACT_BY_ROBOT)
         centre, kind = contact.centre_m, contact.kind
-        own_side = rf.is_own_side(centre)
+        own_side = referee.is_own_side(centre)
         table_event = open_ & (kind == _TABLE)
-        own_bounce = table_event & rf.own_side_bounce(self.hit, own_side)
+        own_bounce = table_event & referee.own_side_bounce(self.hit, own_side)
         self.own_bounces = self.own_bounces + own_bounce.long()
-        decide_all(table_event, rf.table_contact_verdicts(self.hit, own_side, self.own_bounces))
-        decide_all(open_ & (kind == _NET), rf.net_contact_verdicts(self.hit))
+        decide_all(table_event, referee.table_contact_verdicts(self.hit, own_side, self.own_bounces))
+        decide_all(open_ & (kind == _NET), referee.net_contact_verdicts(self.hit))
         pad_event = open_ & (kind == _PADDLE)
-        decide_all(pad_event, rf.paddle_contact_verdicts(self.hit))
+        decide_all(pad_event, referee.paddle_contact_verdicts(self.hit))
         first_hit = pad_event & ~self.hit
-        decide(open_ & contact.robot_link, rf.REASON_ROBOT_CONTACT)
+        decide(open_ & contact.robot_link, referee.REASON_ROBOT_CONTACT)
         self.landing_xy_m = torch.where(table_event & self.hit, centre[:2], self.landing_xy_m)
         self.table_contact_pos_m = torch.where(kind == _TABLE, centre, self.table_contact_pos_m)
         hit_after = self.hit | first_hit
         # After the step: dead, out and timeout (time since the launch).
         time_s = self.time_s + self.physics_dt_s
-        state_verdicts = rf.ball_state_verdicts(hit_after, p_new, v_new[2], time_s, self.timeout_s)
+        state_verdicts = referee.ball_state_verdicts(hit_after, p_new, v_new[2], time_s, self.timeout_s)
         # Out balls: where the referee calls them out.
-        newly_out = open_ & dict(state_verdicts)[rf.REASON_OUT] & (verdict == rf.NO_VERDICT)
+        newly_out = open_ & dict(state_verdicts)[referee.REASON_OUT] & (verdict == referee.NO_VERDICT)
         self.landing_xy_m = torch.where(newly_out, p_new[:2], self.landing_xy_m)
         decide_all(open_, state_verdicts)
 
-        decided = verdict != rf.NO_VERDICT
+        decided = verdict != referee.NO_VERDICT
         self.reason = torch.where(decided, verdict, self.reason)
-        self.success = self.success | (decided & (verdict == rf.REASON_INDEX[rf.REASON_RETURNED]))
+        self.success = self.success | (decided & (verdict == referee.REASON_INDEX[referee.REASON_RETURNED]))
         self.open = open_ & ~decided
         self.hit = hit_after
         self.time_s = time_s
         self.ball_pos_m, self.ball_vel_m_s = p_new, v_new
         return first_hit, own_bounce
 
-    def _point_velocity(self, kin: bk.Kinematics, point_m: torch.Tensor) -> torch.Tensor:
+    def _point_velocity(self, kin: Kinematics, point_m: torch.Tensor) -> torch.Tensor:
         """World velocity [3, N] of a point [3, N] fixed to the last link, at joint velocities qd."""
         qd = self.qd_rad_s
         omega = (kin.axis * qd).sum(1)
-        v_flange = (bk.cross(kin.axis, kin.origin_m[:, -1:] - kin.origin_m) * qd).sum(1)
-        return v_flange + bk.cross(omega, point_m - kin.origin_m[:, -1])
+        v_flange = (batched_kinematics.cross(kin.axis, kin.origin_m[:, -1:] - kin.origin_m) * qd).sum(1)
+        return v_flange + batched_kinematics.cross(omega, point_m - kin.origin_m[:, -1])
 
     def _touches_links(self, a: torch.Tensor, b: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
         """The ball centre p [3, N] within a ball radius of any capsule a-b [3, L, N] (the handle included)."""
         ab = b - a
         ap = p[:, None] - a
-        t = (bk.dot(ap, ab) / bk.dot(ab, ab).clamp_min(1e-12)).clamp(0.0, 1.0)
+        t = (batched_kinematics.dot(ap, ab) / batched_kinematics.dot(ab, ab).clamp_min(1e-12)).clamp(0.0, 1.0)
         d = ap - t * ab
-        return (bk.dot(d, d) < self._link_reach_sq_m2).any(0)
+        return (batched_kinematics.dot(d, d) < self._link_reach_sq_m2).any(0)
 
-    def _robot_touches_table(self, kin: bk.Kinematics, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    def _robot_touches_table(self, kin: Kinematics, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         """Any robot geometry inside the table top: the capsules' end spheres (a segment's lowest point
         is one of its ends) and the blade's lowest point."""
         points = torch.cat((a, b), dim=1)                                     # [3, 2L, N]
-        gap_x = (points[0].abs() - ws.HALF_LENGTH_M).clamp_min(0.0)
-        gap_y = (points[1].abs() - ws.HALF_WIDTH_M).clamp_min(0.0)
-        gap_z = (points[2] - ws.TABLE_HEIGHT_M).clamp_min(0.0) \
-            + (ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M - points[2]).clamp_min(0.0)
+        gap_x = (points[0].abs() - world_spec.HALF_LENGTH_M).clamp_min(0.0)
+        gap_y = (points[1].abs() - world_spec.HALF_WIDTH_M).clamp_min(0.0)
+        gap_z = (points[2] - world_spec.TABLE_HEIGHT_M).clamp_min(0.0) \
+            + (world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M - points[2]).clamp_min(0.0)
         touching = (gap_x * gap_x + gap_y * gap_y + gap_z * gap_z < self._capsule_end_radius_sq_m2).any(0)
         # The blade: a disc of radius R and half thickness h; its lowest point.
         normal = kin.paddle_rot[:, 2]
@@ -531,6 +532,6 @@ class BatchedWorld:
         lowest_x = kin.paddle_pos_m[0] + scale * nz * normal[0]
         lowest_y = kin.paddle_pos_m[1] + scale * nz * normal[1]
         lowest_z = kin.paddle_pos_m[2] - self._blade_radius_m * in_plane - self._blade_half_thickness_m * nz.abs()
-        blade = ws.on_table(lowest_x, lowest_y) & (lowest_z < ws.TABLE_HEIGHT_M) \
-            & (lowest_z > ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M)
+        blade = world_spec.on_table(lowest_x, lowest_y) & (lowest_z < world_spec.TABLE_HEIGHT_M) \
+            & (lowest_z > world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M)
         return touching | blade

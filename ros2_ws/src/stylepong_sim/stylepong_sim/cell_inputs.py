@@ -3,11 +3,11 @@ error it raises for a rejected input. Its own module so that the PyBullet cell n
 cell (whose module brings the analytic ball contacts with it)."""
 from __future__ import annotations
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 
 MAX_LAUNCH_SPEED_M_S = 30.0
 FRAME_WORLD = 'world'
-FRAME_TOOL = rm.TOOL_FRAME
+FRAME_TOOL = robot_model.TOOL_FRAME
 
 
 class InputError(ValueError):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from visualization_msgs.msg import Marker, MarkerArray
 
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 
 FRAME_WORLD = 'world'
 NAMESPACE = 'cell'
@@ -28,14 +28,14 @@ def _marker(marker_id: int, shape: int, centre_m, size_m, rgba) -> Marker:
 
 def table_marker() -> Marker:
     """The table top: a box whose upper face is the playing surface."""
-    centre = (0.0, 0.0, ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M / 2.0)
-    size = (ws.TABLE_LENGTH_M, ws.TABLE_WIDTH_M, ws.TABLE_THICKNESS_M)
+    centre = (0.0, 0.0, world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M / 2.0)
+    size = (world_spec.TABLE_LENGTH_M, world_spec.TABLE_WIDTH_M, world_spec.TABLE_THICKNESS_M)
     return _marker(TABLE_ID, Marker.CUBE, centre, size, TABLE_RGBA)
 
 
 def net_marker() -> Marker:
     """The net: a thin box standing on the table across its middle."""
-    low, high = ws.NET_BOX_LOW_M, ws.NET_BOX_HIGH_M
+    low, high = world_spec.NET_BOX_LOW_M, world_spec.NET_BOX_HIGH_M
     centre = tuple((lo + hi) / 2.0 for lo, hi in zip(low, high))
     size = tuple(hi - lo for lo, hi in zip(low, high))
     return _marker(NET_ID, Marker.CUBE, centre, size, NET_RGBA)
@@ -45,7 +45,7 @@ def ball_marker(position_m) -> Marker:
     """The ball at position_m; None as position: a DELETE of the ball marker (no ball in play)."""
     if position_m is None:
         return Marker(ns=NAMESPACE, id=BALL_ID, action=Marker.DELETE)
-    diameter = 2.0 * ws.BALL_RADIUS_M
+    diameter = 2.0 * world_spec.BALL_RADIUS_M
     return _marker(BALL_ID, Marker.SPHERE, position_m, (diameter, diameter, diameter), BALL_RGBA)
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -41,6 +42,7 @@ from geometry_msgs.msg import PointStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
@@ -51,7 +53,7 @@ from stylepong_common.node_process import wait_until
 from stylepong_common.node_support import EXIT_CONFIG_ERROR
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.referee import REASON_RETURNED
 
 HOME_TOLERANCE_RAD = 0.02
@@ -85,9 +87,9 @@ class SeedResult:
 def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.ndarray]:
     """Launch positions [count, 3] and velocities [count, 3]: evaluate's first balls for this seed (its
     task builds the sampler with batch max(1024, 2 N) and draws all N environments' balls at once)."""
-    from stylepong_sim import batched_launcher as bl
-    sampler = bl.IncomingBallSampler(tuple(ws.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu',
-                                     batch=max(1024, 2 * count))
+    from stylepong_sim import batched_launcher
+    sampler = batched_launcher.IncomingBallSampler(tuple(world_spec.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu',
+                                                   batch=max(1024, 2 * count))
     position, velocity, _ = sampler.sample(count)
     return position.T.double().numpy(), velocity.T.double().numpy()
 
@@ -95,9 +97,9 @@ def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.nd
 def goals_for_seed(seed: int, count: int) -> np.ndarray:
     """Goal centres [count, 2], uniform so that a ws.GOAL_RADIUS_M region lies on the opponent's half."""
     rng = np.random.default_rng(seed)
-    r = ws.GOAL_RADIUS_M
-    return np.stack((rng.uniform(r, ws.HALF_LENGTH_M - r, count),
-                     rng.uniform(-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r, count)),
+    r = world_spec.GOAL_RADIUS_M
+    return np.stack((rng.uniform(r, world_spec.HALF_LENGTH_M - r, count),
+                     rng.uniform(-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r, count)),
                     axis=1)
 
 
@@ -166,7 +168,7 @@ class RallyEvalNode(Node):
             qd = np.array([msg.velocity[index[n]] for n in JOINT_NAMES])
         except (KeyError, IndexError):
             return False
-        return bool(np.abs(q - np.asarray(ws.HOME_JOINT_POSITIONS_RAD)).max() < HOME_TOLERANCE_RAD
+        return bool(np.abs(q - np.asarray(world_spec.HOME_JOINT_POSITIONS_RAD)).max() < HOME_TOLERANCE_RAD
                     and np.abs(qd).max() < REST_SPEED_RAD_S)
 
 
@@ -219,7 +221,7 @@ class Evaluator:
         self.settle()
         goal_msg = PointStamped()
         goal_msg.header.frame_id = 'world'
-        goal_msg.point.x, goal_msg.point.y, goal_msg.point.z = float(goal[0]), float(goal[1]), ws.TABLE_HEIGHT_M
+        goal_msg.point.x, goal_msg.point.y, goal_msg.point.z = float(goal[0]), float(goal[1]), world_spec.TABLE_HEIGHT_M
         node.goal_pub.publish(goal_msg)
         self.spin_until(lambda: False, 0.05)      # the goal arrives before the ball
         request = LaunchBall.Request(randomize=False)
@@ -265,10 +267,11 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
     parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
     parser.add_argument('--balls', type=int, default=20, help='balls per seed')
-    parser.add_argument('--first-seed', type=int, default=ws.FIRST_EVALUATION_SEED,
-                        help=f'first seed (evaluation seeds are >= {ws.FIRST_EVALUATION_SEED})')
+    parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED,
+                        help=f'first seed (evaluation seeds are >= {world_spec.FIRST_EVALUATION_SEED})')
     parser.add_argument('--seeds', type=int, default=1, help='number of seeds')
-    parser.add_argument('--speed', choices=tuple(ws.SPEED_RANGES_M_S), default='all', help='incoming speed band')
+    parser.add_argument('--speed', choices=tuple(world_spec.SPEED_RANGES_M_S), default='all',
+                        help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the summary here')
     parser.add_argument('--ball-timeout-s', type=float, default=60.0, help='wall time to wait for a verdict')
     parser.add_argument('--settle-timeout-s', type=float, default=20.0,
@@ -285,13 +288,22 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     return args
 
 
+def _interrupt(_signum, _frame) -> NoReturn:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the rally_eval executable."""
     argv = sys.argv if argv is None else ['rally_eval', *argv]
     args = parse_args(remove_ros_args(argv)[1:])
-    if args.first_seed < ws.FIRST_EVALUATION_SEED:
-        print(f'rally_eval: seeds below {ws.FIRST_EVALUATION_SEED} are training/validation seeds', file=sys.stderr)
-    rclpy.init(args=argv)
+    if args.first_seed < world_spec.FIRST_EVALUATION_SEED:
+        print(f'rally_eval: seeds below {world_spec.FIRST_EVALUATION_SEED} are training/validation seeds',
+              file=sys.stderr)
+    # Ctrl-C and SIGTERM end the evaluation with one line: rclpy's own handlers would shut the context down
+    # under the executor and leave a traceback or a misleading 'not available' instead.
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _interrupt)
     node = RallyEvalNode()
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -320,6 +332,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'rally_eval: {error}', file=sys.stderr)
         return 1
     finally:
+        for signum in (signal.SIGINT, signal.SIGTERM):   # a second signal must not break the clean-up
+            signal.signal(signum, signal.SIG_IGN)
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

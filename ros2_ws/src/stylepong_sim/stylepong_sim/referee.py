@@ -47,7 +47,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 
 # Mirror of stylepong_msgs/RallyEvent's constants (a unit test keeps them equal).
 LAUNCHED = 0
@@ -127,14 +127,14 @@ def logical_not(mask: Mask) -> Mask:
 
 def ball_is_dead(position_m: Position) -> Mask:
     """The ball's bottom touched the floor or its centre left the cell."""
-    return ((position_m[2] <= ws.BALL_RADIUS_M) | (abs(position_m[0]) > ws.CELL_HALF_EXTENT_M[0])
-            | (abs(position_m[1]) > ws.CELL_HALF_EXTENT_M[1]))
+    return ((position_m[2] <= world_spec.BALL_RADIUS_M) | (abs(position_m[0]) > world_spec.CELL_HALF_EXTENT_M[0])
+            | (abs(position_m[1]) > world_spec.CELL_HALF_EXTENT_M[1]))
 
 
 def ball_cannot_reach_table(position_m: Position, vertical_velocity_m_s: Values) -> Mask:
     """Bottom below the table top, outside the footprint, falling: the table top is out of reach."""
-    return ((position_m[2] - ws.BALL_RADIUS_M < ws.TABLE_HEIGHT_M) & ws.off_table(position_m[0], position_m[1])
-            & (vertical_velocity_m_s < 0.0))
+    below_top = position_m[2] - world_spec.BALL_RADIUS_M < world_spec.TABLE_HEIGHT_M
+    return below_top & world_spec.off_table(position_m[0], position_m[1]) & (vertical_velocity_m_s < 0.0)
 
 
 def is_own_side(position_m: Position) -> Mask:
@@ -175,7 +175,7 @@ def ball_state_verdicts(hit: Mask, position_m: Position, vertical_velocity_m_s: 
 class Referee:
     """Judges one ball at a time. Every method returns the events it produced (possibly none)."""
 
-    def __init__(self, timeout_s: float = ws.BALL_TIMEOUT_S):
+    def __init__(self, timeout_s: float = world_spec.BALL_TIMEOUT_S):
         self.timeout_s = timeout_s
         self.ball_id: int | None = None
         self._open = False

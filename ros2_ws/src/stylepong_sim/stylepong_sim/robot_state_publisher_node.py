@@ -24,9 +24,9 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from stylepong_common.node_support import Param, ThrottledLog, declare_parameters, run_node
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_description.robot_state import LinkTransform, RobotState, quaternion_from_matrix
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 
 PROGRAM = 'robot_state_publisher'
 FRAME_WORLD = 'world'
@@ -44,8 +44,8 @@ PARAMETERS = (
 
 def base_in_world() -> LinkTransform:
     """world -> base_link: the robot's place in the cell (world_spec)."""
-    rotation, position = ws.robot_base_pose()
-    return LinkTransform(FRAME_WORLD, rm.BASE_FRAME, position, quaternion_from_matrix(rotation))
+    rotation, position = world_spec.robot_base_pose()
+    return LinkTransform(FRAME_WORLD, robot_model.BASE_FRAME, position, quaternion_from_matrix(rotation))
 
 
 def _to_message(transform: LinkTransform, stamp) -> TransformStamped:
@@ -63,7 +63,7 @@ class RobotStateOutputs:
     """The publishers and messages of robot_state_publisher, on a node of the caller's."""
 
     def __init__(self, node: Node):
-        self.urdf_xml = rm.urdf_xml_for_display()
+        self.urdf_xml = robot_model.urdf_xml_for_display()
         self.state = RobotState(self.urdf_xml)
         self._description_pub = node.create_publisher(String, '/robot_description', LATCHED_QOS)
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)

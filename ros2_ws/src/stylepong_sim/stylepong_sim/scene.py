@@ -17,8 +17,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 2
 ENV_CONTYPE, ENV_CONAFFINITY = 2, 1
@@ -61,37 +61,39 @@ def _static_box(spec: mujoco.MjSpec, name: str, centre_m, half_size_m, rgba, col
 
 
 def _add_table_and_net(spec: mujoco.MjSpec) -> None:
-    top_z = ws.TABLE_HEIGHT_M
-    _static_box(spec, 'table_top', (0.0, 0.0, top_z - ws.TABLE_THICKNESS_M / 2.0),
-                (ws.HALF_LENGTH_M, ws.HALF_WIDTH_M, ws.TABLE_THICKNESS_M / 2.0), _TABLE_RGBA, collides=True)
-    _static_box(spec, 'net', (0.0, 0.0, top_z + ws.NET_HEIGHT_M / 2.0),
-                (ws.NET_THICKNESS_M / 2.0, ws.NET_LENGTH_M / 2.0, ws.NET_HEIGHT_M / 2.0), _NET_RGBA, collides=True)
+    top_z = world_spec.TABLE_HEIGHT_M
+    half_length_m, half_width_m = world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M
+    _static_box(spec, 'table_top', (0.0, 0.0, top_z - world_spec.TABLE_THICKNESS_M / 2.0),
+                (half_length_m, half_width_m, world_spec.TABLE_THICKNESS_M / 2.0), _TABLE_RGBA, collides=True)
+    _static_box(spec, 'net', (0.0, 0.0, top_z + world_spec.NET_HEIGHT_M / 2.0),
+                (world_spec.NET_THICKNESS_M / 2.0, world_spec.NET_LENGTH_M / 2.0, world_spec.NET_HEIGHT_M / 2.0),
+                _NET_RGBA, collides=True)
     # Markings and legs: looks only.
     line_z = top_z + 0.0005
     for sign in (-1.0, 1.0):
-        _static_box(spec, f'line_side_{int(sign):+d}', (0.0, sign * (ws.HALF_WIDTH_M - _LINE_WIDTH_M / 2), line_z),
-                    (ws.HALF_LENGTH_M, _LINE_WIDTH_M / 2, 0.0005), _LINE_RGBA, collides=False)
-        _static_box(spec, f'line_end_{int(sign):+d}', (sign * (ws.HALF_LENGTH_M - _LINE_WIDTH_M / 2), 0.0, line_z),
-                    (_LINE_WIDTH_M / 2, ws.HALF_WIDTH_M, 0.0005), _LINE_RGBA, collides=False)
+        _static_box(spec, f'line_side_{int(sign):+d}', (0.0, sign * (half_width_m - _LINE_WIDTH_M / 2), line_z),
+                    (half_length_m, _LINE_WIDTH_M / 2, 0.0005), _LINE_RGBA, collides=False)
+        _static_box(spec, f'line_end_{int(sign):+d}', (sign * (half_length_m - _LINE_WIDTH_M / 2), 0.0, line_z),
+                    (_LINE_WIDTH_M / 2, half_width_m, 0.0005), _LINE_RGBA, collides=False)
         for side in (-1.0, 1.0):
-            leg_height = top_z - ws.TABLE_THICKNESS_M
+            leg_height = top_z - world_spec.TABLE_THICKNESS_M
             _static_box(spec, f'leg_{int(sign):+d}_{int(side):+d}',
-                        (sign * (ws.HALF_LENGTH_M - 0.2), side * (ws.HALF_WIDTH_M - 0.1), leg_height / 2),
+                        (sign * (half_length_m - 0.2), side * (half_width_m - 0.1), leg_height / 2),
                         (_LEG_HALF_SIZE_M, _LEG_HALF_SIZE_M, leg_height / 2), (0.2, 0.2, 0.2, 1.0), collides=False)
-    _static_box(spec, 'centre_line', (0.0, 0.0, line_z), (ws.HALF_LENGTH_M, 0.0015, 0.0005), _LINE_RGBA,
+    _static_box(spec, 'centre_line', (0.0, 0.0, line_z), (half_length_m, 0.0015, 0.0005), _LINE_RGBA,
                 collides=False)
 
 
 def _add_pedestal(spec: mujoco.MjSpec) -> None:
-    x, y, z = ws.ROBOT_BASE_POSITION_M
-    hx, hy = ws.PEDESTAL_HALF_SIZE_M
+    x, y, z = world_spec.ROBOT_BASE_POSITION_M
+    hx, hy = world_spec.PEDESTAL_HALF_SIZE_M
     _static_box(spec, 'pedestal', (x, y, z / 2.0), (hx, hy, z / 2.0), (0.35, 0.35, 0.38, 1.0), collides=False)
 
 
 def _add_ball(spec: mujoco.MjSpec) -> None:
     body = spec.worldbody.add_body(name=BALL_BODY, mocap=True, pos=list(BALL_PARKING_POSITION_M))
-    body.add_geom(name='ball', type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[ws.BALL_RADIUS_M, 0.0, 0.0],
-                  rgba=list(_BALL_RGBA), contype=0, conaffinity=0, mass=ws.BALL_MASS_KG)
+    body.add_geom(name='ball', type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[world_spec.BALL_RADIUS_M, 0.0, 0.0],
+                  rgba=list(_BALL_RGBA), contype=0, conaffinity=0, mass=world_spec.BALL_MASS_KG)
 
 
 def _add_looks(spec: mujoco.MjSpec) -> None:
@@ -113,8 +115,8 @@ def _add_looks(spec: mujoco.MjSpec) -> None:
 
 
 def _configure_robot(spec: mujoco.MjSpec) -> None:
-    base = spec.body(rm.BASE_FRAME)
-    rotation, position = ws.robot_base_pose()
+    base = spec.body(robot_model.BASE_FRAME)
+    rotation, position = world_spec.robot_base_pose()
     base.pos = position.tolist()
     base.quat = _quat_of(rotation)
     for body in spec.bodies:
@@ -122,10 +124,10 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
             body.gravcomp = 1.0   # ideal gravity compensation, in joint space (must be set before compiling)
     for geom in spec.geoms:
         geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
-    limits = rm.joint_limits()
-    for i, name in enumerate(rm.JOINT_NAMES):
-        spec.joint(name).armature = ws.ARM_ARMATURE_KG_M2[i]
-        kp, kd = ws.ARM_KP_NM_PER_RAD[i], ws.ARM_KD_NMS_PER_RAD[i]
+    limits = robot_model.joint_limits()
+    for i, name in enumerate(robot_model.JOINT_NAMES):
+        spec.joint(name).armature = world_spec.ARM_ARMATURE_KG_M2[i]
+        kp, kd = world_spec.ARM_KP_NM_PER_RAD[i], world_spec.ARM_KD_NMS_PER_RAD[i]
         actuator = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         # force = Kp ctrl - Kp q - Kd qdot, clipped to the effort limit; ctrl = q_ref + (Kd/Kp) v_ref.
         actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
@@ -135,7 +137,7 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         actuator.forcerange = [-float(limits.effort_nm[i]), float(limits.effort_nm[i])]
         actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    spec.body(rm.TOOL_FRAME).add_site(name=FT_SITE, pos=[0.0, 0.0, 0.0])
+    spec.body(robot_model.TOOL_FRAME).add_site(name=FT_SITE, pos=[0.0, 0.0, 0.0])
     for name, sensor_type in ((FT_FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
                               (FT_TORQUE_SENSOR, mujoco.mjtSensor.mjSENS_TORQUE)):
         spec.add_sensor(name=name, type=sensor_type, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
@@ -143,13 +145,13 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
 
 def build_spec() -> mujoco.MjSpec:
     """The cell's MuJoCo spec: the robot from the URDF, with table, net, pedestal, ball and cameras."""
-    spec = mujoco.MjSpec.from_string(rm.urdf_xml())
+    spec = mujoco.MjSpec.from_string(robot_model.urdf_xml())
     spec.modelname = 'stylepong_cell'
     # The URDF's <mujoco> block discards visual geoms (the .dae meshes MuJoCo cannot read) while
     # parsing; keep the cell's own visual-only geoms (markings, ball, pedestal) at compile time.
     spec.compiler.discardvisual = False
-    spec.option.timestep = ws.PHYSICS_DT_S
-    spec.option.gravity = [0.0, 0.0, -ws.GRAVITY_M_S2]
+    spec.option.timestep = world_spec.PHYSICS_DT_S
+    spec.option.gravity = [0.0, 0.0, -world_spec.GRAVITY_M_S2]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = 1920
     spec.visual.global_.offheight = 1080

@@ -31,8 +31,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, StrokeShape
 
 STYLES_DIR = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'styles'
@@ -128,9 +128,9 @@ class StrokeKinematics:
 
     def __init__(self):
         self.kin = CellKinematics()
-        self.centre = self.kin.frame_id(rm.PADDLE_CENTRE_FRAME)
+        self.centre = self.kin.frame_id(robot_model.PADDLE_CENTRE_FRAME)
         self.wrist = self.kin.frame_id('wrist_3_joint')   # where the axes of wrists 2 and 3 meet
-        self.home_q = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+        self.home_q = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
         self.home_rotation = self.kin.pose(self.home_q, self.centre).rotation.copy()
         # The Jacobian's linear and angular rows from the base's axes to the world's.
         rotation = self.kin.base.rotation
@@ -168,7 +168,7 @@ class StrokeKinematics:
 
     def measure(self, path: StrokePath, dt_s: float = 0.02) -> StrokeCheck:
         q = self.joint_path_rad(path, dt_s)
-        limits = rm.joint_limits()
+        limits = robot_model.joint_limits()
         speed = np.abs(np.diff(q, axis=0)) / dt_s
         return StrokeCheck(
             min_shoulder_clearance_m=min(self.shoulder_clearance_m(a) for a in q),
@@ -176,7 +176,7 @@ class StrokeKinematics:
             min_joint_limit_margin_rad=float(min(np.min(q - limits.lower_rad), np.min(limits.upper_rad - q))),
             max_joint_step_rad=float(np.max(np.abs(np.diff(q, axis=0)))),
             peak_joint_speed_rad_s=float(speed.max()),
-            peak_joint=rm.JOINT_NAMES[int(speed.max(axis=0).argmax())])
+            peak_joint=robot_model.JOINT_NAMES[int(speed.max(axis=0).argmax())])
 
 
 def label_problem(swing: str, path: StrokePath) -> str | None:
@@ -205,8 +205,8 @@ def check_stroke(swing: str, path: StrokePath, kinematics: StrokeKinematics | No
     if problem:
         raise ValueError(problem)
     positions = np.array([path.at(t).position_m for t in np.arange(0.0, path.duration_s, 0.01)])
-    over_table = positions[:, 0] > -ws.HALF_LENGTH_M - rm.PADDLE.blade_radius_m
-    if np.any(positions[over_table, 2] <= ws.TABLE_HEIGHT_M + rm.PADDLE.blade_radius_m):
+    over_table = positions[:, 0] > -world_spec.HALF_LENGTH_M - robot_model.PADDLE.blade_radius_m
+    if np.any(positions[over_table, 2] <= world_spec.TABLE_HEIGHT_M + robot_model.PADDLE.blade_radius_m):
         raise ValueError('the blade would dip into the table')
     check = (kinematics or StrokeKinematics()).measure(path)
     if check.min_joint_limit_margin_rad < JOINT_LIMIT_MARGIN_RAD:

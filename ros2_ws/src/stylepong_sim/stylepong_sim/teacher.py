@@ -41,8 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 
 SWINGS = ('forward', 'leftward', 'rightward')
 # Which side each swing goes to (+: the robot's left, world +y): the sign of TeacherConfig.side_turn_rad's
@@ -322,14 +322,14 @@ class TeacherConfig:
 # ---------------------------------------------------------------------------------------------------
 def robot_base_in_world() -> pin.SE3:
     """The robot base's pose in the world frame (world_spec.robot_base_pose)."""
-    return pin.SE3(*ws.robot_base_pose())
+    return pin.SE3(*world_spec.robot_base_pose())
 
 
 class CellKinematics:
     """World poses and velocities of robot frames (the robot model placed as the world spec says)."""
 
     def __init__(self):
-        self.model = rm.pinocchio_model()
+        self.model = robot_model.pinocchio_model()
         self.data = self.model.createData()
         self.base = robot_base_in_world()
 
@@ -373,11 +373,11 @@ class ViaPoint:
 
     def rotation(self, home_rotation: np.ndarray) -> np.ndarray:
         """The blade's orientation: pitched up about world y, then yawed about world z, from home."""
-        return ws.yaw_rotation(self.yaw_rad) @ pin.utils.rpyToMatrix(0.0, -self.pitch_rad, 0.0) @ home_rotation
+        return world_spec.yaw_rotation(self.yaw_rad) @ pin.utils.rpyToMatrix(0.0, -self.pitch_rad, 0.0) @ home_rotation
 
     def angular_velocity_rad_s(self) -> np.ndarray:
         """World angular velocity of the blade moving with the via-point."""
-        pitch_axis_rate = ws.yaw_rotation(self.yaw_rad) @ np.array([0.0, -self.pitch_rate_rad_s, 0.0])
+        pitch_axis_rate = world_spec.yaw_rotation(self.yaw_rad) @ np.array([0.0, -self.pitch_rate_rad_s, 0.0])
         return np.array([0.0, 0.0, self.yaw_rate_rad_s]) + pitch_axis_rate
 
 
@@ -386,8 +386,8 @@ def turned_about_base(points_m: np.ndarray, turn_rad: float) -> np.ndarray:
     axis: world_spec places the base upright)."""
     if turn_rad == 0.0:
         return np.asarray(points_m, dtype=float)   # bit for bit: the unturned takes recorded before the turn
-    base = np.array(ws.ROBOT_BASE_POSITION_M)
-    return base + (np.asarray(points_m, dtype=float) - base) @ ws.yaw_rotation(turn_rad).T
+    base = np.array(world_spec.ROBOT_BASE_POSITION_M)
+    return base + (np.asarray(points_m, dtype=float) - base) @ world_spec.yaw_rotation(turn_rad).T
 
 
 def check_side_reach(swing: str, config: TeacherConfig) -> None:
@@ -511,15 +511,15 @@ class VirtualTeacher:
     with /sim/hand_wrench) while the stroke is defined for the paddle centre.
     """
 
-    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = rm.TOOL_FRAME,
+    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = robot_model.TOOL_FRAME,
                  variation: SwingVariation = SwingVariation(), shape: StrokeShape | None = None):
         config.validate()
         self.config = config
         self.swing = swing
         self.kinematics = CellKinematics()
-        self.centre_id = self.kinematics.frame_id(rm.PADDLE_CENTRE_FRAME)
+        self.centre_id = self.kinematics.frame_id(robot_model.PADDLE_CENTRE_FRAME)
         self.grip_id = self.kinematics.frame_id(grip_frame)
-        home = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+        home = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
         home_centre = self.kinematics.pose(home, self.centre_id)
         self.home_rotation = home_centre.rotation.copy()
         # Both frames are fixed to the last link: the grip's pose relative to the paddle centre is constant.

@@ -30,7 +30,7 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_msgs.srv import StartClip
 from stylepong_sim.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
 from stylepong_sim.teacher import (
@@ -61,7 +61,7 @@ PARAMETERS = (
     Param('wait_timeout_s', 30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
     Param('wait_for_commands', True, 'push only once someone (drag_teach) commands the arm'),
     Param('exit_when_done', True, 'exit after the stroke (else stay, hand released, until Ctrl-C)'),
-    Param('grip_frame', rm.TOOL_FRAME, 'robot frame whose origin the simulator applies /sim/hand_wrench at'),
+    Param('grip_frame', robot_model.TOOL_FRAME, 'robot frame whose origin the simulator applies /sim/hand_wrench at'),
     Param('wrench_frame_id', 'world', 'header frame of the hand wrench (its axes)'),
     Param('joint_state_timeout_s', 0.1, 'older joint states: the hand lets go until fresh ones arrive'),
     Param('lead_in_s', _DEFAULTS.lead_in_s, 'recorded at rest at the ready pose before the back-swing'),
@@ -126,7 +126,7 @@ class VirtualTeacherNode(Node):
         self.label = p['label'] or p['swing']
         self.exit_code: int | None = None   # set when the node is done (run_node's loop then ends)
         self._q: np.ndarray | None = None
-        self._qdot = np.zeros(rm.NUM_JOINTS)
+        self._qdot = np.zeros(robot_model.NUM_JOINTS)
         self._joint_time_s: float | None = None
         self._commanded = not p['wait_for_commands']
         self._started_s = self._now_s()
@@ -163,10 +163,10 @@ class VirtualTeacherNode(Node):
     def _on_joint_state(self, msg: JointState) -> None:
         names = list(msg.name)   # once per message, not once per joint (500 messages a second)
         try:
-            index = [names.index(n) for n in rm.JOINT_NAMES]
+            index = [names.index(n) for n in robot_model.JOINT_NAMES]
             q = np.array([msg.position[i] for i in index], dtype=float)
             qdot = np.array([msg.velocity[i] for i in index], dtype=float) if len(msg.velocity) == len(msg.name) \
-                else np.zeros(rm.NUM_JOINTS)
+                else np.zeros(robot_model.NUM_JOINTS)
         except (ValueError, IndexError):
             self._warnings.warn('joint names', 'joint state without all UR5 joints ignored')
             return

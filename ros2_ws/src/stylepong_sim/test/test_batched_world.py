@@ -7,19 +7,15 @@ import pinocchio as pin
 import pytest
 import torch
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import batched_kinematics as bk
-from stylepong_sim import batched_launcher as bl
-from stylepong_sim import batched_world as bw
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import batched_kinematics, batched_launcher, batched_world, referee, world_spec
 
-HOME = torch.tensor(ws.HOME_JOINT_POSITIONS_RAD, dtype=torch.float64)
+HOME = torch.tensor(world_spec.HOME_JOINT_POSITIONS_RAD, dtype=torch.float64)
 
 
 @pytest.fixture(scope='module')
 def model64():
-    return bk.build_arm_model(dtype=torch.float64)
+    return batched_kinematics.build_arm_model(dtype=torch.float64)
 
 
 def _random_configurations(n, seed=7):
@@ -29,11 +25,11 @@ def _random_configurations(n, seed=7):
 
 def test_forward_kinematics_matches_pinocchio(model64):
     q, _ = _random_configurations(20)
-    kin = bk.forward_kinematics(model64, torch.tensor(q).T)
-    model = rm.pinocchio_model()
+    kin = batched_kinematics.forward_kinematics(model64, torch.tensor(q).T)
+    model = robot_model.pinocchio_model()
     data = model.createData()
-    base = pin.SE3(*ws.robot_base_pose())
-    frame = model.getFrameId(rm.PADDLE_CENTRE_FRAME)
+    base = pin.SE3(*world_spec.robot_base_pose())
+    frame = model.getFrameId(robot_model.PADDLE_CENTRE_FRAME)
     for i in range(len(q)):
         pin.framesForwardKinematics(model, data, q[i])
         paddle = base * data.oMf[frame]
@@ -47,11 +43,11 @@ def test_forward_kinematics_matches_pinocchio(model64):
 
 def test_mass_matrix_and_bias_torques_match_pinocchio(model64):
     q, qd = _random_configurations(20)
-    sp = bk.spatial(model64, bk.forward_kinematics(model64, torch.tensor(q).T))
-    mass = bk.mass_matrix(sp)
-    coriolis = bk.bias_torques(sp, torch.tensor(qd).T)
-    with_gravity = bk.bias_torques(sp, torch.tensor(qd).T, ws.GRAVITY_M_S2)
-    model = rm.pinocchio_model()
+    sp = batched_kinematics.spatial(model64, batched_kinematics.forward_kinematics(model64, torch.tensor(q).T))
+    mass = batched_kinematics.mass_matrix(sp)
+    coriolis = batched_kinematics.bias_torques(sp, torch.tensor(qd).T)
+    with_gravity = batched_kinematics.bias_torques(sp, torch.tensor(qd).T, world_spec.GRAVITY_M_S2)
+    model = robot_model.pinocchio_model()
     data = model.createData()
     for i in range(len(q)):
         expected = pin.crba(model, data, q[i])
@@ -62,13 +58,13 @@ def test_mass_matrix_and_bias_torques_match_pinocchio(model64):
         model.gravity.linear[:] = 0.0
         np.testing.assert_allclose(coriolis[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)),
                                    atol=1e-11)
-        model.gravity.linear[:] = (0.0, 0.0, -ws.GRAVITY_M_S2)
+        model.gravity.linear[:] = (0.0, 0.0, -world_spec.GRAVITY_M_S2)
 
 
 def test_link_capsules_enclose_the_collision_meshes():
     import mujoco
-    mj = rm.mujoco_model()
-    for capsule in bk.link_capsules():
+    mj = robot_model.mujoco_model()
+    for capsule in batched_kinematics.link_capsules():
         if capsule.name == 'paddle_handle':
             continue
         body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, capsule.name)
@@ -78,14 +74,14 @@ def test_link_capsules_enclose_the_collision_meshes():
                 continue
             mesh = mj.geom_dataid[geom]
             vertices = mj.mesh_vert[mj.mesh_vertadr[mesh]:mj.mesh_vertadr[mesh] + mj.mesh_vertnum[mesh]]
-            points = vertices @ bk._quat_to_matrix(mj.geom_quat[geom]).T + mj.geom_pos[geom]
+            points = vertices @ batched_kinematics._quat_to_matrix(mj.geom_quat[geom]).T + mj.geom_pos[geom]
             t = np.clip((points - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
             distance = np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
             assert distance.max() <= capsule.radius_m + 1e-9, capsule.name
 
 
 def _world(n=1, **kwargs):
-    return bw.BatchedWorld(n, dtype=torch.float64, **kwargs)
+    return batched_world.BatchedWorld(n, dtype=torch.float64, **kwargs)
 
 
 def _launch(world, positions, velocities, hit=None):
@@ -103,7 +99,7 @@ def _run_to_verdict(world, max_steps=240):
         world.step(command)
         if not bool(world.open.any()):
             break
-    return [rf.REASONS[int(r)] if r >= 0 else None for r in world.reason]
+    return [referee.REASONS[int(r)] if r >= 0 else None for r in world.reason]
 
 
 def test_free_flight_matches_a_fine_reference():
@@ -115,7 +111,7 @@ def test_free_flight_matches_a_fine_reference():
     v = np.array([-5.0, 0.3, 2.0])
     dt = 1e-5
     for _ in range(int(round(0.3 / dt))):
-        v = v + (np.array([0.0, 0.0, -ws.GRAVITY_M_S2]) + ws.drag_acceleration(v)) * dt
+        v = v + (np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2]) + world_spec.drag_acceleration(v)) * dt
         p = p + v * dt
     np.testing.assert_allclose(world.ball_pos_m[:, 0].numpy(), p, atol=2e-4)
     np.testing.assert_allclose(world.ball_vel_m_s[:, 0].numpy(), v, atol=2e-3)
@@ -130,16 +126,16 @@ def test_table_bounce_follows_the_contact_law_and_nothing_tunnels():
     for _ in range(10):
         events = world.step(world.q_rad.clone())
         bounced |= events.own_bounce
-        assert (world.ball_pos_m[2] > ws.TABLE_HEIGHT_M).all()
+        assert (world.ball_pos_m[2] > world_spec.TABLE_HEIGHT_M).all()
     assert bounced.all()
-    assert (world.ball_pos_m[2] > ws.TABLE_HEIGHT_M).all()
+    assert (world.ball_pos_m[2] > world_spec.TABLE_HEIGHT_M).all()
     # A ball bouncing vertically at 4 m/s leaves at restitution x 4 m/s.
     world = _world()
-    _launch(world, [(-0.5, 0.0, ws.TABLE_CONTACT_HEIGHT_M + 0.02)], [(0.0, 0.0, -4.0)])
+    _launch(world, [(-0.5, 0.0, world_spec.TABLE_CONTACT_HEIGHT_M + 0.02)], [(0.0, 0.0, -4.0)])
     world.step(world.q_rad.clone())
     assert world.own_bounces[0] == 1
     # Midpoint flight after the bounce: v_z = e * v_in - g * t_after (drag small at this speed).
-    assert float(world.ball_vel_m_s[2, 0]) == pytest.approx(ws.TABLE_RESTITUTION * 4.0, abs=0.2)
+    assert float(world.ball_vel_m_s[2, 0]) == pytest.approx(world_spec.TABLE_RESTITUTION * 4.0, abs=0.2)
 
 
 def test_fast_ball_does_not_tunnel_through_the_blade():
@@ -161,19 +157,19 @@ def test_fast_ball_does_not_tunnel_through_the_blade():
 
 
 @pytest.mark.parametrize('start, velocity, hit, reason', [
-    ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True, rf.REASON_RETURNED),      # over the net onto the far half
-    ((-1.0, 0.0, 1.0), (1.5, 0.0, 0.5), True, rf.REASON_OWN_SIDE),       # short: first bounce on own half
-    ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True, rf.REASON_NET),            # straight into the net
-    ((-1.0, 0.0, 1.05), (12.0, 0.0, 1.0), True, rf.REASON_OUT),          # long
-    ((-1.0, 0.5, 1.0), (0.0, 3.0, 0.5), True, rf.REASON_OUT),            # off the side
-    ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False, rf.REASON_SECOND_BOUNCE_OWN_SIDE),
-    ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False, rf.REASON_NO_HIT),        # falls beside the table
+    ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True, referee.REASON_RETURNED),      # over the net onto the far half
+    ((-1.0, 0.0, 1.0), (1.5, 0.0, 0.5), True, referee.REASON_OWN_SIDE),       # short: first bounce on own half
+    ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True, referee.REASON_NET),            # straight into the net
+    ((-1.0, 0.0, 1.05), (12.0, 0.0, 1.0), True, referee.REASON_OUT),          # long
+    ((-1.0, 0.5, 1.0), (0.0, 3.0, 0.5), True, referee.REASON_OUT),            # off the side
+    ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False, referee.REASON_SECOND_BOUNCE_OWN_SIDE),
+    ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False, referee.REASON_NO_HIT),        # falls beside the table
 ])
 def test_referee_rules(start, velocity, hit, reason):
     world = _world()
     _launch(world, [start], [velocity], hit=[hit])
     assert _run_to_verdict(world) == [reason]
-    assert bool(world.success[0]) == (reason == rf.REASON_RETURNED)
+    assert bool(world.success[0]) == (reason == referee.REASON_RETURNED)
 
 
 def test_referee_rules_in_one_batch_match_one_by_one():
@@ -199,7 +195,7 @@ def test_ball_on_the_arm_is_robot_contact_and_a_second_touch_is_a_double_hit():
     normal = world.paddle_rot[:, 2, 0]
     _launch(world, [tuple(above.tolist()), tuple((centre + 0.3 * normal).tolist())],
             [(0.0, 0.0, -3.0), tuple((-4.0 * normal).tolist())], hit=[False, True])
-    assert _run_to_verdict(world, 30) == [rf.REASON_ROBOT_CONTACT, rf.REASON_DOUBLE_HIT]
+    assert _run_to_verdict(world, 30) == [referee.REASON_ROBOT_CONTACT, referee.REASON_DOUBLE_HIT]
 
 
 def test_paddle_on_the_table_ends_the_rally():
@@ -213,20 +209,20 @@ def test_paddle_on_the_table_ends_the_rally():
         world.step(command)
         if not bool(world.open[0]):
             break
-    assert rf.REASONS[int(world.reason[0])] == rf.REASON_TABLE_CONTACT_BY_ROBOT
+    assert referee.REASONS[int(world.reason[0])] == referee.REASON_TABLE_CONTACT_BY_ROBOT
 
 
 def test_timeout():
     world = _world(timeout_s=0.5)
     _launch(world, [(0.0, 0.0, 2.0)], [(0.0, 0.0, 0.0)])
     world.params.gravity_m_s2[:] = 0.0   # a ball that hangs in the air
-    assert _run_to_verdict(world) == [rf.REASON_TIMEOUT]
+    assert _run_to_verdict(world) == [referee.REASON_TIMEOUT]
     assert float(world.time_s[0]) == pytest.approx(0.5, abs=1e-9)
 
 
 def test_servo_respects_velocity_and_effort_limits_and_targets_are_clipped_to_the_joint_range():
     world = _world()
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     command = HOME[:, None] + torch.tensor([3.0, -3.0, 3.0, -3.0, 3.0, -3.0], dtype=torch.float64)[:, None]
     peak = torch.zeros(6, dtype=torch.float64)
     for _ in range(60):
@@ -289,22 +285,23 @@ def test_action_delay_of_d_physics_steps_applies_each_command_d_steps_late_per_e
 def test_incoming_balls_follow_the_world_spec_distribution():
     """Same candidates, same verdicts: launch velocities agree with world_spec's aim (its 2 ms Euler flights
     differ by millimetres) and the accept/reject decisions agree except on borderline draws."""
-    sampler = bl.IncomingBallSampler(seed=11, batch=256)
+    sampler = batched_launcher.IncomingBallSampler(seed=11, batch=256)
     start, velocity, bounce, accepted = sampler._candidates(256)
     checked, disagreements = 0, 0
     for i in range(60):
         st, b = start[:, i].numpy(), bounce[:, i].numpy()
         speed = float(torch.linalg.vector_norm(velocity[:, i]))
-        reference = ws._aim(st, b, speed)
+        reference = world_spec._aim(st, b, speed)
         if reference is None:
             expected = False
         else:
-            contact_p, contact_v, _, clearance = ws.fly_to_table(st, reference)
-            expected = clearance >= ws.INCOMING.net_clearance_m and ws.rebound_reaches(contact_p, contact_v)
+            contact_p, contact_v, _, clearance = world_spec.fly_to_table(st, reference)
+            expected = (clearance >= world_spec.INCOMING.net_clearance_m
+                        and world_spec.rebound_reaches(contact_p, contact_v))
             if expected and bool(accepted[i]):
                 np.testing.assert_allclose(velocity[:, i].numpy(), reference, atol=0.05)
                 # The launch lands on its drawn bounce point (a fine reference flight).
-                landing, _, _, _ = ws.fly_to_table(st, velocity[:, i].numpy(), dt_s=1e-4)
+                landing, _, _, _ = world_spec.fly_to_table(st, velocity[:, i].numpy(), dt_s=1e-4)
                 assert np.linalg.norm(landing[:2] - b) < 2e-3
         checked += 1
         disagreements += expected != bool(accepted[i])
@@ -312,10 +309,10 @@ def test_incoming_balls_follow_the_world_spec_distribution():
 
 
 def test_incoming_ball_statistics_and_reproducibility():
-    sampler = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=3)
+    sampler = batched_launcher.IncomingBallSampler(speed_range_m_s=world_spec.SPEED_RANGES_M_S['high'], seed=3)
     position, velocity, bounce = sampler.sample(3000)
     speed = torch.linalg.vector_norm(velocity, dim=0)
-    d = ws.INCOMING
+    d = world_spec.INCOMING
     assert speed.min() >= 5.8 - 1e-4 and speed.max() <= 6.6 + 1e-4
     for axis, bounds in enumerate((d.launch_x_m, d.launch_y_m, d.launch_z_m)):
         assert position[axis].min() >= bounds[0] and position[axis].max() <= bounds[1]
@@ -323,7 +320,8 @@ def test_incoming_ball_statistics_and_reproducibility():
         assert bounce[axis].min() >= bounds[0] and bounce[axis].max() <= bounds[1]
     # Left and right are symmetric in the distribution; the mean lateral bounce is near the middle.
     assert abs(float(bounce[1].mean())) < 0.05
-    again = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=3).sample(3000)
+    high_speeds_m_s = world_spec.SPEED_RANGES_M_S['high']
+    again = batched_launcher.IncomingBallSampler(speed_range_m_s=high_speeds_m_s, seed=3).sample(3000)
     assert torch.equal(again[0], position) and torch.equal(again[1], velocity)
-    other = bl.IncomingBallSampler(speed_range_m_s=ws.SPEED_RANGES_M_S['high'], seed=4).sample(10)
+    other = batched_launcher.IncomingBallSampler(speed_range_m_s=world_spec.SPEED_RANGES_M_S['high'], seed=4).sample(10)
     assert not torch.equal(other[0], position[:, :10])

@@ -15,13 +15,11 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_sim import batched_world as bw
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_sim import batched_world, referee, world_spec
 from stylepong_sim.cell import Cell
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
-POLICY_DT_S = 1.0 / ws.POLICY_RATE_HZ
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
+POLICY_DT_S = 1.0 / world_spec.POLICY_RATE_HZ
 TABLE_CONTACT_TOLERANCE_M = 0.006
 LANDING_TOLERANCE_M = 0.007
 JOINT_RMS_TOLERANCE = 0.02          # of the RMS of the cell's motion
@@ -46,7 +44,7 @@ def _world_ball_run(positions, velocities, duration_s):
     """The same balls in one batched world (robot at home); returns ball positions [steps+1, 3, N]
     and the first table contact of each ball [3, N]."""
     n = len(positions)
-    world = bw.BatchedWorld(n, dtype=torch.float64)
+    world = batched_world.BatchedWorld(n, dtype=torch.float64)
     world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.tensor(np.array(positions)).T,
                      torch.tensor(np.array(velocities)).T)
     command = world.q_rad.clone()
@@ -62,7 +60,7 @@ def _world_ball_run(positions, velocities, duration_s):
 
 def _floor_crossing(times, positions):
     """Where the ball's bottom first reaches the floor (linear interpolation between samples)."""
-    z = positions[:, 2] - ws.BALL_RADIUS_M
+    z = positions[:, 2] - world_spec.BALL_RADIUS_M
     below = np.nonzero(z <= 0.0)[0]
     assert below.size, 'the ball never reached the floor'
     k = below[0]
@@ -71,11 +69,11 @@ def _floor_crossing(times, positions):
 
 
 def test_incoming_balls_bounce_where_the_cell_bounces_them():
-    launches = [ws.incoming_ball_for_seed(seed) for seed in range(6)]
+    launches = [world_spec.incoming_ball_for_seed(seed) for seed in range(6)]
     _, first_contact = _world_ball_run([b.position_m for b in launches], [b.velocity_m_s for b in launches], 1.0)
     for i, launch in enumerate(launches):
         _, _, events = _cell_ball_run(launch.position_m, launch.velocity_m_s, 1.0)
-        bounces = [e for e in events if e.type == rf.BOUNCE_OWN_SIDE]
+        bounces = [e for e in events if e.type == referee.BOUNCE_OWN_SIDE]
         assert bounces, f'ball {i} never bounced in the cell'
         cell_bounce = np.array(bounces[0].position_m)
         assert np.linalg.norm(first_contact[:2, i] - cell_bounce[:2]) < TABLE_CONTACT_TOLERANCE_M, \
@@ -96,8 +94,8 @@ def test_landing_after_the_first_bounce_agrees_with_the_cell():
     world_times = POLICY_DT_S * np.arange(trajectories.shape[0])
     for i, (position, velocity) in enumerate(RETURNS):
         times, positions, events = _cell_ball_run(position, velocity, 2.0)
-        bounces = [e for e in events if e.type in (rf.BOUNCE_OPPONENT_SIDE, rf.BOUNCE_OWN_SIDE)]
-        assert bounces and bounces[0].type == rf.BOUNCE_OPPONENT_SIDE, [str(e) for e in events]
+        bounces = [e for e in events if e.type in (referee.BOUNCE_OPPONENT_SIDE, referee.BOUNCE_OWN_SIDE)]
+        assert bounces and bounces[0].type == referee.BOUNCE_OPPONENT_SIDE, [str(e) for e in events]
         assert np.linalg.norm(first_contact[:2, i] - np.array(bounces[0].position_m)[:2]) < TABLE_CONTACT_TOLERANCE_M
         cell_landing = _floor_crossing(times, positions)
         world_landing = _floor_crossing(world_times, trajectories[:, :, i])
@@ -116,12 +114,12 @@ def test_a_ball_off_the_still_paddle_lands_where_it_lands_in_the_cell():
     for _ in range(1500):
         cell.step()
         events += cell.pop_events()
-        if any(e.type == rf.RALLY_END for e in events):
+        if any(e.type == referee.RALLY_END for e in events):
             break
     kinds = [e.type for e in events]
-    assert rf.PADDLE_HIT in kinds, [str(e) for e in events]
-    cell_table = [e for e in events if e.type in (rf.BOUNCE_OWN_SIDE, rf.BOUNCE_OPPONENT_SIDE)][0]
-    world = bw.BatchedWorld(1, dtype=torch.float64)
+    assert referee.PADDLE_HIT in kinds, [str(e) for e in events]
+    cell_table = [e for e in events if e.type in (referee.BOUNCE_OWN_SIDE, referee.BOUNCE_OPPONENT_SIDE)][0]
+    world = batched_world.BatchedWorld(1, dtype=torch.float64)
     world.reset_envs(torch.arange(1), world.q_rad.clone(), torch.tensor(start)[:, None],
                      torch.tensor(velocity)[:, None])
     hit = False
@@ -155,7 +153,7 @@ def test_joint_step_response_agrees_with_the_cell(step):
         cell_q.append(cell.joint_positions_rad)
     cell_times, cell_q = np.array(cell_times), np.array(cell_q)
 
-    world = bw.BatchedWorld(1, dtype=torch.float64)
+    world = batched_world.BatchedWorld(1, dtype=torch.float64)
     command = torch.tensor(target)[:, None]
     world_q = []
     for _ in range(int(round(duration_s / POLICY_DT_S))):

@@ -12,9 +12,7 @@ import math
 import pytest
 import torch
 
-from stylepong_sim import batched_launcher as bl
-from stylepong_sim import batched_world as bw
-from stylepong_sim import world_spec as ws
+from stylepong_sim import batched_launcher, batched_world, world_spec
 
 NUM_ENVS = 64
 STEPS = 90            # 1.5 s at the 60 Hz policy rate: every ball is decided by then
@@ -23,12 +21,12 @@ STEPS = 90            # 1.5 s at the 60 Hz policy rate: every ball is decided by
 ATOL = {'q_rad': 1e-4, 'qd_rad_s': 1e-3, 'ball_pos_m': 1e-4, 'ball_vel_m_s': 1e-3, 'landing_xy_m': 1e-4}
 
 
-def _run(world: bw.BatchedWorld) -> tuple[dict, torch.Tensor, torch.Tensor]:
+def _run(world: batched_world.BatchedWorld) -> tuple[dict, torch.Tensor, torch.Tensor]:
     generator = torch.Generator().manual_seed(5)
     ids = torch.arange(NUM_ENVS)
-    home = torch.tensor(ws.HOME_JOINT_POSITIONS_RAD)[:, None].repeat(1, NUM_ENVS)
+    home = torch.tensor(world_spec.HOME_JOINT_POSITIONS_RAD)[:, None].repeat(1, NUM_ENVS)
     start_q = home + 0.05 * torch.randn(6, NUM_ENVS, generator=generator)
-    position, velocity, _ = bl.IncomingBallSampler(seed=3, batch=256).sample(NUM_ENVS)
+    position, velocity, _ = batched_launcher.IncomingBallSampler(seed=3, batch=256).sample(NUM_ENVS)
     world.reset_envs(ids, start_q, position.float(), velocity.float())
     # The second half: balls thrown at the paddle from about 0.6 m in front of it.
     half = NUM_ENVS // 2
@@ -52,8 +50,8 @@ def _run(world: bw.BatchedWorld) -> tuple[dict, torch.Tensor, torch.Tensor]:
 
 @pytest.mark.slow
 def test_compiled_world_steps_the_same_physics_as_the_eager_world():
-    eager, eager_hits, eager_decided = _run(bw.BatchedWorld(NUM_ENVS))
-    compiled, compiled_hits, compiled_decided = _run(bw.BatchedWorld(NUM_ENVS, compile=True))
+    eager, eager_hits, eager_decided = _run(batched_world.BatchedWorld(NUM_ENVS))
+    compiled, compiled_hits, compiled_decided = _run(batched_world.BatchedWorld(NUM_ENVS, compile=True))
     # The comparison means something: paddle contacts happened and every rally was decided.
     assert int((eager_hits > 0).sum()) >= 8
     assert not bool(eager['open'].any())

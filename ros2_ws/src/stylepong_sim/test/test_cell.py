@@ -4,12 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import referee, world_spec
 from stylepong_sim.cell import Cell, InputError
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 # The arm turned away from the table, out of every incoming ball's way.
 PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])
 
@@ -26,12 +25,12 @@ def cell(shared_cell: Cell) -> Cell:
     return shared_cell
 
 
-def _run_until_end(cell: Cell, max_s: float = 4.0) -> list[rf.RallyEvent]:
+def _run_until_end(cell: Cell, max_s: float = 4.0) -> list[referee.RallyEvent]:
     events = []
     for _ in range(round(max_s / cell.dt_s)):
         cell.step(1)
         events += cell.pop_events()
-        if events and events[-1].type == rf.RALLY_END:
+        if events and events[-1].type == referee.RALLY_END:
             break
     return events
 
@@ -39,17 +38,17 @@ def _run_until_end(cell: Cell, max_s: float = 4.0) -> list[rf.RallyEvent]:
 def test_the_model_is_the_one_robot_placed_by_the_world_spec(cell):
     m = cell.model
     assert m.opt.timestep <= 0.001
-    assert tuple(m.joint(i).name for i in range(6)) == rm.JOINT_NAMES
-    robot_alone = rm.mujoco_model()
+    assert tuple(m.joint(i).name for i in range(6)) == robot_model.JOINT_NAMES
+    robot_alone = robot_model.mujoco_model()
     for body in range(1, robot_alone.nbody):
         name = robot_alone.body(body).name
         assert m.body(name).mass[0] == pytest.approx(robot_alone.body_mass[body], abs=1e-12)
-    np.testing.assert_allclose(m.body(rm.BASE_FRAME).pos, ws.ROBOT_BASE_POSITION_M)
+    np.testing.assert_allclose(m.body(robot_model.BASE_FRAME).pos, world_spec.ROBOT_BASE_POSITION_M)
     np.testing.assert_allclose(cell.joint_positions_rad, HOME)
 
 
 def test_a_03_rad_step_is_tracked_within_the_limits(cell):
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     target = HOME + np.array([0.3, -0.3, 0.3, 0.3, -0.3, 0.3])
     cell.set_joint_targets(target)
     peak_speed = np.zeros(6)
@@ -67,7 +66,7 @@ def test_a_03_rad_step_is_tracked_within_the_limits(cell):
 def test_bad_targets_are_rejected_and_the_last_good_one_is_kept(cell):
     good = HOME + 0.1
     cell.set_joint_targets(good)
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     for bad, kind in (([0.0] * 5, 'length'), ([0.0] * 7, 'length'), ([math.nan] + [0.0] * 5, 'not_finite'),
                       ([0.0] * 5 + [math.inf], 'not_finite'), (np.where(np.arange(6) == 2, limits.upper_rad + 0.1, 0.0),
                                                                  'limits')):
@@ -82,9 +81,9 @@ def test_bad_targets_are_rejected_and_the_last_good_one_is_kept(cell):
 def test_the_wrist_sensor_reads_the_paddle_weight_and_the_hand(cell):
     cell.step(200)
     m, d = cell.model, cell.data
-    tool = m.body(rm.TOOL_FRAME).id
+    tool = m.body(robot_model.TOOL_FRAME).id
     tool_origin, rotation = cell.tool_pose()
-    weight = np.array([0.0, 0.0, -ws.GRAVITY_M_S2 * m.body_subtreemass[tool]])
+    weight = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2 * m.body_subtreemass[tool]])
     force, torque = cell.tool_wrench()
     np.testing.assert_allclose(force, rotation.T @ weight, atol=1e-3)
     np.testing.assert_allclose(torque, rotation.T @ np.cross(d.subtree_com[tool] - tool_origin, weight), atol=1e-4)
@@ -109,7 +108,7 @@ def test_the_wrist_sensor_reads_the_paddle_weight_and_the_hand(cell):
 
 def test_the_sensor_can_also_feel_the_tools_inertia(cell):
     m = cell.model
-    tool_mass_kg = m.body_subtreemass[m.body(rm.TOOL_FRAME).id]
+    tool_mass_kg = m.body_subtreemass[m.body(robot_model.TOOL_FRAME).id]
     cell.step(100)
     for still_a, still_b in zip(cell.tool_wrench(), cell.tool_wrench(include_inertia=True)):
         np.testing.assert_allclose(still_a, still_b, atol=1e-6)
@@ -134,24 +133,24 @@ def test_bad_hand_wrenches_are_rejected(cell):
 def test_a_30_cm_drop_rebounds_like_an_ittf_ball(cell):
     cell.set_joint_targets(PARKED)
     cell.step(1500)
-    cell.launch_ball([-0.5, 0.0, ws.TABLE_HEIGHT_M + 0.305], [0.0, 0.0, 0.0])
+    cell.launch_ball([-0.5, 0.0, world_spec.TABLE_HEIGHT_M + 0.305], [0.0, 0.0, 0.0])
     heights, bounced = [], False
     for _ in range(900):
         cell.step(1)
-        bounced = bounced or any(e.type == rf.BOUNCE_OWN_SIDE for e in cell.pop_events())
+        bounced = bounced or any(e.type == referee.BOUNCE_OWN_SIDE for e in cell.pop_events())
         if bounced:
-            heights.append(cell.ball_position_m[2] - ws.TABLE_HEIGHT_M)
+            heights.append(cell.ball_position_m[2] - world_spec.TABLE_HEIGHT_M)
     assert 0.215 <= max(heights) <= 0.265
 
 
 def test_free_flight_and_first_bounce_follow_the_world_spec_law(cell):
-    launch = ws.incoming_ball_for_seed(3)
-    expected, _, flight_s, _ = ws.fly_to_table(launch.position_m, launch.velocity_m_s, dt_s=cell.dt_s)
+    launch = world_spec.incoming_ball_for_seed(3)
+    expected, _, flight_s, _ = world_spec.fly_to_table(launch.position_m, launch.velocity_m_s, dt_s=cell.dt_s)
     cell.set_joint_targets(PARKED)
     cell.step(1500)
     start_s = cell.time_s
     cell.launch_ball(launch.position_m, launch.velocity_m_s)
-    events = [e for e in _run_until_end(cell) if e.type == rf.BOUNCE_OWN_SIDE]
+    events = [e for e in _run_until_end(cell) if e.type == referee.BOUNCE_OWN_SIDE]
     np.testing.assert_allclose(events[0].position_m, expected, atol=1e-6)
     assert events[0].time_s - start_s == pytest.approx(flight_s, abs=1e-6)
 
@@ -160,26 +159,27 @@ def test_free_flight_and_first_bounce_follow_the_world_spec_law(cell):
 def test_nothing_tunnels_through_the_table_at_15_m_s(cell, velocity):
     cell.set_joint_targets(PARKED)
     cell.step(1500)
-    cell.launch_ball([-0.2, 0.0, ws.TABLE_HEIGHT_M + 0.3 if velocity[2] < -5 else ws.TABLE_HEIGHT_M + 0.05], velocity)
+    height_m = world_spec.TABLE_HEIGHT_M + (0.3 if velocity[2] < -5 else 0.05)
+    cell.launch_ball([-0.2, 0.0, height_m], velocity)
     lowest = math.inf
     for _ in range(60):
         cell.step(1)
         p = cell.ball_position_m
-        if ws.on_table(p[0], p[1]):
+        if world_spec.on_table(p[0], p[1]):
             lowest = min(lowest, p[2])
-    assert lowest >= ws.TABLE_CONTACT_HEIGHT_M - 1e-9
+    assert lowest >= world_spec.TABLE_CONTACT_HEIGHT_M - 1e-9
     assert cell.ball_velocity_m_s[2] > 0.0
 
 
 @pytest.mark.parametrize('offset_m', [0.0, 0.0037, 0.0081])
 def test_nothing_tunnels_through_the_net_at_15_m_s(cell, offset_m):
-    cell.launch_ball([0.6 + offset_m, 0.1, ws.TABLE_HEIGHT_M + 0.08], [-15.0, 0.0, 0.0])
+    cell.launch_ball([0.6 + offset_m, 0.1, world_spec.TABLE_HEIGHT_M + 0.08], [-15.0, 0.0, 0.0])
     crossed = False
     for _ in range(100):
         cell.step(1)
         crossed = crossed or cell.ball_position_m[0] < 0.0
     events = cell.pop_events()
-    assert [e.type for e in events][:2] == [rf.LAUNCHED, rf.NET]
+    assert [e.type for e in events][:2] == [referee.LAUNCHED, referee.NET]
     assert not crossed
 
 
@@ -193,11 +193,11 @@ def test_the_paddle_returns_the_ball_with_its_restitution_without_tunnelling(cel
         before = cell.ball_velocity_m_s
         cell.step(1)
         assert (cell.ball_position_m - centre) @ normal > 0.0   # never behind the blade's face
-        if any(e.type == rf.PADDLE_HIT for e in cell.pop_events()):
+        if any(e.type == referee.PADDLE_HIT for e in cell.pop_events()):
             incoming, outgoing = before @ normal, cell.ball_velocity_m_s @ normal
     assert incoming < 0.0 < outgoing
     # Within one step gravity (perpendicular to the normal here) and drag change little.
-    assert outgoing == pytest.approx(-ws.PADDLE_RESTITUTION * incoming, rel=0.01)
+    assert outgoing == pytest.approx(-world_spec.PADDLE_RESTITUTION * incoming, rel=0.01)
 
 
 def test_a_ball_on_the_arm_is_a_robot_contact(cell):
@@ -207,7 +207,7 @@ def test_a_ball_on_the_arm_is_a_robot_contact(cell):
     start = target + np.array([0.6, 0.0, 0.0])
     cell.launch_ball(start, [-6.0, 0.0, 0.0])
     events = _run_until_end(cell, max_s=1.0)
-    assert [e.type for e in events] == [rf.LAUNCHED, rf.ROBOT_CONTACT, rf.RALLY_END]
+    assert [e.type for e in events] == [referee.LAUNCHED, referee.ROBOT_CONTACT, referee.RALLY_END]
     assert events[-1].reason == 'robot_contact'
     assert cell.ball_velocity_m_s[0] > 0.0   # it bounced off
 
@@ -216,19 +216,19 @@ def test_pressing_the_arm_onto_the_table_is_judged_and_resisted(cell):
     cell.launch_ball([1.0, 0.0, 1.5], [0.0, 0.0, 0.0])   # a rally in play, far from the robot
     cell.set_joint_targets(HOME + np.array([0.0, 0.9, -0.6, 0.0, 0.0, 0.0]))
     events = _run_until_end(cell, max_s=2.0)
-    assert [e.type for e in events][-2:] == [rf.TABLE_CONTACT_BY_ROBOT, rf.RALLY_END]
+    assert [e.type for e in events][-2:] == [referee.TABLE_CONTACT_BY_ROBOT, referee.RALLY_END]
     assert events[-1].reason == 'table_contact_by_robot'
     cell.step(500)
     paddle_centre, _ = cell.paddle_pose()
-    assert paddle_centre[2] > ws.TABLE_HEIGHT_M   # the table stopped it
+    assert paddle_centre[2] > world_spec.TABLE_HEIGHT_M   # the table stopped it
 
 
 def test_seed_7_against_a_motionless_arm(cell):
-    launch = ws.incoming_ball_for_seed(7)
+    launch = world_spec.incoming_ball_for_seed(7)
     start_s = cell.time_s
     cell.launch_ball(launch.position_m, launch.velocity_m_s)
     events = _run_until_end(cell, max_s=3.0)
-    assert [e.type for e in events] == [rf.LAUNCHED, rf.BOUNCE_OWN_SIDE, rf.RALLY_END]
+    assert [e.type for e in events] == [referee.LAUNCHED, referee.BOUNCE_OWN_SIDE, referee.RALLY_END]
     assert not events[-1].success and events[-1].time_s - start_s < 3.0
 
 
@@ -238,18 +238,19 @@ def test_forty_incoming_balls_need_every_stroke(cell):
     cell.step(1500)
     speeds, apex_lateral_m = [], []
     for seed in range(100, 140):
-        launch = ws.incoming_ball_for_seed(seed)
+        launch = world_spec.incoming_ball_for_seed(seed)
         speeds.append(float(np.linalg.norm(launch.velocity_m_s)))
         cell.launch_ball(launch.position_m, launch.velocity_m_s)
         bounces, apex = [], None
         for _ in range(2000):
             cell.step(1)
-            bounces += [e for e in cell.pop_events() if e.type in (rf.BOUNCE_OWN_SIDE, rf.BOUNCE_OPPONENT_SIDE)]
+            bounces += [e for e in cell.pop_events()
+                        if e.type in (referee.BOUNCE_OWN_SIDE, referee.BOUNCE_OPPONENT_SIDE)]
             if bounces and cell.ball_velocity_m_s[2] <= 0.0:
                 apex = cell.ball_position_m
                 break
-        assert bounces[0].type == rf.BOUNCE_OWN_SIDE, seed
-        assert ws.on_table(*bounces[0].position_m[:2]) and bounces[0].position_m[0] < 0.0
+        assert bounces[0].type == referee.BOUNCE_OWN_SIDE, seed
+        assert world_spec.on_table(*bounces[0].position_m[:2]) and bounces[0].position_m[0] < 0.0
         apex_lateral_m.append(apex[1])
     assert min(speeds) >= 4.0 and max(speeds) <= 6.6 and max(speeds) - min(speeds) >= 2.0
     assert max(apex_lateral_m) - min(apex_lateral_m) >= 0.8
@@ -261,7 +262,7 @@ def test_reset_removes_the_ball_and_ends_its_rally(cell):
     cell.step(100)
     cell.reset()
     events = cell.pop_events()
-    assert (events[-1].ball_id, events[-1].type, events[-1].reason) == (ball, rf.RALLY_END, 'aborted')
+    assert (events[-1].ball_id, events[-1].type, events[-1].reason) == (ball, referee.RALLY_END, 'aborted')
     assert not cell.ball_in_play and cell.ball_position_m is None
     np.testing.assert_array_equal(cell.joint_positions_rad, HOME)
     np.testing.assert_array_equal(cell.joint_velocities_rad_s, np.zeros(6))

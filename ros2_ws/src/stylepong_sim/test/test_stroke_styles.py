@@ -7,12 +7,12 @@ import rclpy
 import yaml
 
 from stylepong_common.node_support import ParameterError
-from stylepong_sim import stroke_styles as st
+from stylepong_sim import stroke_styles
 from stylepong_sim.teacher import STROKES, SWINGS, StrokePath, SwingVariation, TeacherConfig, sample_variation
 from stylepong_sim.virtual_teacher_node import VirtualTeacherNode
 
-STYLE_FILES = sorted(st.STYLES_DIR.glob('*.yaml'))
-KINEMATICS = st.StrokeKinematics()
+STYLE_FILES = sorted(stroke_styles.STYLES_DIR.glob('*.yaml'))
+KINEMATICS = stroke_styles.StrokeKinematics()
 HOME_CENTRE = KINEMATICS.kin.pose(KINEMATICS.home_q, KINEMATICS.centre).translation
 
 
@@ -31,22 +31,22 @@ def _write(tmp_path: pathlib.Path, document) -> pathlib.Path:
 def test_the_shipped_styles_exist_and_teach_all_three_swings():
     assert {p.stem for p in STYLE_FILES} >= {'long', 'compact'}
     for path in STYLE_FILES:
-        assert set(st.load_strokes_file(path)) == set(SWINGS), path
+        assert set(stroke_styles.load_strokes_file(path)) == set(SWINGS), path
 
 
 @pytest.mark.parametrize('path', STYLE_FILES, ids=lambda p: p.stem)
 def test_every_take_of_a_shipped_style_is_a_clean_unmistakable_stroke(path):
     """The nominal take and the seeds tools/record_demos.sh gives its seven clips (1-7)."""
-    for swing, shape in st.load_strokes_file(path).items():
+    for swing, shape in stroke_styles.load_strokes_file(path).items():
         for variation in [SwingVariation()] + [sample_variation(swing, seed) for seed in range(1, 8)]:
-            check = st.check_stroke(swing, StrokePath(swing, TeacherConfig(), HOME_CENTRE, variation, shape),
-                                    KINEMATICS)
-            assert check.min_shoulder_clearance_m >= st.MIN_SHOULDER_CLEARANCE_M
+            check = stroke_styles.check_stroke(swing, StrokePath(swing, TeacherConfig(), HOME_CENTRE, variation, shape),
+                                               KINEMATICS)
+            assert check.min_shoulder_clearance_m >= stroke_styles.MIN_SHOULDER_CLEARANCE_M
 
 
 def test_the_shipped_strokes_written_as_a_style_file_give_the_same_path(tmp_path):
     """Without pitch_rad a file's stroke is the shipped one, bit for bit (the blade held at blade_pitch_rad)."""
-    strokes = st.load_strokes_file(_write(tmp_path, {s: _entry(STROKES[s]) for s in SWINGS}))
+    strokes = stroke_styles.load_strokes_file(_write(tmp_path, {s: _entry(STROKES[s]) for s in SWINGS}))
     for swing in SWINGS:
         take = sample_variation(swing, 3)
         shipped = StrokePath(swing, TeacherConfig(), HOME_CENTRE, take)
@@ -59,7 +59,7 @@ def test_the_shipped_strokes_written_as_a_style_file_give_the_same_path(tmp_path
 
 def test_key_pose_pitches_open_the_blade_through_the_stroke(tmp_path):
     entry = {**_entry(STROKES['forward']), 'pitch_rad': [0.1, 0.5, 0.9]}
-    shape = st.load_strokes_file(_write(tmp_path, {'forward': entry}))['forward']
+    shape = stroke_styles.load_strokes_file(_write(tmp_path, {'forward': entry}))['forward']
     path = StrokePath('forward', TeacherConfig(), HOME_CENTRE, SwingVariation(), shape)
     back_s = path.config.lead_in_s + path.backswing_s
     assert path.at(0.0).pitch_rad == 0.0
@@ -82,23 +82,23 @@ def test_key_pose_pitches_open_the_blade_through_the_stroke(tmp_path):
 def test_a_malformed_style_file_is_refused_in_one_line_naming_the_file_and_the_fault(tmp_path, document, words):
     path = _write(tmp_path, document)
     with pytest.raises(ValueError) as error:
-        st.load_strokes_file(path)
+        stroke_styles.load_strokes_file(path)
     assert str(path) in str(error.value) and words in str(error.value) and '\n' not in str(error.value)
 
 
 def test_a_missing_style_file_is_refused_naming_it(tmp_path):
     with pytest.raises(ValueError, match='cannot read it'):
-        st.load_strokes_file(tmp_path / 'nowhere.yaml')
-    assert st.resolve_strokes_file('long') == st.STYLES_DIR / 'long.yaml'
-    assert st.resolve_strokes_file('mine.yaml') == pathlib.Path('mine.yaml')
+        stroke_styles.load_strokes_file(tmp_path / 'nowhere.yaml')
+    assert stroke_styles.resolve_strokes_file('long') == stroke_styles.STYLES_DIR / 'long.yaml'
+    assert stroke_styles.resolve_strokes_file('mine.yaml') == pathlib.Path('mine.yaml')
 
 
-def _checked(swing: str, **changes) -> st.StrokeCheck:
+def _checked(swing: str, **changes) -> stroke_styles.StrokeCheck:
     shape = STROKES[swing]
     entry = {**_entry(shape), **changes}
-    strokes = st.shape_from_mapping(entry, 'test')
-    return st.check_stroke(swing, StrokePath(swing, TeacherConfig(blade_pitch_rad=0.0), HOME_CENTRE,
-                                             SwingVariation(), strokes), KINEMATICS)
+    strokes = stroke_styles.shape_from_mapping(entry, 'test')
+    return stroke_styles.check_stroke(swing, StrokePath(swing, TeacherConfig(blade_pitch_rad=0.0), HOME_CENTRE,
+                                                        SwingVariation(), strokes), KINEMATICS)
 
 
 def test_a_stroke_whose_label_could_be_mistaken_is_refused():
@@ -127,8 +127,8 @@ def _node(*ros_args: str) -> tuple[VirtualTeacherNode, rclpy.Context]:
 
 
 def test_the_teacher_plays_a_style_named_by_its_file_or_its_name():
-    expected = st.load_strokes_file(st.STYLES_DIR / 'long.yaml')['rightward']
-    for value in ('long', str(st.STYLES_DIR / 'long.yaml')):
+    expected = stroke_styles.load_strokes_file(stroke_styles.STYLES_DIR / 'long.yaml')['rightward']
+    for value in ('long', str(stroke_styles.STYLES_DIR / 'long.yaml')):
         node, context = _node('-p', 'swing:=rightward', '-p', f'strokes_file:={value}', '-p', 'seed:=3')
         try:
             assert node.teacher.path.nominal_shape == expected

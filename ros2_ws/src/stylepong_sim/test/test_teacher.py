@@ -3,8 +3,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 from stylepong_sim.teacher import (
     STROKES,
     SWINGS,
@@ -15,9 +15,9 @@ from stylepong_sim.teacher import (
     hand_wrench,
 )
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()
-HOME_CENTRE = KIN.pose(HOME, KIN.frame_id(rm.PADDLE_CENTRE_FRAME)).translation
+HOME_CENTRE = KIN.pose(HOME, KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)).translation
 
 
 def sampled(path: StrokePath, dt_s: float = 0.002):
@@ -45,11 +45,11 @@ def test_a_stroke_swings_back_then_forwards_through_a_hit_in_front_of_the_robot_
     path = StrokePath(swing, TeacherConfig(), HOME_CENTRE)
     _, positions, _ = sampled(path)
     assert path.back[0] < HOME_CENTRE[0] < path.hit[0] < path.follow[0]
-    assert path.hit[0] > ws.ROBOT_BASE_POSITION_M[0] + 0.2
+    assert path.hit[0] > world_spec.ROBOT_BASE_POSITION_M[0] + 0.2
     assert path.follow[2] > path.hit[2] > path.back[2]
     # Over the table the blade stays above its surface by more than its radius.
-    over_table = positions[:, 0] > -ws.HALF_LENGTH_M - rm.PADDLE.blade_radius_m
-    assert np.all(positions[over_table, 2] > ws.TABLE_HEIGHT_M + rm.PADDLE.blade_radius_m)
+    over_table = positions[:, 0] > -world_spec.HALF_LENGTH_M - robot_model.PADDLE.blade_radius_m
+    assert np.all(positions[over_table, 2] > world_spec.TABLE_HEIGHT_M + robot_model.PADDLE.blade_radius_m)
 
 
 def test_the_three_directions_are_distinct():

@@ -10,8 +10,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import world_spec
 from stylepong_sim.teacher import (
     MAX_SIDE_REACH_M,
     STROKES,
@@ -24,9 +24,9 @@ from stylepong_sim.teacher import (
     sample_variation,
 )
 
-HOME_Q = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME_Q = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()
-CENTRE = KIN.frame_id(rm.PADDLE_CENTRE_FRAME)
+CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
 WRIST = KIN.frame_id('wrist_3_joint')        # where the axes of wrists 2 and 3 meet
 HOME_POSE = KIN.pose(HOME_Q, CENTRE)
 HOME_CENTRE = HOME_POSE.translation
@@ -61,7 +61,7 @@ def joint_path(path: StrokePath, dt_s: float = 0.02) -> np.ndarray:
     trajectory = []
     for t in np.arange(0.0, path.duration_s + 1e-9, dt_s):
         via = path.at(t)
-        target = pin.SE3(ws.yaw_rotation(via.yaw_rad) @ HOME_POSE.rotation, via.position_m)
+        target = pin.SE3(world_spec.yaw_rotation(via.yaw_rad) @ HOME_POSE.rotation, via.position_m)
         for _ in range(30):
             current = KIN.pose(q, CENTRE)
             error = np.concatenate([target.translation - current.translation,
@@ -174,8 +174,8 @@ def test_every_take_keeps_its_direction_and_its_order_and_clears_the_table(swing
         assert path.back[0] >= HOME_CENTRE[0] + STROKES[swing].back_offset_m[0] - 1e-12   # never deeper
         assert path.follow[2] > path.hit[2] > path.back[2], take
         _, positions, _, _ = sampled(path, 0.01)
-        over_table = positions[:, 0] > -ws.HALF_LENGTH_M - rm.PADDLE.blade_radius_m
-        assert np.all(positions[over_table, 2] > ws.TABLE_HEIGHT_M + rm.PADDLE.blade_radius_m), take
+        over_table = positions[:, 0] > -world_spec.HALF_LENGTH_M - robot_model.PADDLE.blade_radius_m
+        assert np.all(positions[over_table, 2] > world_spec.TABLE_HEIGHT_M + robot_model.PADDLE.blade_radius_m), take
 
 
 def dataclass_with(take: SwingVariation, **changes) -> SwingVariation:
@@ -184,7 +184,7 @@ def dataclass_with(take: SwingVariation, **changes) -> SwingVariation:
 
 @pytest.mark.parametrize('swing', SWINGS)
 def test_every_take_stays_within_the_joint_limits_clear_of_the_shoulder_singularity_and_short_of_full_reach(swing):
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     takes = [SwingVariation()] + [sample_variation(swing, seed) for seed in (0, *SHIPPED_SEEDS[swing], 8, 9)]
     takes += extreme_takes(swing)[::3]
     for take in takes:
@@ -212,7 +212,7 @@ def test_a_turned_stroke_is_the_same_joint_path_with_the_shoulder_pan_moved_towa
     swing_start = int(np.ceil((plain.config.lead_in_s + plain.backswing_s) / 0.02))
     np.testing.assert_allclose(q_turned[swing_start:, 0] - q_plain[swing_start:, 0], side * turn_rad, atol=1e-6)
     np.testing.assert_allclose(q_turned[swing_start:, 1:], q_plain[swing_start:, 1:], atol=1e-6)
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     assert np.all(q_turned > limits.lower_rad) and np.all(q_turned < limits.upper_rad)
     assert np.max(np.abs(np.diff(q_turned, axis=0))) < MAX_JOINT_STEP_RAD
     assert min(shoulder_clearance_m(a) for a in q_turned) > MIN_SHOULDER_CLEARANCE_M
@@ -235,7 +235,7 @@ def test_a_reaching_stroke_is_carried_to_its_side_within_the_arms_reach(swing):
     for key in ('back', 'hit', 'follow'):
         np.testing.assert_allclose(getattr(reached, key) - getattr(plain, key), [0.0, side * reach_m, 0.0], atol=1e-12)
     q = joint_path(reached)
-    limits = rm.joint_limits()
+    limits = robot_model.joint_limits()
     assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
     assert np.max(np.abs(np.diff(q, axis=0))) < MAX_JOINT_STEP_RAD
     assert min(shoulder_clearance_m(a) for a in q) > MIN_SHOULDER_CLEARANCE_M

@@ -9,7 +9,7 @@ import yaml
 from rclpy.parameter import Parameter
 
 from stylepong_common.node_support import ParameterError
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.ur5_sim_node import PARAMETERS, Ur5SimNode
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config'
@@ -46,7 +46,7 @@ def test_the_yaml_holds_every_parameter_with_its_default():
             assert list(value) == pytest.approx(list(default)), name
         else:
             assert value == default, name
-    assert in_yaml['home_joint_positions_rad'] == pytest.approx(list(ws.HOME_JOINT_POSITIONS_RAD))
+    assert in_yaml['home_joint_positions_rad'] == pytest.approx(list(world_spec.HOME_JOINT_POSITIONS_RAD))
     assert in_yaml['real_time_factor'] == 1.0
 
 

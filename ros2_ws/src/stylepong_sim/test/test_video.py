@@ -4,13 +4,13 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_sim.cell import Cell
 from stylepong_sim.video import VideoRecorder
 
 
 def _record(cell: Cell, recorder: VideoRecorder, duration_s: float) -> None:
-    launch = ws.incoming_ball_for_seed(7)
+    launch = world_spec.incoming_ball_for_seed(7)
     cell.launch_ball(launch.position_m, launch.velocity_m_s)
     for _ in range(round(duration_s / cell.dt_s)):
         cell.step(1)
