@@ -53,7 +53,8 @@ def _free_port() -> int:
 class HeadlessPage:
     """One headless Chromium showing one page; shoot() returns PNG bytes. Use as a context manager."""
 
-    def __init__(self, url: str | None = None, width: int = 1280, height: int = 800, start_timeout_s: float = 20.0):
+    def __init__(self, url: str | None = None, width: int = 1280, height: int = 800, start_timeout_s: float = 20.0,
+                 extra_flags: tuple[str, ...] = ()):
         from websockets.sync.client import connect
         chromium = find_chromium()
         if chromium is None:
@@ -64,7 +65,7 @@ class HeadlessPage:
         self._process = subprocess.Popen(
             [chromium, '--headless', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
              '--no-first-run', '--disable-extensions', f'--remote-debugging-port={port}',
-             f'--window-size={width},{height}', f'--user-data-dir={self._profile}', 'about:blank'],
+             f'--window-size={width},{height}', f'--user-data-dir={self._profile}', *extra_flags, 'about:blank'],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         deadline = time.monotonic() + start_timeout_s
         targets = None
