@@ -22,6 +22,7 @@ import time
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
@@ -110,6 +111,10 @@ class PlayerNode(Node):
         self.create_timer(1.0 / value['status_rate_hz'], self._publish_status)
         if value['start_enabled']:
             self.core.set_enabled(True)
+        # On wall time against a cell that publishes /clock every ball is rejected as decades old; say why once.
+        self._clock_hint = None
+        if not self.get_parameter('use_sim_time').value:
+            self._clock_hint = self.create_subscription(Clock, '/clock', self._on_foreign_clock, qos)
         self.get_logger().info(
             f'player: {actor.backend} actor {actor.path} (spec {actor.metadata["spec_version"]}), '
             f'{config.rate_hz:g} Hz, {"enabled" if value["start_enabled"] else "disabled until /player/enable"}')
@@ -136,6 +141,14 @@ class PlayerNode(Node):
             self._warnings.warn('ball', lambda: f'/ball/state rejected: {problem}')
         elif self.core.ball_step_due(now_s):
             self._step(now_s, ball_driven=True, received_wall_s=received_wall_s)
+
+    def _on_foreign_clock(self, _msg: Clock) -> None:
+        if self._clock_hint is None:
+            return
+        self.destroy_subscription(self._clock_hint)
+        self._clock_hint = None
+        self.get_logger().warning('/clock is published (a simulated cell) but this player runs on wall time: '
+                                  'start it with --ros-args -p use_sim_time:=true')
 
     def _on_goal(self, msg: PointStamped) -> None:
         problem = self.core.on_goal(msg.header.frame_id, msg.point.x, msg.point.y)
