@@ -60,16 +60,14 @@ with quiet_c_stdout():   # its import prints its build time on stdout, which a n
     import pybullet
     from pybullet_utils import bullet_client
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import referee as rf
-from stylepong_sim import ur_servoj
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import referee, ur_servoj, world_spec
 from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
 
 PADDLE_HANDLE_LINK = 'paddle_handle'      # the handle's collision split from the blade's (own restitution)
 TABLE_TANGENT_OVER_NORMAL = 1.67          # mean |v_t|/|v_n| of the incoming balls at their first bounce
 CONTACT_TANGENT_OVER_NORMAL = 0.5         # guessed for blade, net and links
-BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * ws.BALL_MASS_KG * ws.BALL_RADIUS_M ** 2
+BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * world_spec.BALL_MASS_KG * world_spec.BALL_RADIUS_M ** 2
 SOLVER_ITERATIONS = 50
 
 
@@ -87,14 +85,14 @@ class SurfaceContact:
 
 
 SURFACES = {
-    'table': SurfaceContact(ws.TABLE_RESTITUTION, coulomb_friction(ws.TABLE_TANGENTIAL_FACTOR, ws.TABLE_RESTITUTION,
-                                                                   TABLE_TANGENT_OVER_NORMAL)),
-    'net': SurfaceContact(ws.NET_RESTITUTION, coulomb_friction(ws.NET_TANGENTIAL_FACTOR, ws.NET_RESTITUTION,
-                                                               CONTACT_TANGENT_OVER_NORMAL)),
-    'blade': SurfaceContact(ws.PADDLE_RESTITUTION, coulomb_friction(
-        ws.PADDLE_TANGENTIAL_FACTOR, ws.PADDLE_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
-    'link': SurfaceContact(ws.ROBOT_LINK_RESTITUTION, coulomb_friction(ws.ROBOT_LINK_TANGENTIAL_FACTOR,
-                                                                       ws.ROBOT_LINK_RESTITUTION,
+    'table': SurfaceContact(world_spec.TABLE_RESTITUTION, coulomb_friction(
+        world_spec.TABLE_TANGENTIAL_FACTOR, world_spec.TABLE_RESTITUTION, TABLE_TANGENT_OVER_NORMAL)),
+    'net': SurfaceContact(world_spec.NET_RESTITUTION, coulomb_friction(
+        world_spec.NET_TANGENTIAL_FACTOR, world_spec.NET_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
+    'blade': SurfaceContact(world_spec.PADDLE_RESTITUTION, coulomb_friction(
+        world_spec.PADDLE_TANGENTIAL_FACTOR, world_spec.PADDLE_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
+    'link': SurfaceContact(world_spec.ROBOT_LINK_RESTITUTION, coulomb_friction(world_spec.ROBOT_LINK_TANGENTIAL_FACTOR,
+                                                                       world_spec.ROBOT_LINK_RESTITUTION,
                                                                        CONTACT_TANGENT_OVER_NORMAL)),
 }
 
@@ -103,18 +101,18 @@ def bullet_urdf_xml() -> str:
     """The robot's URDF for Bullet: the one model, with mesh paths made absolute, the paddle's handle
     collision moved to a link of its own (so the blade and the handle have their own restitution) and
     the massless frames (paddle_centre, the handle link) given a zero inertial (Bullet gives 1 kg otherwise)."""
-    share = str(rm.example_robot_data_dir())
-    robot = ET.fromstring(rm.urdf_xml().replace(rm.MESH_PACKAGE_URI, share + '/'))
+    share = str(robot_model.example_robot_data_dir())
+    robot = ET.fromstring(robot_model.urdf_xml().replace(robot_model.MESH_PACKAGE_URI, share + '/'))
     for element in robot.findall('mujoco'):
         robot.remove(element)
-    paddle = next(link for link in robot.findall('link') if link.get('name') == rm.PADDLE_BODY)
+    paddle = next(link for link in robot.findall('link') if link.get('name') == robot_model.PADDLE_BODY)
     handle = ET.SubElement(robot, 'link', name=PADDLE_HANDLE_LINK)
     for collision in paddle.findall('collision'):
         if collision.get('name') == 'paddle_handle':
             paddle.remove(collision)
             handle.append(collision)
     joint = ET.SubElement(robot, 'joint', name='paddle-paddle_handle_fixed_joint', type='fixed')
-    ET.SubElement(joint, 'parent', link=rm.PADDLE_BODY)
+    ET.SubElement(joint, 'parent', link=robot_model.PADDLE_BODY)
     ET.SubElement(joint, 'child', link=PADDLE_HANDLE_LINK)
     ET.SubElement(joint, 'origin', xyz='0 0 0', rpy='0 0 0')
     for link in robot.findall('link'):
@@ -133,53 +131,54 @@ def _quaternion_of(rotation: np.ndarray) -> tuple[float, float, float, float]:
 
 class BulletCell:
     """The cell in PyBullet: UR5 with paddle, table, net, floor and ball, with the referee watching."""
-    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
+    def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
                  servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
         if actuator not in ur_servoj.ACTUATORS:
             raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
         self.actuator = actuator
-        self._dt = ws.PHYSICS_DT_S
-        limits = rm.joint_limits()
+        self._dt = world_spec.PHYSICS_DT_S
+        limits = robot_model.joint_limits()
         self._lower_rad, self._upper_rad = limits.lower_rad.copy(), limits.upper_rad.copy()
         self._effort_nm = limits.effort_nm.copy()
         self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
         self._reference = ur_servoj.make_reference(actuator, self.home_joint_positions_rad, limits.velocity_rad_s,
                                                    servoj)
-        kp = np.array(ws.ARM_KP_NM_PER_RAD)
-        kd = np.array(ws.ARM_KD_NMS_PER_RAD)
+        kp = np.array(world_spec.ARM_KP_NM_PER_RAD)
+        kd = np.array(world_spec.ARM_KD_NMS_PER_RAD)
         self._position_gains = (kp / kd * self._dt).tolist()
-        self._velocity_gains = [1.0] * rm.NUM_JOINTS
+        self._velocity_gains = [1.0] * robot_model.NUM_JOINTS
         self._forces = self._effort_nm.tolist()
 
         with quiet_c_stdout():   # connecting prints 'argv[0]=' on stdout
             self._p = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         p = self._p
         p.setTimeStep(self._dt)
-        p.setGravity(0.0, 0.0, -ws.GRAVITY_M_S2)
+        p.setGravity(0.0, 0.0, -world_spec.GRAVITY_M_S2)
         p.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, restitutionVelocityThreshold=0.0,
                                     warmStartingFactor=0.0, useSplitImpulse=1, contactSlop=0.0,
                                     contactERP=0.0, frictionERP=0.0, enableConeFriction=0,
                                     deterministicOverlappingPairs=1)
-        self._table = self._static_box((0.0, 0.0, ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M / 2.0),
-                                       (ws.HALF_LENGTH_M, ws.HALF_WIDTH_M, ws.TABLE_THICKNESS_M / 2.0),
+        half_thickness_m = world_spec.TABLE_THICKNESS_M / 2.0
+        self._table = self._static_box((0.0, 0.0, world_spec.TABLE_HEIGHT_M - half_thickness_m),
+                                       (world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M, half_thickness_m),
                                        SURFACES['table'])
-        low, high = np.array(ws.NET_BOX_LOW_M), np.array(ws.NET_BOX_HIGH_M)
+        low, high = np.array(world_spec.NET_BOX_LOW_M), np.array(world_spec.NET_BOX_HIGH_M)
         self._net = self._static_box((low + high) / 2.0, (high - low) / 2.0, SURFACES['net'])
         self._floor = p.createMultiBody(0.0, p.createCollisionShape(pybullet.GEOM_PLANE), useMaximalCoordinates=True)
         self._robot, self._joints, self._links = self._load_robot()
-        self._blade_link = self._links[rm.PADDLE_BODY]
+        self._blade_link = self._links[robot_model.PADDLE_BODY]
         self._handle_link = self._links[PADDLE_HANDLE_LINK]
-        self._tool_link = self._links[rm.TOOL_FRAME]
-        self._centre_link = self._links[rm.PADDLE_CENTRE_FRAME]
+        self._tool_link = self._links[robot_model.TOOL_FRAME]
+        self._centre_link = self._links[robot_model.PADDLE_CENTRE_FRAME]
         # The tool's subtree (what a wrist F/T sensor carries): tool0, paddle, handle, paddle_centre.
-        self._tool_links = [self._links[n] for n in (rm.TOOL_FRAME, rm.PADDLE_BODY, PADDLE_HANDLE_LINK,
-                                                      rm.PADDLE_CENTRE_FRAME)]
+        self._tool_links = [self._links[n] for n in (robot_model.TOOL_FRAME, robot_model.PADDLE_BODY,
+                                                      PADDLE_HANDLE_LINK, robot_model.PADDLE_CENTRE_FRAME)]
         self._tool_mass_kg = sum(p.getDynamicsInfo(self._robot, link)[0] for link in self._tool_links)
-        self._ball_shape = p.createCollisionShape(pybullet.GEOM_SPHERE, radius=ws.BALL_RADIUS_M)
+        self._ball_shape = p.createCollisionShape(pybullet.GEOM_SPHERE, radius=world_spec.BALL_RADIUS_M)
         self._ball_body: int | None = None
 
-        self._referee = rf.Referee()
-        self._events: list[rf.RallyEvent] = []
+        self._referee = referee.Referee()
+        self._events: list[referee.RallyEvent] = []
         self._next_ball_id = 1
         self.ball_id: int | None = None
         self._ball_p = np.zeros(3)
@@ -208,7 +207,7 @@ class BulletCell:
 
     def _load_robot(self) -> tuple[int, list[int], dict[str, int]]:
         p = self._p
-        rotation, position = ws.robot_base_pose()
+        rotation, position = world_spec.robot_base_pose()
         with tempfile.TemporaryDirectory() as folder:
             path = os.path.join(folder, 'ur5_paddle.urdf')
             with open(path, 'w') as file:
@@ -220,12 +219,12 @@ class BulletCell:
             info = p.getJointInfo(robot, index)
             joints_by_name[info[1].decode()] = index
             links[info[12].decode()] = index
-        joints = [joints_by_name[name] for name in rm.JOINT_NAMES]
-        velocity = rm.joint_limits().velocity_rad_s
+        joints = [joints_by_name[name] for name in robot_model.JOINT_NAMES]
+        velocity = robot_model.joint_limits().velocity_rad_s
         for i, joint in enumerate(joints):
             p.changeDynamics(robot, joint, maxJointVelocity=float(velocity[i]), jointDamping=0.0)
         for link in [-1, *links.values()]:
-            surface = SURFACES['blade'] if link == links[rm.PADDLE_BODY] else SURFACES['link']
+            surface = SURFACES['blade'] if link == links[robot_model.PADDLE_BODY] else SURFACES['link']
             p.changeDynamics(robot, link, restitution=surface.restitution, lateralFriction=surface.friction,
                              rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
                              contactProcessingThreshold=0.0)
@@ -265,18 +264,18 @@ class BulletCell:
         if np.linalg.norm(velocity) > MAX_LAUNCH_SPEED_M_S:
             raise InputError('speed',
                              f'ball speed {np.linalg.norm(velocity):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
-        if rf.ball_is_dead(position):
+        if referee.ball_is_dead(position):
             raise InputError('position', f'ball position {position.tolist()} is outside the cell (or below the floor)')
         self.remove_ball()
         p = self._p
-        body = p.createMultiBody(ws.BALL_MASS_KG, self._ball_shape, basePosition=position.tolist(),
+        body = p.createMultiBody(world_spec.BALL_MASS_KG, self._ball_shape, basePosition=position.tolist(),
                                  useMaximalCoordinates=True)
         # mass again: on a maximal-coordinates body, changing the inertia alone zeroes the mass (PyBullet 3.2.7).
-        p.changeDynamics(body, -1, mass=ws.BALL_MASS_KG, restitution=1.0, lateralFriction=1.0, rollingFriction=0.0,
-                         spinningFriction=0.0,
-                         linearDamping=0.0, angularDamping=0.0, contactProcessingThreshold=0.0,
+        p.changeDynamics(body, -1, mass=world_spec.BALL_MASS_KG, restitution=1.0, lateralFriction=1.0,
+                         rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
+                         contactProcessingThreshold=0.0,
                          localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
-                         ccdSweptSphereRadius=0.9 * ws.BALL_RADIUS_M)
+                         ccdSweptSphereRadius=0.9 * world_spec.BALL_RADIUS_M)
         p.resetBaseVelocity(body, velocity.tolist(), [0.0, 0.0, 0.0])
         self._ball_body = body
         self.ball_id = self._next_ball_id
@@ -341,7 +340,7 @@ class BulletCell:
     def ball_velocity_m_s(self) -> np.ndarray | None:
         return self._ball_v.copy() if self.ball_id is not None else None
 
-    def pop_events(self) -> list[rf.RallyEvent]:
+    def pop_events(self) -> list[referee.RallyEvent]:
         events, self._events = self._events, []
         return events
 
@@ -356,7 +355,7 @@ class BulletCell:
         origin; include_inertia: minus the tool's mass times its acceleration, as a physical sensor reads
         (the tool's rotational inertia is small and left out)."""
         origin, rotation = self.tool_pose()
-        force = np.array([0.0, 0.0, -ws.GRAVITY_M_S2 * self._tool_mass_kg])
+        force = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2 * self._tool_mass_kg])
         torque = np.zeros(3)
         com = self._tool_centre_of_mass()
         torque += np.cross(com - origin, force)
@@ -385,7 +384,7 @@ class BulletCell:
             raise InputError('not_finite', f'{what} contains NaN or inf: {q.tolist()}')
         outside = (q < self._lower_rad) | (q > self._upper_rad)
         if outside.any():
-            names = [rm.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
+            names = [robot_model.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
             raise InputError('limits', f'{what} outside the joint limits at {names}: {q.tolist()}')
         return q.copy()
 
@@ -440,7 +439,7 @@ class BulletCell:
         if self._hand is not None:
             self._apply_hand_wrench()
         if self._ball_body is not None:
-            drag = ws.BALL_MASS_KG * ws.drag_acceleration(self._ball_v)
+            drag = world_spec.BALL_MASS_KG * world_spec.drag_acceleration(self._ball_v)
             p.applyExternalForce(self._ball_body, -1, drag.tolist(), self._ball_p.tolist(), pybullet.WORLD_FRAME)
         p.stepSimulation()
         self._time_s += self._dt
@@ -494,7 +493,7 @@ class BulletCell:
         self._touching = touching
         if self._referee.rally_open:
             self._events += self._referee.ball_state(time_s, self._ball_p, self._ball_v)
-        elif rf.ball_is_dead(self._ball_p) or time_s - self._ball_launch_time_s >= ws.BALL_LIFETIME_S:
+        elif referee.ball_is_dead(self._ball_p) or time_s - self._ball_launch_time_s >= world_spec.BALL_LIFETIME_S:
             self.remove_ball()
 
     def close(self) -> None:

@@ -6,13 +6,11 @@ import sys
 import numpy as np
 import pytest
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import referee as rf
-from stylepong_sim import ur_servoj as us
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import referee, ur_servoj, world_spec
 from stylepong_sim.bullet_cell import BulletCell, InputError, coulomb_friction
 
-HOME = np.array(ws.HOME_JOINT_POSITIONS_RAD)
+HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 
 
 @pytest.fixture(scope='module')
@@ -25,7 +23,7 @@ def cell():
 def _bounce(cell: BulletCell, velocity_m_s, height_m: float = 0.003) -> tuple[np.ndarray, np.ndarray]:
     """Velocities just before and just after the ball's first bounce on the table (robot's half)."""
     cell.reset()
-    cell.launch_ball([-0.8, 0.3, ws.TABLE_CONTACT_HEIGHT_M + height_m], velocity_m_s)
+    cell.launch_ball([-0.8, 0.3, world_spec.TABLE_CONTACT_HEIGHT_M + height_m], velocity_m_s)
     for _ in range(100):
         before = cell.ball_velocity_m_s
         cell.step(1)
@@ -36,7 +34,7 @@ def _bounce(cell: BulletCell, velocity_m_s, height_m: float = 0.003) -> tuple[np
 
 
 def _types(events) -> list[str]:
-    return [rf.EVENT_NAMES[e.type] for e in events]
+    return [referee.EVENT_NAMES[e.type] for e in events]
 
 
 def test_the_bullet_cell_loads_nothing_of_the_analytic_contacts():
@@ -57,8 +55,8 @@ def test_the_bullet_cell_loads_nothing_of_the_analytic_contacts():
 def test_the_analytic_contact_law_is_never_called(cell, monkeypatch):
     def refuse(*_args, **_kwargs):
         raise AssertionError('world_spec.contact_response called')
-    launch = ws.incoming_ball_for_seed(1000)
-    monkeypatch.setattr(ws, 'contact_response', refuse)
+    launch = world_spec.incoming_ball_for_seed(1000)
+    monkeypatch.setattr(world_spec, 'contact_response', refuse)
     cell.reset()
     cell.pop_events()
     cell.launch_ball(launch.position_m, launch.velocity_m_s)
@@ -67,7 +65,7 @@ def test_the_analytic_contact_law_is_never_called(cell, monkeypatch):
 
 
 def test_the_arm_holds_home_and_follows_a_step_within_the_efforts():
-    for actuator in us.ACTUATORS:
+    for actuator in ur_servoj.ACTUATORS:
         cell = BulletCell(actuator=actuator)
         cell.step_for(0.5)
         assert cell.joint_positions_rad == pytest.approx(HOME, abs=1e-3)
@@ -78,31 +76,31 @@ def test_the_arm_holds_home_and_follows_a_step_within_the_efforts():
             cell.step(1)
             peak_effort = np.maximum(peak_effort, np.abs(cell.joint_efforts_nm))
         assert cell.joint_positions_rad == pytest.approx(target, abs=0.01), actuator
-        assert (peak_effort <= rm.joint_limits().effort_nm + 1e-6).all()
+        assert (peak_effort <= robot_model.joint_limits().effort_nm + 1e-6).all()
         cell.close()
 
 
 def test_table_bounce_has_world_specs_restitution_and_tangential_factor(cell):
     for vertical in (-1.5, -3.0, -6.0):
         before, after = _bounce(cell, [0.0, 0.0, vertical])
-        assert -after[2] / before[2] == pytest.approx(ws.TABLE_RESTITUTION, abs=0.005)
+        assert -after[2] / before[2] == pytest.approx(world_spec.TABLE_RESTITUTION, abs=0.005)
     # at the reference impact ratio the sliding ball keeps world_spec's tangential factor
     before, after = _bounce(cell, [1.67 * 3.0, 0.0, -3.0])
-    assert after[0] / before[0] == pytest.approx(ws.TABLE_TANGENTIAL_FACTOR, abs=0.02)
+    assert after[0] / before[0] == pytest.approx(world_spec.TABLE_TANGENTIAL_FACTOR, abs=0.02)
     assert coulomb_friction(0.7, 0.89, 1.67) == pytest.approx(0.3 * 1.67 / 1.89)
 
 
 def test_a_seeded_ball_bounces_where_world_spec_aims_it(cell):
-    launch = ws.incoming_ball_for_seed(1001)
+    launch = world_spec.incoming_ball_for_seed(1001)
     cell.reset()
     cell.pop_events()
     cell.launch_ball(launch.position_m, launch.velocity_m_s)
     cell.step_for(3.2)
     events = cell.pop_events()
-    bounce = next(e for e in events if e.type == rf.BOUNCE_OWN_SIDE)
+    bounce = next(e for e in events if e.type == referee.BOUNCE_OWN_SIDE)
     assert np.hypot(bounce.position_m[0] - launch.bounce_point_m[0],
                     bounce.position_m[1] - launch.bounce_point_m[1]) < 0.03
-    ends = [e for e in events if e.type == rf.RALLY_END]
+    ends = [e for e in events if e.type == referee.RALLY_END]
     assert len(ends) == 1 and not ends[0].success
 
 
@@ -123,14 +121,15 @@ def test_a_ball_thrown_at_the_resting_blade_is_hit_and_bounces_back(cell):
             break
     assert incoming is not None
     outgoing = cell.ball_velocity_m_s
-    assert -np.dot(outgoing, normal) / np.dot(incoming, normal) == pytest.approx(ws.PADDLE_RESTITUTION, abs=0.03)
+    restitution = -np.dot(outgoing, normal) / np.dot(incoming, normal)
+    assert restitution == pytest.approx(world_spec.PADDLE_RESTITUTION, abs=0.03)
     assert 'PADDLE_HIT' in _types(cell.pop_events())
 
 
 def test_the_wrench_reads_the_paddles_weight_and_the_hand_which_the_joints_carry():
     cell = BulletCell()
     cell.step_for(0.2)
-    weight = rm.PADDLE.mass_kg * ws.GRAVITY_M_S2
+    weight = robot_model.PADDLE.mass_kg * world_spec.GRAVITY_M_S2
     force, _ = cell.tool_wrench()
     _, rotation = cell.tool_pose()
     assert rotation @ force == pytest.approx([0.0, 0.0, -weight], abs=1e-3)
