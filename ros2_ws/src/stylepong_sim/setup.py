@@ -27,6 +27,7 @@ setup(
             'ur5_bullet = stylepong_sim.ur5_sim_node:main_bullet',
             'virtual_teacher = stylepong_sim.virtual_teacher_node:main',
             'rally_eval = stylepong_sim.rally_eval:main',
+            'cell_calibration = stylepong_sim.calibration:main',
             'robot_state_publisher = stylepong_sim.robot_state_publisher_node:main',
         ],
     },
