@@ -4,7 +4,7 @@
 Runs `ros2 run stylepong_policy learn_style ros2_ws/bags --out TMP --minutes M` (the shipped clips, the
 recipe as shipped, M = BENCH_LEARN_STYLE_MINUTES, default 6: every stage runs, the training for all but
 a quarter of M) in a subprocess and reads the run's record (learn_style.json); prints one Markdown
-section for BENCHMARKS.md. With the default 60 minutes the training stage gets 53 of them and the other
+section for BENCHMARKS.md. With the default 60 minutes the training stage gets 51 of them and the other
 stages take what they take here.
 """
 from __future__ import annotations
@@ -46,7 +46,7 @@ def main() -> int:
     print(f'\nTraining: {train["iterations"]} iterations, {train["samples"]} samples in '
           f'{train["training_time_s"]:.0f} s of training, **{train["samples_per_s"]:.0f} samples/s** (the '
           'world, PPO, the discriminator and the pose and stroke priors). With the default --minutes 60 the '
-          'training stage gets 53 minutes; the stages after it take about what they take here.')
+          'training stage gets 51 minutes; the stages after it take about what they take here.')
     return 0
 
 

@@ -40,12 +40,12 @@ STATE_NAME = 'learn_style.json'
 STAGES = ('check', 'dataset', 'train', 'choose', 'export', 'evaluate', 'report')
 DEFAULT_MINUTES = 60.0
 # What is not training, within the budget: the world's compilation, choosing, exporting, evaluating and
-# the report (about 4 minutes on a 2-core CPU), with a margin for a loaded machine.
-RESERVE_S = 7.0 * 60.0
+# the report (about 6 minutes on a 2-core CPU), with a margin for a loaded machine.
+RESERVE_S = 9.0 * 60.0
 MIN_TRAIN_S = 60.0
-# Candidates: the mean of the weights of the run's last checkpoints, the last third and the last sixth
-# of them (the end of a run, where the style is learned and returns are kept); and the last checkpoint.
-AVERAGED_SHARES = (1.0 / 3.0, 1.0 / 6.0)
+# Candidates (candidates_of): weight averages of the checkpoints in each of the last WINDOWS of SPLIT spans
+# of the run and of its last third, and the last checkpoint: 7 validations of about 20 s each here.
+SPLIT, WINDOWS = 6, 5
 MIN_SUCCESS = 0.92                  # validation success a candidate must reach to be chosen for its style
 VALIDATION = dict(seeds=4, first_seed=900, balls=200)       # below world_spec.FIRST_EVALUATION_SEED
 EVALUATION = dict(seeds=10, first_seed=1000, balls=200)
@@ -194,20 +194,23 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
 
 
 def candidates_of(run_dir: pathlib.Path) -> list[tuple[str, list[int]]]:
-    """(name, iterations to average) of each candidate: averages of the last AVERAGED_SHARES of the
-    numbered checkpoints, and the last checkpoint alone."""
+    """(name, iterations to average) of each candidate: the weight averages of the numbered checkpoints in
+    each of the run's last WINDOWS windows (the run split in SPLIT equal spans), of its last third, and
+    its last checkpoint alone. Along a run the style comes closer and returns may fall; the choice among
+    these is where the run stands on both (choose_candidate)."""
     from stylepong_policy.select_checkpoint import numbered_checkpoints
     iterations = [i for i, _ in numbered_checkpoints(run_dir)]
     if not iterations:
         raise StyleError(f'{run_dir} has no numbered checkpoint to choose from; give more --minutes')
-    chosen: list[tuple[str, list[int]]] = []
-    for share in AVERAGED_SHARES:
-        tail = iterations[-max(2, round(len(iterations) * share)):]
-        name = f'average_{tail[0]}_{tail[-1]}'
-        if len(tail) > 1 and all(name != c[0] for c in chosen):
-            chosen.append((name, tail))
-    chosen.append((f'checkpoint_{iterations[-1]}', iterations[-1:]))
-    return chosen
+    spans = [iterations[round(k * len(iterations) / SPLIT):round((k + 1) * len(iterations) / SPLIT)]
+             for k in range(SPLIT - WINDOWS, SPLIT)]
+    spans.append(iterations[-max(2, round(len(iterations) / 3)):])
+    chosen: dict[str, list[int]] = {}
+    for span in spans:
+        if len(span) > 1:
+            chosen.setdefault(f'average_{span[0]}_{span[-1]}', span)
+    chosen[f'checkpoint_{iterations[-1]}'] = iterations[-1:]
+    return list(chosen.items())
 
 
 def choose_stage(paths: Paths, device: str) -> dict:

@@ -109,12 +109,14 @@ def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
     assert time.monotonic() - started < 30.0
 
 
-def test_candidates_are_averages_of_the_end_and_the_last_checkpoint(tmp_path, monkeypatch):
+def test_candidates_are_averages_along_the_end_of_the_run_and_the_last_checkpoint(tmp_path, monkeypatch):
     from stylepong_policy import select_checkpoint
-    numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]
+    numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]     # 12 checkpoints
     monkeypatch.setattr(select_checkpoint, 'numbered_checkpoints', lambda run_dir: numbered)
     candidates = dict(ls.candidates_of(tmp_path))
-    assert candidates == {'average_450_600': [450, 500, 550, 600], 'average_550_600': [550, 600],
+    assert candidates == {'average_150_200': [150, 200], 'average_250_300': [250, 300],
+                          'average_350_400': [350, 400], 'average_450_500': [450, 500],
+                          'average_550_600': [550, 600], 'average_450_600': [450, 500, 550, 600],
                           'checkpoint_600': [600]}
 
 
