@@ -209,8 +209,8 @@ def load_sim2sim(folder: pathlib.Path) -> list[dict]:
 
     Read from each file: a label ('simulator', 'world' or 'name'; else the file name), 'success_rate'
     (fraction), and where present 'balls_per_seed', 'seeds' (list or count), 'balls',
-    'mean_successes_per_seed', 'success_rate_std', 'actor'. A file that cannot be read gives a row
-    saying why."""
+    'mean_successes_per_seed', 'success_rate_std', 'actor', 'command' (how it was measured). A file that
+    cannot be read gives a row saying why."""
     rows = []
     for path in sorted(folder.glob(SIM2SIM_PATTERN)):
         row = {'file': path.name}
@@ -231,7 +231,8 @@ def load_sim2sim(folder: pathlib.Path) -> list[dict]:
             mean = rate * float(per_seed)
         row.update(label=str(data.get('simulator') or data.get('world') or data.get('name') or path.stem),
                    success_rate=rate, success_rate_std=data.get('success_rate_std'), balls_per_seed=per_seed,
-                   seeds=seed_count, mean_successes_per_seed=mean, actor=data.get('actor'))
+                   seeds=seed_count, mean_successes_per_seed=mean, actor=data.get('actor'),
+                   command=data.get('command'))
         rows.append(row)
     return rows
 
@@ -479,10 +480,12 @@ def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol
     if not rows:
         out.append(['MuJoCo cell (ur5_sim) with the player: other simulator (ours)', '-', '-', 'not measured',
                     f'no {SIM2SIM_PATTERN} in this folder yet'])
+    commands = [f'- `{row["file"]}`: `{row["command"]}`' for row in rows if row.get('command')]
     return ['## Table IV: sim2sim transfer', '',
             f'Rows of ours other than the batched world come from {SIM2SIM_PATTERN} files in this folder (the '
             'deployment work writes them); each states its own setting there.', '',
-            *table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out), '']
+            *table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out), '',
+            *(['Measured with:', '', *commands, ''] if commands else [])]
 
 
 def figure_section(figure: dict | None, protocol: Protocol) -> list[str]:

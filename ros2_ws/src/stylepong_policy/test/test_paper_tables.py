@@ -63,6 +63,20 @@ def test_without_sim2sim_files_table_four_says_not_measured(tmp_path):
     assert 'unreadable' in paper_tables.load_sim2sim(tmp_path)[0]['error']
 
 
+def test_table_four_lists_each_sim2sim_row_with_its_command(tmp_path):
+    (tmp_path / 'sim2sim_pybullet_ideal.json').write_text(json.dumps({
+        'world': 'ur5_sim engine pybullet (PyBullet cell, Bullet contacts) through ROS, ideal actuator',
+        'success_rate': 0.8, 'success_rate_std': 0.05, 'balls_per_seed': 20, 'seeds': list(range(1000, 1010)),
+        'actor': 'models/amp_actor.pt', 'command': 'tools/sim2sim.sh --engine pybullet'}))
+    rows = paper_tables.load_sim2sim(tmp_path)
+    assert rows[0]['command'] == 'tools/sim2sim.sh --engine pybullet' and rows[0]['mean_successes_per_seed'] == 16.0
+    batched = {'balls_per_seed': 200, 'mean_successes_per_seed': 190.5, 'success_rate': 0.9525,
+               'success_rate_std': 0.01, 'actor': 'models/amp_actor.pt'}
+    text = '\n'.join(paper_tables.table_four(rows, {'amp': {'all': batched}}, None))
+    assert 'PyBullet cell, Bullet contacts' in text and '80.00 %' in text and '39.32 %' in text
+    assert '`sim2sim_pybullet_ideal.json`: `tools/sim2sim.sh --engine pybullet`' in text
+
+
 def test_a_missing_shipped_actor_fails_clearly(tmp_path, capsys):
     status = paper_tables.main(['--out', str(tmp_path / 'r'), '--models-dir', str(tmp_path),
                                 '--actors', f'ppo={PPO_ACTOR}', '--no-figure'])
