@@ -153,3 +153,18 @@ def test_bad_inputs_are_refused(cell):
         cell.launch_ball([0.0, 0.0, -1.0], [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match='actuator'):
         BulletCell(actuator='servo')
+
+
+def test_the_video_view_poses_the_mujoco_scene_like_the_bullet_cell(cell):
+    from stylepong_sim.bullet_video import MirroredScene
+    view = MirroredScene()
+    cell.reset()
+    cell.set_joint_targets(HOME + 0.1)
+    cell.step_for(0.2)
+    cell.launch_ball([-0.5, 0.2, 1.0], [-3.0, 0.0, 0.0])
+    data = view.show(cell)
+    assert data.qpos[:6] == pytest.approx(cell.joint_positions_rad)
+    assert data.mocap_pos[0] == pytest.approx(cell.ball_position_m)
+    # the two engines agree on where the blade is for the same joint positions (same URDF)
+    centre, _ = cell.paddle_pose()
+    assert data.xpos[view.model.body(robot_model.PADDLE_CENTRE_FRAME).id] == pytest.approx(centre, abs=1e-5)
