@@ -195,7 +195,9 @@ def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz:
 
 def load_strokes(path: str | os.PathLike) -> StrokeFile:
     """Read a strokes file (.npz) written by save_strokes."""
-    with np.load(path, allow_pickle=False) as data:
+    with np.load(path, allow_pickle=False) as stored:
+        # Each array once: an NpzFile reads (and decompresses) an array again at every access.
+        data = {name: stored[name] for name in stored.files}
         strokes = []
         for s in range(len(data['stroke_start'])):
             frames = slice(int(data['stroke_start'][s]), int(data['stroke_start'][s] + data['stroke_length'][s]))
