@@ -20,7 +20,10 @@ The arm: URDF loaded with its inertias; every joint's motor gets the reference (
 actuator model each step and solves joint velocity = v_ref + (Kp/Kd)(q_ref - q) (Bullet's positionGain
 (Kp/Kd) dt, velocityGain 1: the corner frequency of world_spec's PD, 20 rad/s big joints, 25 wrists) with
 its torque capped at the URDF effort (gravity included: Bullet has no separate compensation); joint speed
-capped at the URDF velocity limit (maxJointVelocity). No link or joint damping.
+capped at the URDF velocity limit (maxJointVelocity). No link or joint damping. joint_drive='pd' instead applies
+world_spec's servo as joint torques (PD clipped to the efforts, gravity from Bullet's inverse dynamics outside
+the clip; no armature: Bullet has none): the MuJoCo cell's servo law on Bullet's dynamics and contacts, a
+diagnostic (its explicit damping on the light wrist_3 without armature leaves a 6 mrad limit cycle there).
 
 The ball: 2.7 g, radius 20 mm, a thin shell (inertia 2/3 m r^2), air drag a = -k|v|v applied as an external
 force before every step (Bullet has no aerodynamics), no Magnus force. Contacts (Bullet multiplies the two
@@ -64,6 +67,8 @@ from stylepong_description import robot_model
 from stylepong_sim import referee, ur_servoj, world_spec
 from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
 
+MOTOR_DRIVE, PD_DRIVE = 'motor', 'pd'
+JOINT_DRIVES = (MOTOR_DRIVE, PD_DRIVE)
 PADDLE_HANDLE_LINK = 'paddle_handle'      # the handle's collision split from the blade's (own restitution)
 TABLE_TANGENT_OVER_NORMAL = 1.67          # mean |v_t|/|v_n| of the incoming balls at their first bounce
 CONTACT_TANGENT_OVER_NORMAL = 0.5         # guessed for blade, net and links
@@ -132,7 +137,10 @@ def _quaternion_of(rotation: np.ndarray) -> tuple[float, float, float, float]:
 class BulletCell:
     """The cell in PyBullet: UR5 with paddle, table, net, floor and ball, with the referee watching."""
     def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
-                 servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
+                 servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings(), joint_drive: str = MOTOR_DRIVE):
+        if joint_drive not in JOINT_DRIVES:
+            raise ValueError(f"joint_drive must be one of {', '.join(JOINT_DRIVES)}, got {joint_drive!r}")
+        self.joint_drive = joint_drive
         if actuator not in ur_servoj.ACTUATORS:
             raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
         self.actuator = actuator
@@ -148,6 +156,8 @@ class BulletCell:
         self._position_gains = (kp / kd * self._dt).tolist()
         self._velocity_gains = [1.0] * robot_model.NUM_JOINTS
         self._forces = self._effort_nm.tolist()
+        self._kp_nm_per_rad = kp
+        self._kd_nms_per_rad = kd
 
         with quiet_c_stdout():   # connecting prints 'argv[0]=' on stdout
             self._p = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
@@ -191,6 +201,9 @@ class BulletCell:
         self._q = np.zeros(6)
         self._qd = np.zeros(6)
         self._tau = np.zeros(6)
+        self._tau_pd = np.zeros(6)
+        if joint_drive == PD_DRIVE:   # Bullet's default velocity motors off: the torques are all ours
+            p.setJointMotorControlArray(self._robot, self._joints, pybullet.VELOCITY_CONTROL, forces=[0.0] * 6)
         self._tool_velocity_prev: tuple[np.ndarray, np.ndarray] | None = None
         self._tool_acceleration = (np.zeros(3), np.zeros(3))
         self._reset_robot()
@@ -401,7 +414,7 @@ class BulletCell:
         states = self._p.getJointStates(self._robot, self._joints)
         self._q = np.array([s[0] for s in states])
         self._qd = np.array([s[1] for s in states])
-        self._tau = np.array([s[3] for s in states])
+        self._tau = self._tau_pd if self.joint_drive == PD_DRIVE else np.array([s[3] for s in states])
 
     def _link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
         state = self._p.getLinkState(self._robot, link, computeForwardKinematics=True)
@@ -432,10 +445,13 @@ class BulletCell:
     def _step_once(self) -> None:
         p = self._p
         q_ref, v_ref = self._reference.step(self._time_s + self._dt, self._dt)
-        p.setJointMotorControlArray(self._robot, self._joints, pybullet.POSITION_CONTROL,
-                                    targetPositions=q_ref.tolist(), targetVelocities=v_ref.tolist(),
-                                    positionGains=self._position_gains, velocityGains=self._velocity_gains,
-                                    forces=self._forces)
+        if self.joint_drive == PD_DRIVE:
+            self._apply_pd_torques(q_ref, v_ref)
+        else:
+            p.setJointMotorControlArray(self._robot, self._joints, pybullet.POSITION_CONTROL,
+                                        targetPositions=q_ref.tolist(), targetVelocities=v_ref.tolist(),
+                                        positionGains=self._position_gains, velocityGains=self._velocity_gains,
+                                        forces=self._forces)
         if self._hand is not None:
             self._apply_hand_wrench()
         if self._ball_body is not None:
@@ -449,6 +465,16 @@ class BulletCell:
             self._check_robot_table_contacts()
         if self._ball_body is not None:
             self._watch_ball()
+
+    def _apply_pd_torques(self, q_ref: np.ndarray, v_ref: np.ndarray) -> None:
+        """joint_drive 'pd': world_spec's servo as joint torques on Bullet's dynamics (PD clipped to the efforts,
+        gravity compensation from Bullet's inverse dynamics outside the clip, as world_spec states the law)."""
+        pd = self._kp_nm_per_rad * (q_ref - self._q) + self._kd_nms_per_rad * (v_ref - self._qd)
+        zeros = [0.0] * robot_model.NUM_JOINTS
+        gravity = np.array(self._p.calculateInverseDynamics(self._robot, self._q.tolist(), zeros, zeros))
+        self._tau_pd = np.clip(pd, -self._effort_nm, self._effort_nm) + gravity
+        self._p.setJointMotorControlArray(self._robot, self._joints, pybullet.TORQUE_CONTROL,
+                                          forces=self._tau_pd.tolist())
 
     def _track_tool_acceleration(self) -> None:
         state = self._p.getLinkState(self._robot, self._blade_link, computeLinkVelocity=True)

@@ -168,3 +168,14 @@ def test_the_video_view_poses_the_mujoco_scene_like_the_bullet_cell(cell):
     # the two engines agree on where the blade is for the same joint positions (same URDF)
     centre, _ = cell.paddle_pose()
     assert data.xpos[view.model.body(robot_model.PADDLE_CENTRE_FRAME).id] == pytest.approx(centre, abs=1e-5)
+
+
+def test_the_pd_joint_drive_follows_a_step_with_world_specs_servo():
+    cell = BulletCell(joint_drive='pd')
+    target = HOME + 0.2
+    cell.set_joint_targets(target)
+    cell.step_for(0.6)
+    assert cell.joint_positions_rad == pytest.approx(target, abs=0.01)   # wrist_3 keeps a 6 mrad limit cycle
+    cell.close()
+    with pytest.raises(ValueError, match='joint_drive'):
+        BulletCell(joint_drive='servo')
