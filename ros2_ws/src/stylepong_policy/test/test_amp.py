@@ -126,7 +126,9 @@ def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_o
             return torch.stack(frames, dim=1)
         return _slowed(reference.sample(count), reference)
 
-    for _ in range(300):
+    # Shuffled windows are told apart early (accuracy 0.99, mean scores +0.77 / -0.76 after 150 updates,
+    # measured); half-speed ones are the harder case and keep 300.
+    for _ in range(150 if negative == 'shuffled' else 300):
         prior.replay.size = 0
         prior.replay.insert(fakes(cfg.batch_size))
         stats = prior.update()
