@@ -140,12 +140,6 @@ class CellView:
             path = pathlib.Path(folder) / 'ur5_paddle.urdf'
             path.write_text(urdf.replace('file://', ''))
             rr.urdf.UrdfTree.from_file_path(path, entity_path_prefix='robot').log_urdf_to_recording(rec)
-        # The moving joints' frames and their origins' translations do not change: logged once, so that a
-        # flush sends each joint's rotations only.
-        for joint in self.robot_state.moving_joints:
-            rr.log(f'tf/{joint.name}', rr.Transform3D.from_fields(
-                translation=joint.origin_xyz_m, parent_frame=joint.parent, child_frame=joint.child),
-                static=True, recording=rec)
         rr.log('tf_static/world_base', rr.Transform3D(
             translation=self._base_position_m, quaternion=self._base_rotation_xyzw,
             parent_frame=FRAME_WORLD, child_frame=rm.BASE_FRAME), static=True, recording=rec)
@@ -306,15 +300,19 @@ class CellView:
             labels=[f'hand {force_n:.1f} N', f'{torque_nm:.2f} N m']), recording=self.rec)
 
     def _send_arm(self) -> None:
-        """The arm's frames as one column of rotations per joint; the paddle's path through them."""
+        """The arm's frames as columns, a batch per joint; the paddle's path through them."""
         if not len(self._arm_frames):
             return
         times, qs = self._arm_frames.take()
         index = [rr.TimeColumn(TIMELINE, duration=times)]
-        # One entity per joint: an entity holds one transform between two frames.
-        for name, rotations in zip(self.joint_names, joint_rotations(self.robot_state, qs)):
-            rr.send_columns(f'tf/{name}', indexes=index, columns=rr.Transform3D.columns(quaternion=rotations),
-                            recording=self.rec)
+        n = len(times)
+        # One entity per joint: an entity holds one transform between two frames. Every row carries the whole
+        # transform: rerun resolves a Transform3D from its last row alone (a row of rotations only would drop
+        # the translation and the frames).
+        for joint, rotations in zip(self.robot_state.moving_joints, joint_rotations(self.robot_state, qs)):
+            rr.send_columns(f'tf/{joint.name}', indexes=index, columns=rr.Transform3D.columns(
+                translation=np.broadcast_to(joint.origin_xyz_m, (n, 3)), quaternion=rotations,
+                parent_frame=[joint.parent] * n, child_frame=[joint.child] * n), recording=self.rec)
         centres, _ = self._paddle_centre_poses.poses(qs)
         for time_s, centre in zip(times, centres):
             self._paddle_path.add(time_s, self._to_world(centre))

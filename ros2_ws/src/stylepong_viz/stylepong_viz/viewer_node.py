@@ -66,9 +66,8 @@ def _start_page(args: argparse.Namespace):
     recording = rr.RecordingStream(APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(
         flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ)))
     page = serve(recording, blueprint(), args.web_port, args.grpc_port, args.memory_limit, args.host)
-    # The address first: a browser loads the viewer (tens of MB of Wasm) while the scene is logged.
-    print(f'{PROGRAM}: open {page.url}', flush=True)
     view = CellView(recording)
+    print(f'{PROGRAM}: open {page.url}', flush=True)
     return view, page
 
 
@@ -150,7 +149,7 @@ def make_live_node(args: argparse.Namespace):
             # that a slow viewer never holds a publisher back; a queue holds a tick's messages with room to
             # spare, and a late tick loses the oldest, never the graph's time. The 500 Hz streams are taken
             # raw: a message the view drops costs its stamp's 8 bytes.
-            self._inputs = Node('stylepong_viewer_inputs', context=self.context)
+            self._inputs = Node('stylepong_viewer_inputs', context=self.context, start_parameter_services=False)
             queue = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
             subscribe = self._inputs.create_subscription
             self._streams = (

@@ -19,7 +19,7 @@ def test_joint_rotations_are_robot_states():
     for row, q in enumerate(JOINT_VECTORS):
         for k, transform in enumerate(STATE.moving_transforms(q)):
             assert _same_rotation(rotations[k][row], transform.rotation_xyzw)
-            # what the viewer logs once per joint: the translation does not move with a rotating joint
+            # the viewer sends each rotation with its joint origin's translation, which a rotation does not move
             assert np.allclose(transform.translation_m, STATE.moving_joints[k].origin_xyz_m)
 
 
