@@ -27,6 +27,7 @@ def main() -> int:
         run = pathlib.Path(tmp) / 'run'
         command = [sys.executable, '-m', 'stylepong_policy.learn_style', str(ROOT / 'ros2_ws' / 'bags'), '--out',
                    str(run), '--minutes', f'{MINUTES:g}', '--device', DEVICE]
+        load_before = os.getloadavg()[0]
         started = time.perf_counter()
         result = subprocess.run(command, capture_output=True, text=True)
         wall_s = time.perf_counter() - started
@@ -38,7 +39,9 @@ def main() -> int:
     train = stages['train']
     print('## learn_style: wall time per stage\n')
     print(f'`learn_style ros2_ws/bags --out RUN --minutes {MINUTES:g} --device {DEVICE}` (the shipped clips, '
-          f'config/amp.yaml as shipped), one run, {wall_s / 60.0:.1f} min from start to report:\n')
+          f'config/amp.yaml as shipped), one run, {wall_s / 60.0:.1f} min from start to report; load average '
+          f'{load_before:.1f} before it and {os.getloadavg()[0]:.1f} after (2 = both cores busy: a loaded machine '
+          'gives a training stage fewer samples in its budget and the other stages longer):\n')
     print('| stage | wall time (s) |')
     print('|---|---|')
     for name, record in stages.items():

@@ -188,6 +188,11 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
         raise KeyboardInterrupt
     if result.actor_path is None:
         raise StyleError('training completed no iteration within its budget; give more --minutes')
+    # The budget ends between numbered checkpoints: the last iteration is a candidate too (and, on a short
+    # budget or a slow machine, may be the only one).
+    last = runner.checkpoint_dir / f'model_{runner.iteration:06d}.pt'
+    if not last.is_file():
+        runner.save(last)
     return {'iterations': runner.iteration, 'samples': runner.env_steps,
             'training_time_s': round(runner.wall_time_s, 1),
             'samples_per_s': round(runner.env_steps / max(runner.wall_time_s, 1e-9), 1)}
