@@ -25,6 +25,7 @@ from stylepong_common.node_process import NodeProcess, free_port
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 REACH_RIGHT_RAD = [-1.5, -1.2, 1.2, -1.57, -1.57, -1.57]   # paddle at world y about -0.6 m from the base
 PAGE_DEADLINE_S = 10.0     # from the viewer's start to a page showing the arm and the table
+RELOAD_AFTER_S = 8.0       # a page without a cell view this long after it was opened is opened again
 # Share of the arm's pixels right of the view's centre line: about 0.6 reaching right (the base stands on the
 # line), 0.16 at the home pose, less at the URDF's zero pose.
 ARM_RIGHT_FRACTION = 0.45
@@ -59,14 +60,20 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
             time.sleep(2.0)                                        # the sim and the player come up meanwhile
             started = time.monotonic()
             viewer.start()
-            browser.navigate(_wait_for_url(viewer, PAGE_DEADLINE_S))
-            shots = []
+            url = _wait_for_url(viewer, PAGE_DEADLINE_S)
+            browser.navigate(url)
+            opened, shots = time.monotonic(), []
             while time.monotonic() - started < PAGE_DEADLINE_S + 15.0:   # keeps looking, to say how late it was
-                png = browser.shoot()
+                png = browser.shoot(timeout_s=60.0)
                 shots.append((time.monotonic() - started, png, cell_view_pixels(png, BACKGROUND_RGB)))
                 found = shots[-1][2]
                 if found['table'] > 2000 and found['arm'] > 1000 and found['arm_right_fraction'] > ARM_RIGHT_FRACTION:
                     break
+                if found['region'] is None and time.monotonic() - opened > RELOAD_AFTER_S:
+                    # Still no cell view: rerun's page stays on its welcome screen when its first connection to
+                    # the data fails (seen on a saturated machine); a person reloads, and so does the test.
+                    browser.navigate(url)
+                    opened = time.monotonic()
                 time.sleep(0.5)
         print('shots (s after start: table, arm pixels, right share):',
               ', '.join(f'{t:.1f}: {f["table"]}/{f["arm"]}/{f["arm_right_fraction"]:.2f}' for t, _, f in shots))

@@ -100,9 +100,9 @@ class HeadlessPage:
                     raise BrowserError(f'{method}: {reply["error"]}')
                 return reply.get('result', {})
 
-    def shoot(self) -> bytes:
-        """The page as it is now, PNG."""
-        return base64.b64decode(self._call('Page.captureScreenshot', format='png')['data'])
+    def shoot(self, timeout_s: float = 30.0) -> bytes:
+        """The page as it is now, PNG (a software-drawn frame on a busy machine can take tens of seconds)."""
+        return base64.b64decode(self._call('Page.captureScreenshot', timeout_s=timeout_s, format='png')['data'])
 
     def close(self) -> None:
         sock = getattr(self, '_socket', None)

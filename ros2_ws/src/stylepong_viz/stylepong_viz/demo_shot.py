@@ -22,6 +22,7 @@ from stylepong_viz.browser_shot import BrowserError, HeadlessPage, cell_view_pix
 from stylepong_viz.cell_view import BACKGROUND_RGB
 
 SHOT_PERIOD_S = 0.3
+SHOT_TIMEOUT_S = 120.0
 URL_LINE = re.compile(r'viewer: open (\S+)')
 START_TIMEOUT_S = 60.0
 # A shot counts when its 3D view holds the table and the arm, and at least this many ball/trail pixels.
@@ -49,7 +50,7 @@ def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, heig
     ]
     best: tuple[int, bytes, dict] | None = None
     try:
-        with HeadlessPage(width=width, height=height) as browser:
+        with HeadlessPage(width=width, height=height, start_timeout_s=START_TIMEOUT_S) as browser:
             viewer = start_logged(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(free_port()),
                                    '--grpc-port', str(free_port())], env, logs / 'viewer.log')
             processes.append(viewer)
@@ -59,7 +60,7 @@ def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, heig
                                   '--first-seed', str(first_seed)], env, logs / 'rally.log')
             processes.append(rally)
             while rally.poll() is None:
-                png = browser.shoot()
+                png = browser.shoot(timeout_s=SHOT_TIMEOUT_S)
                 found = cell_view_pixels(png, BACKGROUND_RGB)
                 if found['table'] > 2000 and found['arm'] > 1000 and (best is None or found['ball'] > best[0]):
                     best = (found['ball'], png, found)

@@ -65,17 +65,22 @@ def _start_page(args: argparse.Namespace):
     # Rows logged one at a time leave for the page at each flush of the view, not rerun's default 0.2 s.
     recording = rr.RecordingStream(APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(
         flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ)))
+    before = thread_ids()
     page = serve(recording, blueprint(), args.web_port, args.grpc_port, args.memory_limit, args.host)
     view = CellView(recording)
     print(f'{PROGRAM}: open {page.url}', flush=True)
-    return view, page
+    return view, page, thread_ids() - before
 
 
-def lower_priority(increment: int) -> None:
-    """Every thread of this process `increment` nicer (at most 19). On Linux a priority is a thread's, and a
-    thread started later takes its starter's: the ones rclpy and rerun start afterwards are nicer too."""
-    for task in pathlib.Path('/proc/self/task').iterdir():
-        tid = int(task.name)
+def thread_ids() -> set[int]:
+    """The ids of this process's threads now."""
+    return {int(task.name) for task in pathlib.Path('/proc/self/task').iterdir()}
+
+
+def lower_priority(increment: int, keep: set[int] = frozenset()) -> None:
+    """Every thread of this process but `keep` `increment` nicer (at most 19). On Linux a priority is a
+    thread's, and a thread started later takes its starter's: the ones rclpy starts afterwards are nicer too."""
+    for tid in thread_ids() - set(keep):
         try:
             os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + increment))
         except OSError:      # the thread ended meanwhile
@@ -89,7 +94,7 @@ def run_bag(args: argparse.Namespace) -> int:
     from stylepong_viz.bag_view import BagError, _open_reader, show_bag
     try:
         _open_reader(args.bag).close()    # refuse a missing or damaged bag before serving anything
-        view, _page = _start_page(args)
+        view, _page, _ = _start_page(args)
         counts = show_bag(args.bag, view)
     except (BagError, OSError) as error:
         print(f'{PROGRAM}: {" ".join(str(error).split())}', file=sys.stderr)
@@ -141,7 +146,7 @@ def make_live_node(args: argparse.Namespace):
 
         def __init__(self, **node_kwargs):
             super().__init__('stylepong_viewer', **node_kwargs)
-            self.view, self.page = _start_page(args)
+            self.view, self.page, page_threads = _start_page(args)
             self._warnings = ThrottledLog(self.get_logger(), 2.0)
             self._joint_bytes = JointStateBytes()
             # The subscriptions hang on a second node that no executor spins: no callback, no wake-up per
@@ -166,8 +171,10 @@ def make_live_node(args: argparse.Namespace):
                  self._status),
             )
             self.create_timer(1.0 / FLUSH_RATE_HZ, self._draw)
-            # Started at the caller's priority (the page comes up sooner); from here on the graph goes first.
-            lower_priority(args.nice)
+            # Started at the caller's priority (the page comes up sooner); from here on the graph goes first,
+            # but for the threads that serve the page (started by serve()): starved, a browser's first
+            # connection timed out and it stayed on rerun's welcome screen.
+            lower_priority(args.nice, keep=page_threads)
             self.get_logger().info(f'serving {self.page.url} (nice +{args.nice})')
 
         def _draw(self) -> None:
