@@ -294,14 +294,13 @@ def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device
                           strokes_path: pathlib.Path | None) -> dict:
     """evaluate's summary of an actor with DTW against `dataset`, its strokes saved when a path is given."""
     from stylepong_player.spec import ACTION_RATE_HZ
-    from stylepong_policy import evaluate
-    from stylepong_policy import strokes as st
+    from stylepong_policy import evaluate, strokes
     from stylepong_policy.rl.export import load_actor
     loaded = load_actor(actor)
     evaluation = evaluate.evaluate_actor(loaded, speed=speed, device=device, **setting)
     summary = evaluate.summarise(evaluation, dataset=evaluate.load_reference(dataset), dataset_path=dataset)
     if strokes_path is not None:
-        st.save_strokes(strokes_path, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
+        strokes.save_strokes(strokes_path, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
                         joint_names=loaded.metadata['joint_names'], actor=evaluation.actor, speed=speed)
         summary['strokes_file'] = evaluate.portable_path(strokes_path)
     return summary

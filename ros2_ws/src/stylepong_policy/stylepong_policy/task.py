@@ -43,16 +43,13 @@ from dataclasses import asdict, dataclass, field, fields
 import torch
 
 from stylepong_player import spec
-from stylepong_policy import strokes as st
+from stylepong_policy import strokes
 from stylepong_policy.rl import env as env_contract
-from stylepong_sim import batched_launcher as bl
-from stylepong_sim import batched_world as bw
-from stylepong_sim import referee as rf
-from stylepong_sim import world_spec as ws
+from stylepong_sim import batched_launcher, batched_world, referee, world_spec
 
-FAILURE_REASONS: tuple[str, ...] = rf.REASONS
-SUCCESS_INDEX = rf.REASON_INDEX[rf.REASON_RETURNED]
-ILLEGAL_REASONS = (rf.REASON_ROBOT_CONTACT, rf.REASON_TABLE_CONTACT_BY_ROBOT, rf.REASON_DOUBLE_HIT)
+FAILURE_REASONS: tuple[str, ...] = referee.REASONS
+SUCCESS_INDEX = referee.REASON_INDEX[referee.REASON_RETURNED]
+ILLEGAL_REASONS = (referee.REASON_ROBOT_CONTACT, referee.REASON_TABLE_CONTACT_BY_ROBOT, referee.REASON_DOUBLE_HIT)
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
 # The slowest approach the style clock divides by: a ball this slow along x is about to be decided anyway.
 MIN_APPROACH_SPEED_M_S = 0.5
@@ -63,16 +60,16 @@ REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc'
 class TaskConfig:
     """Every parameter of the environment, its randomisation and its reward (YAML: the `task` section)."""
     num_envs: int = 1024                            # config/ppo.yaml's (the source; see rl.config)
-    speed_range_m_s: tuple[float, float] = tuple(ws.SPEED_RANGES_M_S['all'])
+    speed_range_m_s: tuple[float, float] = tuple(world_spec.SPEED_RANGES_M_S['all'])
     randomize: bool = True
     # World
-    physics_rate_hz: float = bw.PHYSICS_RATE_HZ
-    arm_substeps: int = bw.ARM_SUBSTEPS
+    physics_rate_hz: float = batched_world.PHYSICS_RATE_HZ
+    arm_substeps: int = batched_world.ARM_SUBSTEPS
     cpu_threads: int = 1                            # torch threads while the env steps (0: leave as set)
     compile_world: bool = False                     # torch.compile the world's stages (3x faster, ~1 min start)
-    episode_length_s: float = ws.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
+    episode_length_s: float = world_spec.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
     reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
-    goal_radius_m: float = ws.GOAL_RADIUS_M
+    goal_radius_m: float = world_spec.GOAL_RADIUS_M
     # Sensing noise: maximum standard deviations; each episode draws a level in [0, 1] times these.
     noise_joint_position_rad: float = 0.003
     noise_joint_velocity_rad_s: float = 0.03
@@ -83,9 +80,9 @@ class TaskConfig:
     max_joint_delay_s: float = 0.008                # joint state
     max_action_delay_s: float = 1.0 / 60.0          # command to servo (whole physics steps)
     # Physics randomisation ranges.
-    table_restitution_range: tuple[float, float] = tuple(ws.TABLE_RESTITUTION_RANGE)
-    table_tangential_range: tuple[float, float] = tuple(ws.TABLE_TANGENTIAL_FACTOR_RANGE)
-    paddle_restitution_range: tuple[float, float] = tuple(ws.PADDLE_RESTITUTION_RANGE)
+    table_restitution_range: tuple[float, float] = tuple(world_spec.TABLE_RESTITUTION_RANGE)
+    table_tangential_range: tuple[float, float] = tuple(world_spec.TABLE_TANGENTIAL_FACTOR_RANGE)
+    paddle_restitution_range: tuple[float, float] = tuple(world_spec.PADDLE_RESTITUTION_RANGE)
     paddle_tangential_range: tuple[float, float] = (0.70, 0.80)
     drag_scale_range: tuple[float, float] = (0.95, 1.05)
     gravity_range_m_s2: tuple[float, float] = (9.76, 9.86)
@@ -176,9 +173,9 @@ def launch_directions(position_m: torch.Tensor, velocity_m_s: torch.Tensor, plan
     gives the ball afterwards, known from its launch."""
     arrival_y_m = position_m[1] + (plane_x_m - position_m[0]) * velocity_m_s[1] / velocity_m_s[0]
     offset_m = arrival_y_m - paddle_home_y_m
-    index = st.DIRECTIONS.index
-    return torch.where(offset_m > st.LEFTWARD_ABOVE_M, index('leftward'),
-                       torch.where(offset_m < st.RIGHTWARD_BELOW_M, index('rightward'), index('forward')))
+    index = strokes.DIRECTIONS.index
+    return torch.where(offset_m > strokes.LEFTWARD_ABOVE_M, index('leftward'),
+                       torch.where(offset_m < strokes.RIGHTWARD_BELOW_M, index('rightward'), index('forward')))
 
 
 class TableTennisEnv:
@@ -194,7 +191,7 @@ class TableTennisEnv:
         self.num_obs = spec.NUM_OBS
         self.num_critic_obs = spec.NUM_OBS + sum(size for _, size in PRIVILEGED_LAYOUT)
         threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
-        self.world = bw.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
+        self.world = batched_world.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
                                      arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
                                      cpu_threads=None, compile=cfg.compile_world)
         self.cpu_threads = threads
@@ -205,7 +202,7 @@ class TableTennisEnv:
         if cfg.max_action_delay_s > self.policy_dt_s + 1e-9:
             raise ValueError(f'max_action_delay_s must not exceed one policy period ({self.policy_dt_s:.4f} s)')
         # Two streams: the balls (the sampler's own generator) and everything else the task draws.
-        self.sampler = bl.IncomingBallSampler(cfg.speed_range_m_s, seed=seed, device=self.device,
+        self.sampler = batched_launcher.IncomingBallSampler(cfg.speed_range_m_s, seed=seed, device=self.device,
                                               batch=max(1024, 2 * self.num_envs))
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(int(seed) * 7919 + 104729)
@@ -214,9 +211,9 @@ class TableTennisEnv:
         # Constants of the resets and the privileged observation, made once rather than every step.
         self._max_noise_std = torch.tensor([cfg.noise_joint_position_rad, cfg.noise_joint_velocity_rad_s,
                                             cfg.noise_ball_position_m, cfg.noise_ball_velocity_m_s], **kw)
-        self._kp_nominal = torch.tensor(ws.ARM_KP_NM_PER_RAD, **kw)[:, None]
-        self._kd_nominal = torch.tensor(ws.ARM_KD_NMS_PER_RAD, **kw)[:, None]
-        self._goal_z_m = ws.TABLE_CONTACT_HEIGHT_M
+        self._kp_nominal = torch.tensor(world_spec.ARM_KP_NM_PER_RAD, **kw)[:, None]
+        self._kd_nominal = torch.tensor(world_spec.ARM_KD_NMS_PER_RAD, **kw)[:, None]
+        self._goal_z_m = world_spec.TABLE_CONTACT_HEIGHT_M
         self._bat_axes = torch.tensor(['xyz'.index(a) for a in cfg.bat_axes], device=self.device)
         self.last_action = torch.zeros(n, spec.NUM_ACTIONS, **kw)
         self._qd_prev = torch.zeros(n, spec.NUM_ACTIONS, **kw)
@@ -232,12 +229,12 @@ class TableTennisEnv:
         self._steps_since_hit = torch.zeros(n, dtype=torch.long, device=self.device)
         self._style_weight_steps = round(cfg.style_weight_after_hit_s / self.policy_dt_s)
         # A stroke ends this many steps after the paddle's touch, as `evaluate` cuts strokes (strokes module).
-        self._follow_through_steps = round(st.FOLLOW_THROUGH_S / self.policy_dt_s)
+        self._follow_through_steps = round(strokes.FOLLOW_THROUGH_S / self.policy_dt_s)
         self.num_style_features = ARM_STATE_SIZE
         # The kinds of motion a step may ask the motion prior for (rl.env's style labels): the stroke each
         # ball needs, labelled as the demonstrations are.
-        self.style_labels = st.DIRECTIONS
-        paddle_home_m = st.paddle_home_position_m()
+        self.style_labels = strokes.DIRECTIONS
+        paddle_home_m = strokes.paddle_home_position_m()
         self._plane_x_m, self._paddle_home_y_m = paddle_home_m[0], paddle_home_m[1]
 
     # --- what the outside reads -------------------------------------------------------------------
@@ -273,8 +270,8 @@ class TableTennisEnv:
         self.world.reset_envs(env_ids, q, position, velocity, params)
         # Goal region wholly on the opponent's half.
         r = cfg.goal_radius_m
-        goal = torch.stack((self._uniform(k, (r, ws.HALF_LENGTH_M - r)),
-                            self._uniform(k, (-ws.HALF_WIDTH_M + r, ws.HALF_WIDTH_M - r))), dim=1)
+        goal = torch.stack((self._uniform(k, (r, world_spec.HALF_LENGTH_M - r)),
+                            self._uniform(k, (-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r))), dim=1)
         self.episode.goal_xy_m[env_ids] = goal
         self.launch_velocity_m_s[env_ids] = velocity.T.to(torch.float32)
         self.episode.direction[env_ids] = launch_directions(position, velocity, self._plane_x_m, self._paddle_home_y_m)
@@ -298,8 +295,8 @@ class TableTennisEnv:
         for name in REWARD_TERMS:
             self.episode.reward_sums[name][env_ids] = 0.0
 
-    def _physics_params(self, k: int) -> bw.PhysicsParams:
-        params = bw.PhysicsParams.nominal(k, self.device)
+    def _physics_params(self, k: int) -> batched_world.PhysicsParams:
+        params = batched_world.PhysicsParams.nominal(k, self.device)
         cfg = self.cfg
         if not cfg.randomize:
             return params
@@ -315,7 +312,7 @@ class TableTennisEnv:
 
     def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Start a new episode in every environment; returns (actor obs, critic obs)."""
-        with bw.torch_threads(self.cpu_threads):
+        with batched_world.torch_threads(self.cpu_threads):
             self._reset_envs(torch.arange(self.num_envs, device=self.device))
             return self._observations()
 
@@ -343,7 +340,7 @@ class TableTennisEnv:
                                      self.last_action)
         w = self.world
         p = w.params
-        physics = torch.stack((p.gravity_m_s2, p.drag_k_per_m / ws.DRAG_K_PER_M, p.table_restitution,
+        physics = torch.stack((p.gravity_m_s2, p.drag_k_per_m / world_spec.DRAG_K_PER_M, p.table_restitution,
                                p.table_tangential_factor, p.paddle_restitution, p.paddle_tangential_factor,
                                (p.kp_nm_per_rad / self._kp_nominal).mean(0),
                                (p.kd_nms_per_rad / self._kd_nominal).mean(0)),
@@ -376,7 +373,7 @@ class TableTennisEnv:
           'ball_state'    [N, 6] true ball position and velocity
           'reward_terms'  {term: [N]} this step's reward terms
         """
-        with bw.torch_threads(self.cpu_threads):
+        with batched_world.torch_threads(self.cpu_threads):
             return self._step(actions)
 
     def _step(self, actions: torch.Tensor):
@@ -405,7 +402,8 @@ class TableTennisEnv:
         dones = events.decided
         outcome = {'done': dones, 'success': events.success & dones, 'hit': w.hit & dones,
                    'reason': events.reason.clamp_min(0)}
-        extras = {env_contract.EXTRAS_TIME_OUTS: dones & (events.reason == rf.REASON_INDEX[rf.REASON_TIMEOUT]),
+        timed_out = dones & (events.reason == referee.REASON_INDEX[referee.REASON_TIMEOUT])
+        extras = {env_contract.EXTRAS_TIME_OUTS: timed_out,
                   env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
                   env_contract.EXTRAS_STYLE_STATE: arm_state,
                   env_contract.EXTRAS_STYLE_LABEL: self.episode.direction.clone(),
@@ -443,7 +441,7 @@ class TableTennisEnv:
             return struck
         return struck & (self._steps_since_hit <= self._style_weight_steps)
 
-    def _rewards(self, action, hit_before, events: bw.StepEvents, q, qd) -> dict[str, torch.Tensor]:
+    def _rewards(self, action, hit_before, events: batched_world.StepEvents, q, qd) -> dict[str, torch.Tensor]:
         cfg = self.cfg
         w = self.world
         ball = w.ball_pos_m.T
@@ -463,7 +461,7 @@ class TableTennisEnv:
                                       / cfg.sigma_land_m) * success
         illegal_mask = torch.zeros_like(success)
         for name in ILLEGAL_REASONS:
-            illegal_mask |= events.decided & (events.reason == rf.REASON_INDEX[name])
+            illegal_mask |= events.decided & (events.reason == referee.REASON_INDEX[name])
         qdd = (qd - self._qd_prev) / self.policy_dt_s
         acc = cfg.w_acc * (torch.exp(-torch.linalg.vector_norm(qdd, dim=1) / cfg.sigma_acc_rad_s2) - 1.0)
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
@@ -490,7 +488,7 @@ class TableTennisEnv:
         land_y = p[1] + v[1] * t_land
         t_net = (-p[0] / v[0].clamp_min(1e-3)).clamp(min=0.0)
         z_net = p[2] + v[2] * t_net - 0.5 * g * t_net * t_net
-        clearance = z_net - (ws.NET_TOP_HEIGHT_M + ws.BALL_RADIUS_M)
+        clearance = z_net - (world_spec.NET_TOP_HEIGHT_M + world_spec.BALL_RADIUS_M)
         over_net = torch.sigmoid(clearance / 0.02) * ((v[0] > 0.0) & (t_net < t_land))
         distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2
                               + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from stylepong_policy import style_metrics as sm
+from stylepong_policy import style_metrics
 
 # A stroke longer than this (frames at the policy rate; 5 s at 60 Hz) keeps its first MAX_FRAMES frames.
 MAX_FRAMES = 300
@@ -68,7 +68,7 @@ class StrokePrior:
         if not clips:
             return None
         stroke = np.ascontiguousarray(stroke_rad, dtype=np.float64)
-        return min(sm.dtw_distance_rad(stroke, clip) for clip in clips)
+        return min(style_metrics.dtw_distance_rad(stroke, clip) for clip in clips)
 
     def observe(self, q_rad: torch.Tensor, stroke_end: torch.Tensor, dones: torch.Tensor,
                 next_first_q_rad: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
