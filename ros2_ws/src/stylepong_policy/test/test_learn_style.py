@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_policy import learn_style as ls
-from stylepong_policy import style_report
+from stylepong_policy import learn_style, style_report
 from stylepong_policy.rl.export import load_actor, read_sidecar
 
 BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
@@ -31,69 +30,69 @@ def tiny_recipe(device):
     return cfg, path
 
 
-REAL_RECIPE = ls.recipe
-REAL_BUDGET = ls.training_budget_s
+REAL_RECIPE = learn_style.recipe
+REAL_BUDGET = learn_style.training_budget_s
 
 
 @pytest.fixture(scope='module')
 def run(tmp_path_factory):
     """A whole learn_style run on the shipped clips: 3 s of training, a few balls per evaluation."""
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(ls, 'recipe', tiny_recipe)
-        patch.setattr(ls, 'training_budget_s', lambda minutes: 3.0)
-        patch.setattr(ls, 'VALIDATION', dict(seeds=1, first_seed=900, balls=6))
-        patch.setattr(ls, 'EVALUATION', dict(seeds=1, first_seed=1000, balls=6))
-        patch.setattr(ls, 'EVALUATION_HIGH', dict(seeds=1, first_seed=2000, balls=6))
+        patch.setattr(learn_style, 'recipe', tiny_recipe)
+        patch.setattr(learn_style, 'training_budget_s', lambda minutes: 3.0)
+        patch.setattr(learn_style, 'VALIDATION', dict(seeds=1, first_seed=900, balls=6))
+        patch.setattr(learn_style, 'EVALUATION', dict(seeds=1, first_seed=1000, balls=6))
+        patch.setattr(learn_style, 'EVALUATION_HIGH', dict(seeds=1, first_seed=2000, balls=6))
         out = tmp_path_factory.mktemp('learn_style') / 'run'
         torch.set_num_threads(1)
-        code = ls.main([str(BAGS), '--out', str(out), '--minutes', '5'])
+        code = learn_style.main([str(BAGS), '--out', str(out), '--minutes', '5'])
         assert code == 0
         yield out
 
 
 @pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
-    actor = load_actor(run / ls.ACTOR_NAME)
+    actor = load_actor(run / learn_style.ACTOR_NAME)
     assert actor(torch.zeros(1, actor.num_obs)).shape == (1, actor.num_actions)
     # The player runs it as it is: the ONNX file against the contract of this workspace's spec.
     from stylepong_player.actor_contract import current_spec_contract
     from stylepong_player.player_core import load_actor as player_actor
     onnx = player_actor(run / 'actor.onnx', 'onnx', current_spec_contract())
     assert onnx(np.zeros((1, actor.num_obs), dtype=np.float32)).shape == (1, actor.num_actions)
-    assert read_sidecar(run / ls.ACTOR_NAME)['training']['learn_style']['candidate']
-    checkpoint = torch.load(run / ls.ACTOR_CHECKPOINT_NAME, map_location='cpu', weights_only=False)
+    assert read_sidecar(run / learn_style.ACTOR_NAME)['training']['learn_style']['candidate']
+    checkpoint = torch.load(run / learn_style.ACTOR_CHECKPOINT_NAME, map_location='cpu', weights_only=False)
     assert {'model', 'architecture'} <= set(checkpoint) and checkpoint['optimizer'] is None
     report = (run / style_report.REPORT_MD).read_text()
     assert 'PPO' in report and 'shipped' in report
     for name in style_report.ACTORS:
         files = style_report.eval_files(run, name)
         assert files.all_speeds_json.is_file() and files.strokes_npz.is_file()
-    state = json.loads((run / ls.STATE_NAME).read_text())
-    assert list(state['stages']) == list(ls.STAGES)
+    state = json.loads((run / learn_style.STATE_NAME).read_text())
+    assert list(state['stages']) == list(learn_style.STAGES)
     assert state['stages']['choose']['chosen'] in json.loads((run / 'choose' / 'candidates.json').read_text())[
         'chosen']
 
 
 @pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_finished_run_is_not_overwritten_and_resumes_only_what_is_missing(run):
-    assert ls.main([str(BAGS), '--out', str(run)]) == 2
-    state = json.loads((run / ls.STATE_NAME).read_text())
+    assert learn_style.main([str(BAGS), '--out', str(run)]) == 2
+    state = json.loads((run / learn_style.STATE_NAME).read_text())
     del state['stages']['report']
-    (run / ls.STATE_NAME).write_text(json.dumps(state))
+    (run / learn_style.STATE_NAME).write_text(json.dumps(state))
     (run / style_report.REPORT_MD).unlink()
-    actor_written = (run / ls.ACTOR_NAME).stat().st_mtime_ns
-    assert ls.main([str(BAGS), '--out', str(run), '--resume']) == 0
+    actor_written = (run / learn_style.ACTOR_NAME).stat().st_mtime_ns
+    assert learn_style.main([str(BAGS), '--out', str(run), '--resume']) == 0
     assert (run / style_report.REPORT_MD).is_file()
-    assert (run / ls.ACTOR_NAME).stat().st_mtime_ns == actor_written
-    assert 'report' in json.loads((run / ls.STATE_NAME).read_text())['stages']
+    assert (run / learn_style.ACTOR_NAME).stat().st_mtime_ns == actor_written
+    assert 'report' in json.loads((run / learn_style.STATE_NAME).read_text())['stages']
 
 
 @pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
 def test_a_learn_style_run_is_a_skill_to_start_from(run):
-    assert ls.skill_checkpoint(run) == run / ls.ACTOR_CHECKPOINT_NAME
-    assert ls.skill_checkpoint(run / ls.ACTOR_NAME) == run / ls.ACTOR_CHECKPOINT_NAME
-    with pytest.raises(ls.StyleError, match='not a training checkpoint'):
-        ls.skill_checkpoint(ls.models_dir() / 'ppo_actor.pt')
+    assert learn_style.skill_checkpoint(run) == run / learn_style.ACTOR_CHECKPOINT_NAME
+    assert learn_style.skill_checkpoint(run / learn_style.ACTOR_NAME) == run / learn_style.ACTOR_CHECKPOINT_NAME
+    with pytest.raises(learn_style.StyleError, match='not a training checkpoint'):
+        learn_style.skill_checkpoint(learn_style.models_dir() / 'ppo_actor.pt')
 
 
 def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
@@ -105,7 +104,7 @@ def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and str(empty) in lines[0], result.stderr
-    assert not (tmp_path / 'run' / ls.TRAIN_DIR).exists()
+    assert not (tmp_path / 'run' / learn_style.TRAIN_DIR).exists()
     assert time.monotonic() - started < 30.0
 
 
@@ -113,7 +112,7 @@ def test_candidates_are_averages_along_the_end_of_the_run_and_the_last_checkpoin
     from stylepong_policy import select_checkpoint
     numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]     # 12 checkpoints
     monkeypatch.setattr(select_checkpoint, 'numbered_checkpoints', lambda run_dir: numbered)
-    candidates = dict(ls.candidates_of(tmp_path))
+    candidates = dict(learn_style.candidates_of(tmp_path))
     assert candidates == {'average_150_200': [150, 200], 'average_250_300': [250, 300],
                           'average_350_400': [350, 400], 'average_450_500': [450, 500],
                           'average_550_600': [550, 600], 'average_450_600': [450, 500, 550, 600],
@@ -124,11 +123,11 @@ def test_the_choice_is_the_most_stylish_candidate_that_returns_enough_balls():
     rows = [{'candidate': 'a', 'success_rate': 0.95, 'mean_dtw_rad': 20.0},
             {'candidate': 'b', 'success_rate': 0.93, 'mean_dtw_rad': 15.0},
             {'candidate': 'c', 'success_rate': 0.80, 'mean_dtw_rad': 5.0}]
-    assert ls.choose_candidate(rows)['candidate'] == 'b'
-    assert ls.choose_candidate([dict(r, success_rate=0.5) for r in rows])['candidate'] == 'a'
+    assert learn_style.choose_candidate(rows)['candidate'] == 'b'
+    assert learn_style.choose_candidate([dict(r, success_rate=0.5) for r in rows])['candidate'] == 'a'
 
 
 def test_training_gets_all_but_the_reserve():
-    assert REAL_BUDGET(60.0) == 60.0 * 60.0 - ls.RESERVE_S
+    assert REAL_BUDGET(60.0) == 60.0 * 60.0 - learn_style.RESERVE_S
     assert REAL_BUDGET(4.0) == pytest.approx(180.0)
-    assert REAL_BUDGET(0.1) == ls.MIN_TRAIN_S
+    assert REAL_BUDGET(0.1) == learn_style.MIN_TRAIN_S
