@@ -353,6 +353,13 @@ def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
 # Video
 
 
+def save_evaluation_strokes(path: str | os.PathLike, evaluation: Evaluation, actor: LoadedActor) -> str:
+    """Write an evaluation's strokes (strokes.save_strokes) and return the path as the summary names it."""
+    save_strokes(path, evaluation.strokes, rate_hz=ACTION_RATE_HZ, joint_names=actor.metadata['joint_names'],
+                 actor=evaluation.actor, speed=evaluation.speed)
+    return portable_path(path)
+
+
 def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'overview',
                  hold_s: float = 0.5) -> int:
     """Replay strokes in the cell's MuJoCo model (kinematics only: joint positions and the ball marker
@@ -451,9 +458,7 @@ def main(argv: list[str] | None = None) -> int:
                                 speed=args.speed, randomize=args.randomize, device=device, progress=report)
     summary = summarise(evaluation, dataset=dataset, dataset_path=args.dtw)
     if args.save_strokes is not None:
-        save_strokes(args.save_strokes, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
-                     joint_names=actor.metadata['joint_names'], actor=evaluation.actor, speed=args.speed)
-        summary['strokes_file'] = portable_path(args.save_strokes)
+        summary['strokes_file'] = save_evaluation_strokes(args.save_strokes, evaluation, actor)
     if args.video is not None:
         shown = evaluation.results[0].strokes[:args.video_strokes]
         frames = render_video(shown, args.video, camera=args.camera)

@@ -293,16 +293,13 @@ def evaluate_stage(paths: Paths, device: str) -> dict:
 def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device: str, dataset: pathlib.Path,
                           strokes_path: pathlib.Path | None) -> dict:
     """evaluate's summary of an actor with DTW against `dataset`, its strokes saved when a path is given."""
-    from stylepong_player.spec import ACTION_RATE_HZ
-    from stylepong_policy import evaluate, strokes
+    from stylepong_policy import evaluate
     from stylepong_policy.rl.export import load_actor
     loaded = load_actor(actor)
     evaluation = evaluate.evaluate_actor(loaded, speed=speed, device=device, **setting)
     summary = evaluate.summarise(evaluation, dataset=evaluate.load_reference(dataset), dataset_path=dataset)
     if strokes_path is not None:
-        strokes.save_strokes(strokes_path, evaluation.strokes, rate_hz=ACTION_RATE_HZ,
-                        joint_names=loaded.metadata['joint_names'], actor=evaluation.actor, speed=speed)
-        summary['strokes_file'] = evaluate.portable_path(strokes_path)
+        summary['strokes_file'] = evaluate.save_evaluation_strokes(strokes_path, evaluation, loaded)
     return summary
 
 
