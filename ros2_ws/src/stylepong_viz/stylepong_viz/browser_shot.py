@@ -26,6 +26,7 @@ import urllib.request
 
 import numpy as np
 
+DETACHED = 'Not attached to an active page'   # DevTools' answer between two renderers of one tab
 CHROMIUM_NAMES = ('chromium', 'chromium-browser', 'google-chrome', 'google-chrome-stable')
 
 
@@ -102,7 +103,17 @@ class HeadlessPage:
 
     def shoot(self, timeout_s: float = 30.0) -> bytes:
         """The page as it is now, PNG (a software-drawn frame on a busy machine can take tens of seconds)."""
-        return base64.b64decode(self._call('Page.captureScreenshot', timeout_s=timeout_s, format='png')['data'])
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                reply = self._call('Page.captureScreenshot', timeout_s=max(1.0, deadline - time.monotonic()),
+                                   format='png')
+                return base64.b64decode(reply['data'])
+            except BrowserError as error:
+                # While a navigation swaps the page's renderer, the target briefly has no page to shoot.
+                if DETACHED not in str(error) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
 
     def close(self) -> None:
         sock = getattr(self, '_socket', None)
