@@ -10,7 +10,8 @@ Same API as cell.Cell (what ur5_sim's node and the tests use), so `ur5_sim --ros
 
 What is Bullet's and what is shared with the other simulators:
 * shared: the URDF and paddle (stylepong_description), the world spec's geometry, masses and coefficients,
-  the referee's rules (referee.Referee), the actuator models (ur_servoj.py: the command -> reference law);
+  the referee's rules (referee.Referee), the actuator models (ur_servoj.py: the command -> reference law),
+  the API's input checks and bookkeeping (cell_base.CellBase, the MuJoCo cell's base too);
 * Bullet's own: the arm's multibody dynamics (Featherstone) and its joint motors, which track the reference
   as velocity constraints within the URDF efforts; the ball as a rigid sphere with spin, its contacts with
   table, net, paddle and arm from Bullet's collision detection and constraint solver. Nothing here imports
@@ -64,8 +65,9 @@ with quiet_c_stdout():   # its import prints its build time on stdout, which a n
     from pybullet_utils import bullet_client
 
 from stylepong_description import robot_model
-from stylepong_sim import referee, ur_servoj, world_spec
-from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
+from stylepong_sim import ur_servoj, world_spec
+from stylepong_sim.cell_base import CellBase
+from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
 
 MOTOR_DRIVE, PD_DRIVE = 'motor', 'pd'
 JOINT_DRIVES = (MOTOR_DRIVE, PD_DRIVE)
@@ -134,23 +136,18 @@ def _quaternion_of(rotation: np.ndarray) -> tuple[float, float, float, float]:
     return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
 
 
-class BulletCell:
+class BulletCell(CellBase):
     """The cell in PyBullet: UR5 with paddle, table, net, floor and ball, with the referee watching."""
     def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
                  servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings(), joint_drive: str = MOTOR_DRIVE):
         if joint_drive not in JOINT_DRIVES:
             raise ValueError(f"joint_drive must be one of {', '.join(JOINT_DRIVES)}, got {joint_drive!r}")
         self.joint_drive = joint_drive
-        if actuator not in ur_servoj.ACTUATORS:
-            raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
-        self.actuator = actuator
-        self._dt = world_spec.PHYSICS_DT_S
-        limits = robot_model.joint_limits()
-        self._lower_rad, self._upper_rad = limits.lower_rad.copy(), limits.upper_rad.copy()
-        self._effort_nm = limits.effort_nm.copy()
-        self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
-        self._reference = ur_servoj.make_reference(actuator, self.home_joint_positions_rad, limits.velocity_rad_s,
-                                                   servoj)
+        self._time_s = 0.0
+        super().__init__(home_joint_positions_rad, actuator, world_spec.PHYSICS_DT_S)
+        self._effort_nm = self._joint_limits.effort_nm.copy()
+        self._reference = ur_servoj.make_reference(actuator, self.home_joint_positions_rad,
+                                                   self._joint_limits.velocity_rad_s, servoj)
         kp = np.array(world_spec.ARM_KP_NM_PER_RAD)
         kd = np.array(world_spec.ARM_KD_NMS_PER_RAD)
         self._position_gains = (kp / kd * self._dt).tolist()
@@ -187,17 +184,7 @@ class BulletCell:
         self._ball_shape = p.createCollisionShape(pybullet.GEOM_SPHERE, radius=world_spec.BALL_RADIUS_M)
         self._ball_body: int | None = None
 
-        self._referee = referee.Referee()
-        self._events: list[referee.RallyEvent] = []
-        self._next_ball_id = 1
-        self.ball_id: int | None = None
-        self._ball_p = np.zeros(3)
-        self._ball_v = np.zeros(3)
-        self._ball_launch_time_s = 0.0
         self._touching: set[str] = set()
-        self._hand: tuple[np.ndarray, np.ndarray, bool, float] | None = None
-        self._q_cmd = self.home_joint_positions_rad.copy()
-        self._time_s = 0.0
         self._q = np.zeros(6)
         self._qd = np.zeros(6)
         self._tau = np.zeros(6)
@@ -243,45 +230,13 @@ class BulletCell:
                              contactProcessingThreshold=0.0)
         return robot, joints, links
 
-    # --- commands ----------------------------------------------------------------------------------
-    def reset(self) -> None:
-        self.remove_ball()
-        self.clear_hand_wrench()
-        self._reset_robot()
+    # --- the engine's side of the commands (CellBase has the rest) ---------------------------------
+    def _command_reference(self, q_rad: np.ndarray) -> None:
+        self._reference.command(q_rad)
 
-    def set_joint_targets(self, q_rad) -> None:
-        q = self._checked_joint_vector(q_rad, 'joint target')
-        self._q_cmd = q
-        self._reference.command(q)
-
-    def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
-                        duration_s: float = math.inf) -> None:
-        force = np.asarray(force_n, dtype=float).reshape(3)
-        torque = np.asarray(torque_nm, dtype=float).reshape(3)
-        if not (np.isfinite(force).all() and np.isfinite(torque).all()):
-            raise InputError('not_finite', f'hand wrench must be finite, got {force.tolist()} {torque.tolist()}')
-        if frame not in (FRAME_WORLD, FRAME_TOOL):
-            raise InputError('frame', f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
-        if not duration_s > 0.0:
-            raise InputError('duration', 'hand wrench duration must be positive')
-        self._hand = (force, torque, frame == FRAME_TOOL, self._time_s + duration_s)
-
-    def clear_hand_wrench(self) -> None:
-        self._hand = None
-
-    def launch_ball(self, position_m, velocity_m_s) -> int:
-        position = np.asarray(position_m, dtype=float).reshape(3)
-        velocity = np.asarray(velocity_m_s, dtype=float).reshape(3)
-        if not (np.isfinite(position).all() and np.isfinite(velocity).all()):
-            raise InputError('not_finite', 'ball position and velocity must be finite')
-        if np.linalg.norm(velocity) > MAX_LAUNCH_SPEED_M_S:
-            raise InputError('speed',
-                             f'ball speed {np.linalg.norm(velocity):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
-        if referee.ball_is_dead(position):
-            raise InputError('position', f'ball position {position.tolist()} is outside the cell (or below the floor)')
-        self.remove_ball()
+    def _start_ball(self) -> None:
         p = self._p
-        body = p.createMultiBody(world_spec.BALL_MASS_KG, self._ball_shape, basePosition=position.tolist(),
+        body = p.createMultiBody(world_spec.BALL_MASS_KG, self._ball_shape, basePosition=self._ball_p.tolist(),
                                  useMaximalCoordinates=True)
         # mass again: on a maximal-coordinates body, changing the inertia alone zeroes the mass (PyBullet 3.2.7).
         p.changeDynamics(body, -1, mass=world_spec.BALL_MASS_KG, restitution=1.0, lateralFriction=1.0,
@@ -289,37 +244,15 @@ class BulletCell:
                          contactProcessingThreshold=0.0,
                          localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
                          ccdSweptSphereRadius=0.9 * world_spec.BALL_RADIUS_M)
-        p.resetBaseVelocity(body, velocity.tolist(), [0.0, 0.0, 0.0])
+        p.resetBaseVelocity(body, self._ball_v.tolist(), [0.0, 0.0, 0.0])
         self._ball_body = body
-        self.ball_id = self._next_ball_id
-        self._next_ball_id += 1
-        self._ball_p, self._ball_v = position.copy(), velocity.copy()
-        self._ball_launch_time_s = self._time_s
         self._touching = set()
-        self._events += self._referee.launch(self.ball_id, self._time_s, position)
-        return self.ball_id
 
-    def remove_ball(self) -> None:
-        if self.ball_id is None:
-            return
-        self._events += self._referee.abort(self._time_s, self._ball_p)
-        self.ball_id = None
+    def _drop_ball(self) -> None:
         self._p.removeBody(self._ball_body)
         self._ball_body = None
 
-    # --- stepping ----------------------------------------------------------------------------------
-    def step(self, n_steps: int = 1) -> None:
-        for _ in range(n_steps):
-            self._step_once()
-
-    def step_for(self, duration_s: float) -> None:
-        self.step(max(0, round(duration_s / self._dt)))
-
     # --- state -------------------------------------------------------------------------------------
-    @property
-    def dt_s(self) -> float:
-        return self._dt
-
     @property
     def time_s(self) -> float:
         return self._time_s
@@ -336,26 +269,6 @@ class BulletCell:
     def joint_efforts_nm(self) -> np.ndarray:
         """The joint motors' torques (gravity included)."""
         return self._tau.copy()
-
-    @property
-    def joint_targets_rad(self) -> np.ndarray:
-        return self._q_cmd.copy()
-
-    @property
-    def ball_in_play(self) -> bool:
-        return self.ball_id is not None
-
-    @property
-    def ball_position_m(self) -> np.ndarray | None:
-        return self._ball_p.copy() if self.ball_id is not None else None
-
-    @property
-    def ball_velocity_m_s(self) -> np.ndarray | None:
-        return self._ball_v.copy() if self.ball_id is not None else None
-
-    def pop_events(self) -> list[referee.RallyEvent]:
-        events, self._events = self._events, []
-        return events
 
     def paddle_pose(self) -> tuple[np.ndarray, np.ndarray]:
         return self._link_pose(self._centre_link)
@@ -389,18 +302,6 @@ class BulletCell:
         return rotation.T @ force, rotation.T @ torque
 
     # --- internals ---------------------------------------------------------------------------------
-    def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
-        q = np.asarray(q_rad, dtype=float)
-        if q.shape != (6,):
-            raise InputError('length', f'{what} needs 6 joint positions, got shape {q.shape}')
-        if not np.isfinite(q).all():
-            raise InputError('not_finite', f'{what} contains NaN or inf: {q.tolist()}')
-        outside = (q < self._lower_rad) | (q > self._upper_rad)
-        if outside.any():
-            names = [robot_model.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
-            raise InputError('limits', f'{what} outside the joint limits at {names}: {q.tolist()}')
-        return q.copy()
-
     def _reset_robot(self) -> None:
         p = self._p
         for joint, q in zip(self._joints, self.home_joint_positions_rad):
@@ -425,22 +326,11 @@ class BulletCell:
         state = self._p.getLinkState(self._robot, self._blade_link, computeForwardKinematics=True)
         return np.array(state[0])   # the paddle link carries the tool's mass (tool0 and the frames have none)
 
-    def _hand_in_world(self) -> tuple[np.ndarray, np.ndarray]:
-        force, torque, in_tool_frame, _ = self._hand
-        if in_tool_frame:
-            _, rotation = self.tool_pose()
-            return rotation @ force, rotation @ torque
-        return force, torque
-
-    def _apply_hand_wrench(self) -> None:
-        if self._time_s >= self._hand[3]:
-            self.clear_hand_wrench()
-            return
-        force, torque = self._hand_in_world()
+    def _push_on_tool(self, force_n: np.ndarray, torque_nm: np.ndarray) -> None:
         origin, _ = self.tool_pose()
         p = self._p
-        p.applyExternalForce(self._robot, self._tool_link, force.tolist(), origin.tolist(), pybullet.WORLD_FRAME)
-        p.applyExternalTorque(self._robot, self._tool_link, torque.tolist(), pybullet.WORLD_FRAME)
+        p.applyExternalForce(self._robot, self._tool_link, force_n.tolist(), origin.tolist(), pybullet.WORLD_FRAME)
+        p.applyExternalTorque(self._robot, self._tool_link, torque_nm.tolist(), pybullet.WORLD_FRAME)
 
     def _step_once(self) -> None:
         p = self._p
@@ -517,10 +407,7 @@ class BulletCell:
             if kind in touching and kind not in self._touching:
                 self._events += report[kind](time_s, self._ball_p)
         self._touching = touching
-        if self._referee.rally_open:
-            self._events += self._referee.ball_state(time_s, self._ball_p, self._ball_v)
-        elif referee.ball_is_dead(self._ball_p) or time_s - self._ball_launch_time_s >= world_spec.BALL_LIFETIME_S:
-            self.remove_ball()
+        self._judge_ball(time_s)
 
     def close(self) -> None:
         """Disconnect from Bullet (the cell is unusable afterwards)."""

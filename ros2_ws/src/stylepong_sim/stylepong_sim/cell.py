@@ -30,6 +30,8 @@ API (all units SI; joint vectors have 6 entries in URDF order, stylepong_descrip
     cell.pop_events() -> list[referee.RallyEvent]           events since the last call, in order
     cell.paddle_pose(), cell.tool_pose() -> (position_m, rotation 3x3: columns = frame axes in world)
     cell.model, cell.data                       the MuJoCo objects (read them, e.g. to render; do not step them)
+The engine-free half of this API (input checks, ball launch and removal, hand wrench timing, events, getters) is
+cell_base.CellBase, which the PyBullet cell derives from too; this module is MuJoCo's half.
 
 Robot: the URDF's arm under the servo law of world_spec (actuator 'ideal': rate-limited reference; 'ur_servoj':
 the UR controller's servoj shapes the reference instead, ur_servoj.py; then PD with torques clipped to
@@ -56,67 +58,53 @@ The referee (referee.py) is told every contact and the ball's state after every 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from stylepong_description import robot_model as rm
-from stylepong_sim import ball_contacts as bc
-from stylepong_sim import referee as rf
-from stylepong_sim import scene, ur_servoj
-from stylepong_sim import world_spec as ws
+from stylepong_description import robot_model
+from stylepong_sim import ball_contacts, scene, ur_servoj, world_spec
+from stylepong_sim.cell_base import CellBase
 from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
 
-_GRAVITY = np.array([0.0, 0.0, -ws.GRAVITY_M_S2])
+_GRAVITY = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2])
 
 
 @dataclass(frozen=True)
 class BallPhysics:
     """Contact and air coefficients of the ball (world_spec's nominal values; vary them to randomise)."""
-    drag_k_per_m: float = ws.DRAG_K_PER_M
-    table_restitution: float = ws.TABLE_RESTITUTION
-    table_tangential_factor: float = ws.TABLE_TANGENTIAL_FACTOR
-    paddle_restitution: float = ws.PADDLE_RESTITUTION
-    paddle_tangential_factor: float = ws.PADDLE_TANGENTIAL_FACTOR
-    net_restitution: float = ws.NET_RESTITUTION
-    net_tangential_factor: float = ws.NET_TANGENTIAL_FACTOR
-    robot_restitution: float = ws.ROBOT_LINK_RESTITUTION
-    robot_tangential_factor: float = ws.ROBOT_LINK_TANGENTIAL_FACTOR
+    drag_k_per_m: float = world_spec.DRAG_K_PER_M
+    table_restitution: float = world_spec.TABLE_RESTITUTION
+    table_tangential_factor: float = world_spec.TABLE_TANGENTIAL_FACTOR
+    paddle_restitution: float = world_spec.PADDLE_RESTITUTION
+    paddle_tangential_factor: float = world_spec.PADDLE_TANGENTIAL_FACTOR
+    net_restitution: float = world_spec.NET_RESTITUTION
+    net_tangential_factor: float = world_spec.NET_TANGENTIAL_FACTOR
+    robot_restitution: float = world_spec.ROBOT_LINK_RESTITUTION
+    robot_tangential_factor: float = world_spec.ROBOT_LINK_TANGENTIAL_FACTOR
 
 
-@dataclass
-class _HandWrench:
-    force_n: np.ndarray
-    torque_nm: np.ndarray
-    in_tool_frame: bool
-    release_time_s: float
-
-
-class Cell:
+class Cell(CellBase):
     """The simulated cell: UR5 with paddle, table, net and ball in MuJoCo, with the referee watching."""
-    def __init__(self, home_joint_positions_rad=ws.HOME_JOINT_POSITIONS_RAD, ball_physics: BallPhysics = BallPhysics(),
+    def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD,
+                 ball_physics: BallPhysics = BallPhysics(),
                  actuator: str = ur_servoj.IDEAL, servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
         self.model = scene.build_model()
         self.data = mujoco.MjData(self.model)
+        super().__init__(home_joint_positions_rad, actuator, self.model.opt.timestep)
         self.ball_physics = ball_physics
         m = self.model
-        self._dt = m.opt.timestep
-        limits = rm.joint_limits()
-        self._lower_rad = limits.lower_rad.copy()
-        self._upper_rad = limits.upper_rad.copy()
-        self._v_max_rad_s = limits.velocity_rad_s.copy()
+        self._v_max_rad_s = self._joint_limits.velocity_rad_s.copy()
         self._ref_step_rad = self._v_max_rad_s * self._dt
-        self._kd_over_kp_s = np.array(ws.ARM_KD_NMS_PER_RAD) / np.array(ws.ARM_KP_NM_PER_RAD)
-        self.home_joint_positions_rad = self._checked_joint_vector(home_joint_positions_rad, 'home pose')
+        self._kd_over_kp_s = np.array(world_spec.ARM_KD_NMS_PER_RAD) / np.array(world_spec.ARM_KP_NM_PER_RAD)
 
-        qadr = np.array([m.jnt_qposadr[m.joint(n).id] for n in rm.JOINT_NAMES])
-        dofadr = np.array([m.jnt_dofadr[m.joint(n).id] for n in rm.JOINT_NAMES])
+        qadr = np.array([m.jnt_qposadr[m.joint(n).id] for n in robot_model.JOINT_NAMES])
+        dofadr = np.array([m.jnt_dofadr[m.joint(n).id] for n in robot_model.JOINT_NAMES])
         if not (np.array_equal(qadr, np.arange(6)) and np.array_equal(dofadr, np.arange(6))):
             raise RuntimeError('the cell expects the arm joints first in qpos/qvel')
-        self._tool_body = m.body(rm.TOOL_FRAME).id
-        self._paddle_centre_body = m.body(rm.PADDLE_CENTRE_FRAME).id
+        self._tool_body = m.body(robot_model.TOOL_FRAME).id
+        self._paddle_centre_body = m.body(robot_model.PADDLE_CENTRE_FRAME).id
         self._ball_mocap = m.body_mocapid[m.body(scene.BALL_BODY).id]
         self._ball_geom = m.geom('ball').id
         self._table_geom = m.geom('table_top').id
@@ -128,10 +116,10 @@ class Cell:
         self._link_geoms = np.array([g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != blade_geom
                                      and m.geom_size[g].max() > 0.006])
         # A link's geom can touch the ball only if the ball centre is within its bounding sphere + radius.
-        self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + ws.BALL_RADIUS_M) ** 2
+        self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + world_spec.BALL_RADIUS_M) ** 2
         self._tool_subtree = np.array([b for b in range(m.nbody) if self._is_in_subtree(b, self._tool_body)])
         self._tree_root = m.body_rootid[self._tool_body]
-        self._tool_weight_n = np.array([0.0, 0.0, -ws.GRAVITY_M_S2 * m.body_subtreemass[self._tool_body]])
+        self._tool_weight_n = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2 * m.body_subtreemass[self._tool_body]])
         force_adr = m.sensor_adr[m.sensor(scene.FT_FORCE_SENSOR).id]
         torque_adr = m.sensor_adr[m.sensor(scene.FT_TORQUE_SENSOR).id]
         self._force_slice = slice(force_adr, force_adr + 3)
@@ -140,97 +128,35 @@ class Cell:
         self._abs_qvel = np.zeros(6)
         self._distance_fromto = np.zeros(6)
 
-        self._referee = rf.Referee()
-        self._events: list[rf.RallyEvent] = []
-        self._next_ball_id = 1
-        self.ball_id: int | None = None
-        self._ball_p = np.zeros(3)
-        self._ball_v = np.zeros(3)
-        self._ball_launch_time_s = 0.0
         self._paddle_prev: tuple[np.ndarray, np.ndarray] | None = None
-        self._hand: _HandWrench | None = None
-        self._q_cmd = self.home_joint_positions_rad.copy()
         self._q_ref = self.home_joint_positions_rad.copy()
         self._ref_moving = False
         self._feedforward_active = False
         # actuator 'ur_servoj': the UR controller's servoj shapes the reference (ur_servoj.py); 'ideal' keeps
         # world_spec's reference below, which the batched world shares.
-        if actuator not in ur_servoj.ACTUATORS:
-            raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
-        self.actuator = actuator
         self._servoj = (ur_servoj.ServojReference(self.home_joint_positions_rad, servoj)
                         if actuator == ur_servoj.UR_SERVOJ else None)
         self._reset_robot()
 
-    # --- commands --------------------------------------------------------------------------------
-    def reset(self) -> None:
-        self.remove_ball()
-        self.clear_hand_wrench()
-        self._reset_robot()
-
-    def set_joint_targets(self, q_rad) -> None:
-        q = self._checked_joint_vector(q_rad, 'joint target')
-        self._q_cmd = q
-        if self._servoj is not None:
-            self._servoj.command(q)
-        self._ref_moving = not np.array_equal(self._q_cmd, self._q_ref)
-
-    def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
-                        duration_s: float = math.inf) -> None:
-        force = np.asarray(force_n, dtype=float).reshape(3)
-        torque = np.asarray(torque_nm, dtype=float).reshape(3)
-        if not (np.isfinite(force).all() and np.isfinite(torque).all()):
-            raise InputError('not_finite', f'hand wrench must be finite, got {force.tolist()} {torque.tolist()}')
-        if frame not in (FRAME_WORLD, FRAME_TOOL):
-            raise InputError('frame', f"hand wrench frame must be '{FRAME_WORLD}' or '{FRAME_TOOL}', not '{frame}'")
-        if not duration_s > 0.0:
-            raise InputError('duration', 'hand wrench duration must be positive')
-        self._hand = _HandWrench(force, torque, frame == FRAME_TOOL, self.time_s + duration_s)
-
+    # --- the engine's side of the commands (CellBase has the rest) -------------------------------
     def clear_hand_wrench(self) -> None:
-        self._hand = None
+        super().clear_hand_wrench()
         self.data.xfrc_applied[self._tool_body] = 0.0
 
-    def launch_ball(self, position_m, velocity_m_s) -> int:
-        p = np.asarray(position_m, dtype=float).reshape(3)
-        v = np.asarray(velocity_m_s, dtype=float).reshape(3)
-        if not (np.isfinite(p).all() and np.isfinite(v).all()):
-            raise InputError('not_finite', 'ball position and velocity must be finite')
-        if np.linalg.norm(v) > MAX_LAUNCH_SPEED_M_S:
-            raise InputError('speed', f'ball speed {np.linalg.norm(v):.2f} m/s exceeds {MAX_LAUNCH_SPEED_M_S} m/s')
-        if rf.ball_is_dead(p):
-            raise InputError('position', f'ball position {p.tolist()} is outside the cell (or below the floor)')
-        self.remove_ball()
-        self.ball_id = self._next_ball_id
-        self._next_ball_id += 1
-        self._ball_p, self._ball_v = p.copy(), v.copy()
-        self._ball_launch_time_s = self.time_s
+    def _command_reference(self, q_rad: np.ndarray) -> None:
+        if self._servoj is not None:
+            self._servoj.command(q_rad)
+        self._ref_moving = not np.array_equal(q_rad, self._q_ref)
+
+    def _start_ball(self) -> None:
         mujoco.mj_kinematics(self.model, self.data)
         self._paddle_prev = self.paddle_pose()
         self._place_ball_marker()
-        self._events += self._referee.launch(self.ball_id, self.time_s, p)
-        return self.ball_id
 
-    def remove_ball(self) -> None:
-        if self.ball_id is None:
-            return
-        self._events += self._referee.abort(self.time_s, self._ball_p)
-        self.ball_id = None
+    def _drop_ball(self) -> None:
         self.data.mocap_pos[self._ball_mocap] = scene.BALL_PARKING_POSITION_M
 
-    # --- stepping --------------------------------------------------------------------------------
-    def step(self, n_steps: int = 1) -> None:
-        for _ in range(n_steps):
-            self._step_once()
-
-    def step_for(self, duration_s: float) -> None:
-        self.step(max(0, round(duration_s / self._dt)))
-
     # --- state -----------------------------------------------------------------------------------
-    @property
-    def dt_s(self) -> float:
-        return self._dt
-
     @property
     def time_s(self) -> float:
         return float(self.data.time)
@@ -246,10 +172,6 @@ class Cell:
     @property
     def joint_efforts_nm(self) -> np.ndarray:
         return self.data.qfrc_actuator[:6] + self.data.qfrc_gravcomp[:6]
-
-    @property
-    def joint_targets_rad(self) -> np.ndarray:
-        return self._q_cmd.copy()
 
     def tool_wrench(self, include_inertia: bool = False) -> tuple[np.ndarray, np.ndarray]:
         d = self.data
@@ -268,22 +190,6 @@ class Cell:
                   + np.cross(d.subtree_com[self._tree_root] - origin, external[3:]))
         return rotation.T @ force, rotation.T @ torque
 
-    @property
-    def ball_in_play(self) -> bool:
-        return self.ball_id is not None
-
-    @property
-    def ball_position_m(self) -> np.ndarray | None:
-        return self._ball_p.copy() if self.ball_id is not None else None
-
-    @property
-    def ball_velocity_m_s(self) -> np.ndarray | None:
-        return self._ball_v.copy() if self.ball_id is not None else None
-
-    def pop_events(self) -> list[rf.RallyEvent]:
-        events, self._events = self._events, []
-        return events
-
     def paddle_pose(self) -> tuple[np.ndarray, np.ndarray]:
         return self._body_pose(self._paddle_centre_body)
 
@@ -299,19 +205,7 @@ class Cell:
         return False
 
     def _is_robot_body(self, body: int) -> bool:
-        return self._is_in_subtree(body, self.model.body(rm.BASE_FRAME).id)
-
-    def _checked_joint_vector(self, q_rad, what: str) -> np.ndarray:
-        q = np.asarray(q_rad, dtype=float)
-        if q.shape != (6,):
-            raise InputError('length', f'{what} needs 6 joint positions, got shape {q.shape}')
-        if not np.isfinite(q).all():
-            raise InputError('not_finite', f'{what} contains NaN or inf: {q.tolist()}')
-        outside = (q < self._lower_rad) | (q > self._upper_rad)
-        if outside.any():
-            names = [rm.JOINT_NAMES[i] for i in np.flatnonzero(outside)]
-            raise InputError('limits', f'{what} outside the joint limits at {names}: {q.tolist()}')
-        return q.copy()
+        return self._is_in_subtree(body, self.model.body(robot_model.BASE_FRAME).id)
 
     def _reset_robot(self) -> None:
         d = self.data
@@ -340,20 +234,12 @@ class Cell:
         self.data.ctrl[:6] = self._q_ref + self._kd_over_kp_s * (step / self._dt)
         self._feedforward_active = True
 
-    def _apply_hand_wrench(self) -> None:
-        hand = self._hand
-        if self.data.time >= hand.release_time_s:
-            self.clear_hand_wrench()
-            return
+    def _push_on_tool(self, force_n: np.ndarray, torque_nm: np.ndarray) -> None:
         d = self.data
-        force, torque = hand.force_n, hand.torque_nm
-        if hand.in_tool_frame:
-            rotation = d.xmat[self._tool_body].reshape(3, 3)
-            force, torque = rotation @ force, rotation @ torque
         # xfrc_applied acts at the body's centre of mass; the hand acts at tool0's origin.
         lever = d.xpos[self._tool_body] - d.xipos[self._tool_body]
-        d.xfrc_applied[self._tool_body, :3] = force
-        d.xfrc_applied[self._tool_body, 3:] = torque + np.cross(lever, force)
+        d.xfrc_applied[self._tool_body, :3] = force_n
+        d.xfrc_applied[self._tool_body, 3:] = torque_nm + np.cross(lever, force_n)
 
     def _step_once(self) -> None:
         m, d = self.model, self.data
@@ -405,7 +291,7 @@ class Cell:
         dt = self._dt
         physics = self.ball_physics
         p0, v0 = self._ball_p, self._ball_v
-        v1 = v0 + (_GRAVITY + ws.drag_acceleration(v0, physics.drag_k_per_m)) * dt
+        v1 = v0 + (_GRAVITY + world_spec.drag_acceleration(v0, physics.drag_k_per_m)) * dt
         p1 = p0 + v1 * dt
         paddle_now = self.paddle_pose()
         contact = self._earliest_contact(p0, p1, v1, self._paddle_prev, paddle_now)
@@ -413,34 +299,33 @@ class Cell:
         time_s = self.time_s
         if contact is not None:
             restitution, tangential = {
-                bc.TABLE: (physics.table_restitution, physics.table_tangential_factor),
-                bc.NET: (physics.net_restitution, physics.net_tangential_factor),
-                bc.PADDLE: (physics.paddle_restitution, physics.paddle_tangential_factor),
-                bc.ROBOT: (physics.robot_restitution, physics.robot_tangential_factor),
+                ball_contacts.TABLE: (physics.table_restitution, physics.table_tangential_factor),
+                ball_contacts.NET: (physics.net_restitution, physics.net_tangential_factor),
+                ball_contacts.PADDLE: (physics.paddle_restitution, physics.paddle_tangential_factor),
+                ball_contacts.ROBOT: (physics.robot_restitution, physics.robot_tangential_factor),
             }[contact.kind]
             u = contact.surface_velocity_m_s
-            v1 = u + ws.contact_response(v1 - u, contact.normal, restitution, tangential)
+            v1 = u + world_spec.contact_response(v1 - u, contact.normal, restitution, tangential)
             p1 = contact.centre_m + v1 * ((1.0 - contact.fraction) * dt)
             contact_time_s = time_s - (1.0 - contact.fraction) * dt
-            report = {bc.TABLE: self._referee.table_contact, bc.NET: self._referee.net_contact,
-                      bc.PADDLE: self._referee.paddle_contact, bc.ROBOT: self._referee.robot_contact}[contact.kind]
+            report = {ball_contacts.TABLE: self._referee.table_contact,
+                      ball_contacts.NET: self._referee.net_contact,
+                      ball_contacts.PADDLE: self._referee.paddle_contact,
+                      ball_contacts.ROBOT: self._referee.robot_contact}[contact.kind]
             self._events += report(contact_time_s, contact.centre_m)
         self._ball_p, self._ball_v = p1, v1
         self._place_ball_marker()
-        if self._referee.rally_open:
-            self._events += self._referee.ball_state(time_s, p1, v1)
-        elif rf.ball_is_dead(p1) or time_s - self._ball_launch_time_s >= ws.BALL_LIFETIME_S:
-            self.remove_ball()
+        self._judge_ball(time_s)
 
-    def _earliest_contact(self, p0, p1, v1, paddle_before, paddle_after) -> bc.Contact | None:
+    def _earliest_contact(self, p0, p1, v1, paddle_before, paddle_after) -> ball_contacts.Contact | None:
         """Table, net and blade (ball_contacts); the other robot links only when none of them is touched."""
-        contact = bc.earliest_contact(p0, p1, v1, paddle_before, paddle_after, self._blade_point_velocity)
+        contact = ball_contacts.earliest_contact(p0, p1, v1, paddle_before, paddle_after, self._blade_point_velocity)
         return contact if contact is not None else self._robot_link_contact(p1, v1)
 
     def _blade_point_velocity(self, point_m: np.ndarray) -> np.ndarray:
         return self._point_velocity(point_m, self._paddle_centre_body)
 
-    def _robot_link_contact(self, p1, v1) -> bc.Contact | None:
+    def _robot_link_contact(self, p1, v1) -> ball_contacts.Contact | None:
         """The ball's end position against the other robot links' collision meshes (MuJoCo's distance)."""
         d = self.data
         offsets = d.geom_xpos[self._link_geoms] - p1
@@ -458,5 +343,6 @@ class Cell:
             u = self._point_velocity(surface_point, int(self.model.geom_bodyid[geom]))
             if np.dot(v1 - u, normal) >= 0.0:
                 continue
-            return bc.Contact(bc.ROBOT, 1.0, surface_point + normal * ws.BALL_RADIUS_M, normal, u)
+            centre = surface_point + normal * world_spec.BALL_RADIUS_M
+            return ball_contacts.Contact(ball_contacts.ROBOT, 1.0, centre, normal, u)
         return None
