@@ -66,11 +66,10 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node, typed_value
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
-from stylepong_sim import ur_servoj
-from stylepong_sim import world_spec as ws
+from stylepong_sim import ur_servoj, world_spec
 from stylepong_sim.cell_inputs import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
 from stylepong_sim.cell_markers import cell_markers
 from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
@@ -83,7 +82,7 @@ WARN_PERIOD_S = 2.0
 TIMER_PERIOD_S = 0.002
 # real_time_factor 0: wall time a timer callback may spend stepping before inputs are served again.
 FAST_BATCH_WALL_S = 0.004
-MAX_RATE_HZ = 1.0 / ws.PHYSICS_DT_S    # a stream can sample at most every physics step
+MAX_RATE_HZ = 1.0 / world_spec.PHYSICS_DT_S    # a stream can sample at most every physics step
 _SENSING_FLOATS = ('ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s',
                    'ball_dropout_probability', 'ft_force_noise_std_n', 'ft_torque_noise_std_nm')
 
@@ -103,8 +102,8 @@ PARAMETERS = (
     Param('gain', ur_servoj.ServojSettings.gain, 'ur_servoj: servoj proportional gain',
           low=ur_servoj.GAIN_RANGE[0], high=ur_servoj.GAIN_RANGE[1]),
     Param('max_lag_s', 0.25, 'Largest backlog (sim s) caught up after a stall', low=0.001, high=10.0),
-    Param('home_joint_positions_rad', list(ws.HOME_JOINT_POSITIONS_RAD),
-          'Start and reset pose, 6 joint positions (rad) in URDF order', length=rm.NUM_JOINTS),
+    Param('home_joint_positions_rad', list(world_spec.HOME_JOINT_POSITIONS_RAD),
+          'Start and reset pose, 6 joint positions (rad) in URDF order', length=robot_model.NUM_JOINTS),
     Param('joint_state_rate_hz', 500.0, '/joint_states rate', low=1.0, high=MAX_RATE_HZ),
     Param('wrench_rate_hz', 500.0, 'F/T wrench rate', low=1.0, high=MAX_RATE_HZ),
     Param('ball_state_rate_hz', 120.0, '/ball/state rate (camera)', low=1.0, high=MAX_RATE_HZ),
@@ -211,9 +210,9 @@ class Ur5SimNode(Node):
         self.create_service(Trigger, '/sim/reset', self._on_reset)
 
         # Messages are reused: filling fields is cheaper than building new ones at 500 Hz.
-        self._joint_msg = JointState(name=list(rm.JOINT_NAMES))
+        self._joint_msg = JointState(name=list(robot_model.JOINT_NAMES))
         self._wrench_msg = WrenchStamped()
-        self._wrench_msg.header.frame_id = rm.TOOL_FRAME
+        self._wrench_msg.header.frame_id = robot_model.TOOL_FRAME
         self._ball_msg = BallState()
         self._ball_msg.header.frame_id = FRAME_WORLD
         self._clock_msg = Clock()
@@ -334,7 +333,7 @@ class Ur5SimNode(Node):
         try:
             if request.randomize:
                 speed_range = self._checked_speed_range(request.speed_min, request.speed_max)
-                launch = ws.incoming_ball_for_seed(request.seed, speed_range)
+                launch = world_spec.incoming_ball_for_seed(request.seed, speed_range)
                 position, velocity = launch.position_m, launch.velocity_m_s
             else:
                 position = (request.position.x, request.position.y, request.position.z)

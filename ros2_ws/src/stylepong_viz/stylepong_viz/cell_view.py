@@ -27,9 +27,9 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from stylepong_description import robot_model as rm
+from stylepong_description import robot_model
 from stylepong_description.robot_state import RobotState, quaternion_from_matrix, rotate
-from stylepong_sim import world_spec as ws
+from stylepong_sim import world_spec
 from stylepong_viz.batch_transforms import LinkPoses, joint_rotations
 from stylepong_viz.decimate import ColumnBuffer, Decimator, Trail
 from stylepong_viz.hand_wrench import STANDARD_GRAVITY_M_S2, hand_wrench_in_tool, tool_load_from_urdf
@@ -57,8 +57,8 @@ BACKGROUND_RGB = (28, 30, 34)
 PLAYER_SERIES = (('period_ms', 'jitter_p99'), ('latency_ms', 'p99'), ('inference_ms', 'p50'))
 # The 3D view's camera: behind the robot on the table's long axis, looking down the table. The robot's base
 # is then on the view's vertical centre line: world +y to the left of it, -y to the right.
-EYE_POSITION_M = (ws.ROBOT_BASE_POSITION_M[0] - 1.3, 0.0, ws.TABLE_HEIGHT_M + 0.75)
-EYE_TARGET_M = (ws.ROBOT_BASE_POSITION_M[0] + 0.8, 0.0, ws.TABLE_HEIGHT_M + 0.05)
+EYE_POSITION_M = (world_spec.ROBOT_BASE_POSITION_M[0] - 1.3, 0.0, world_spec.TABLE_HEIGHT_M + 0.75)
+EYE_TARGET_M = (world_spec.ROBOT_BASE_POSITION_M[0] + 0.8, 0.0, world_spec.TABLE_HEIGHT_M + 0.05)
 PLOT_WINDOW_S = 10.0       # the plots show the last 10 s before the time cursor
 
 
@@ -101,7 +101,7 @@ class CellView:
     def __init__(self, recording: rr.RecordingStream, arm_rate_hz: float = ARM_RATE_HZ,
                  plot_rate_hz: float = PLOT_RATE_HZ, ball_rate_hz: float = BALL_RATE_HZ):
         self.rec = recording
-        urdf = rm.urdf_xml_for_display()
+        urdf = robot_model.urdf_xml_for_display()
         self.robot_state = RobotState(urdf)
         self.joint_names = self.robot_state.moving_joint_names
         self._index = {n: k for k, n in enumerate(self.joint_names)}
@@ -120,15 +120,15 @@ class CellView:
         self.latest_time_s = 0.0
         self.latest_q: np.ndarray | None = None
         self.counts = {'joint_states': 0, 'arm_frames': 0, 'wrenches': 0, 'hand_shown': 0}
-        rotation, position = ws.robot_base_pose()
+        rotation, position = world_spec.robot_base_pose()
         self._base_rotation_xyzw = quaternion_from_matrix(rotation)
         self._base_position_m = np.asarray(position, dtype=float)
         # Gravity in the base's axes (the base may be turned about world z): the tool's weight is removed there.
         self._gravity_base_m_s2 = rotate(self._base_rotation_xyzw * np.array([-1.0, -1.0, -1.0, 1.0]),
                                          np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2]))
-        self.tool_load = tool_load_from_urdf(urdf, rm.TOOL_FRAME)
-        self._tool_poses = LinkPoses(self.robot_state, rm.TOOL_FRAME)
-        self._paddle_centre_poses = LinkPoses(self.robot_state, rm.PADDLE_CENTRE_FRAME)
+        self.tool_load = tool_load_from_urdf(urdf, robot_model.TOOL_FRAME)
+        self._tool_poses = LinkPoses(self.robot_state, robot_model.TOOL_FRAME)
+        self._paddle_centre_poses = LinkPoses(self.robot_state, robot_model.PADDLE_CENTRE_FRAME)
         self._velocity_limits = np.array([j.velocity_limit for j in self.robot_state.moving_joints])
         self._log_static(urdf)
 
@@ -142,19 +142,19 @@ class CellView:
             rr.urdf.UrdfTree.from_file_path(path, entity_path_prefix='robot').log_urdf_to_recording(rec)
         rr.log('tf_static/world_base', rr.Transform3D(
             translation=self._base_position_m, quaternion=self._base_rotation_xyzw,
-            parent_frame=FRAME_WORLD, child_frame=rm.BASE_FRAME), static=True, recording=rec)
+            parent_frame=FRAME_WORLD, child_frame=robot_model.BASE_FRAME), static=True, recording=rec)
         world = rr.CoordinateFrame(FRAME_WORLD)
-        table_half = (ws.HALF_LENGTH_M, ws.HALF_WIDTH_M, ws.TABLE_THICKNESS_M / 2.0)
-        rr.log('cell/table', rr.Boxes3D(centers=[(0.0, 0.0, ws.TABLE_HEIGHT_M - ws.TABLE_THICKNESS_M / 2.0)],
+        table_half = (world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M, world_spec.TABLE_THICKNESS_M / 2.0)
+        rr.log('cell/table', rr.Boxes3D(centers=[(0.0, 0.0, world_spec.TABLE_HEIGHT_M - table_half[2])],
                                         half_sizes=[table_half], colors=[TABLE_RGB], fill_mode='solid'),
                world, static=True, recording=rec)
-        low, high = np.array(ws.NET_BOX_LOW_M), np.array(ws.NET_BOX_HIGH_M)
+        low, high = np.array(world_spec.NET_BOX_LOW_M), np.array(world_spec.NET_BOX_HIGH_M)
         rr.log('cell/net', rr.Boxes3D(centers=[(low + high) / 2.0], half_sizes=[(high - low) / 2.0], colors=[NET_RGB],
                                       fill_mode='solid'), world, static=True, recording=rec)
         for name in ('ball', 'ball_trail', 'paddle_path'):
             rr.log(f'cell/{name}', world, static=True, recording=rec)
         # The hand's wrench is drawn where the sensor reads it: at tool0's origin, in tool0's axes.
-        rr.log('cell/hand_wrench', rr.CoordinateFrame(rm.TOOL_FRAME), static=True, recording=rec)
+        rr.log('cell/hand_wrench', rr.CoordinateFrame(robot_model.TOOL_FRAME), static=True, recording=rec)
         colours = [JOINT_RGB[k % len(JOINT_RGB)] for k in range(len(self.joint_names))]
         short = [n.replace('_joint', '') for n in self.joint_names]
         # One entity per plot layer, a series per joint: a flush sends each layer as one batch.
@@ -327,7 +327,7 @@ class CellView:
             return
         times, positions = self._balls.take()
         rr.send_columns('cell/ball', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                        columns=rr.Points3D.columns(positions=positions, radii=[ws.BALL_RADIUS_M] * len(times),
+                        columns=rr.Points3D.columns(positions=positions, radii=[world_spec.BALL_RADIUS_M] * len(times),
                                                     colors=[BALL_RGB] * len(times)), recording=self.rec)
         for time_s, position in zip(times, positions):
             self._ball_trail.add(time_s, position)
