@@ -3,6 +3,7 @@ import datetime
 import errno
 
 import pytest
+from offline_clips import open_writer, topic_spec  # beside this file: conftest.py
 
 from stylepong_recording.bag_check import (
     JOINT_NAMES,
@@ -19,28 +20,12 @@ from stylepong_recording.bag_check import (
 from stylepong_recording.bag_layout import IN_PROGRESS_NAME
 from stylepong_recording.clip_writer import (
     ClipError,
-    ClipWriter,
-    TopicSpec,
     bag_dir_name,
     label_from_bag_dir_name,
     label_problem,
     open_clip,
 )
 from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessageType
-
-DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
-
-
-def spec(topic, msgtype):
-    return TopicSpec(topic, msgtype, *DEFINITIONS.definition(msgtype))
-
-
-class FakeClock:
-    def __init__(self):
-        self.now_s = 0.0
-
-    def __call__(self):
-        return self.now_s
 
 
 @pytest.mark.parametrize('label', ['forward', 'leftward', 'fore_hand-2', 'v1.2', 'A' * 64])
@@ -67,7 +52,7 @@ def test_bag_dir_name_carries_label_and_time_and_gives_the_label_back():
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, storage):
-    topics = [spec(JOINT_STATES, JOINT_STATE_TYPE), spec(WRENCH, WRENCH_TYPE)]
+    topics = [topic_spec(JOINT_STATES, JOINT_STATE_TYPE), topic_spec(WRENCH, WRENCH_TYPE)]
     when = datetime.datetime(2025, 1, 2, 3, 4, 5)
     clip = open_clip(tmp_path / 'bags', 'forward', storage, topics, now=when)
     assert clip.bag_dir == tmp_path / 'bags' / 'forward_20250102_030405_000'
@@ -102,20 +87,17 @@ def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, st
 
 
 def test_topics_can_join_a_running_clip(tmp_path):
-    clip = open_clip(tmp_path, 'forward', 'mcap', [spec(JOINT_STATES, JOINT_STATE_TYPE)])
+    clip = open_clip(tmp_path, 'forward', 'mcap', [topic_spec(JOINT_STATES, JOINT_STATE_TYPE)])
     clip.write(JOINT_STATES, 10, joint_state_cdr(1))
-    clip.add_topic(spec(WRENCH, WRENCH_TYPE))
-    clip.add_topic(spec(WRENCH, WRENCH_TYPE))       # idempotent
+    clip.add_topic(topic_spec(WRENCH, WRENCH_TYPE))
+    clip.add_topic(topic_spec(WRENCH, WRENCH_TYPE))       # idempotent
     clip.write(JOINT_STATES, 20, joint_state_cdr(2))
     assert clip.close().message_counts == {JOINT_STATES: 2, WRENCH: 0}
     assert read_with_rosbags(clip.bag_dir).stamps == {JOINT_STATES: [1, 2], WRENCH: []}
 
 
 def test_flush_happens_once_per_period_while_writing(tmp_path):
-    clock = FakeClock()
-    clip = ClipWriter(tmp_path / 'clip', 'mcap', {'label': 'x'}, flush_period_s=0.1, monotonic_s=clock)
-    clip.open()                                          # flushes: the first period starts now
-    clip.add_topic(spec(JOINT_STATES, JOINT_STATE_TYPE))
+    clip, clock = open_writer(tmp_path / 'clip', topics=[(JOINT_STATES, JOINT_STATE_TYPE)])
     size = clip.storage_path.stat().st_size
     clip.write(JOINT_STATES, 1, joint_state_cdr(1))
     clock.now_s = 0.09
@@ -164,10 +146,7 @@ def test_open_refuses_bad_label_storage_and_existing_bag(tmp_path):
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_a_full_disk_while_writing_stops_the_clip_with_the_reason(tmp_path, storage, monkeypatch):
-    clock = FakeClock()
-    clip = ClipWriter(tmp_path / 'clip', storage, {'label': 'x'}, flush_period_s=0.1, monotonic_s=clock)
-    clip.open()
-    clip.add_topic(spec(JOINT_STATES, JOINT_STATE_TYPE))
+    clip, clock = open_writer(tmp_path / 'clip', storage, topics=[(JOINT_STATES, JOINT_STATE_TYPE)])
     clip.write(JOINT_STATES, 1, joint_state_cdr(1))
 
     def no_space():

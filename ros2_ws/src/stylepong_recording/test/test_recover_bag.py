@@ -11,12 +11,11 @@ import pytest
 import yaml
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
+from offline_clips import open_writer  # beside this file: conftest.py
 
 from stylepong_recording.bag_check import (
-    JOINT_STATE_TYPE,
     JOINT_STATES,
     WRENCH,
-    WRENCH_TYPE,
     joint_state_cdr,
     read_with_mcap_ros2,
     read_with_rosbags,
@@ -24,28 +23,7 @@ from stylepong_recording.bag_check import (
     storage_file,
 )
 from stylepong_recording.bag_layout import IN_PROGRESS_NAME, STORAGE_SUFFIX
-from stylepong_recording.clip_writer import ClipWriter, TopicSpec
-from stylepong_recording.msg_definitions import MessageDefinitions
 from stylepong_recording.recover_bag import RecoveryError, main, recover_bag
-
-DEFINITIONS = MessageDefinitions(find_msg_file=lambda msgtype: None)
-
-
-class FakeClock:
-    now_s = 0.0
-
-    def __call__(self):
-        return self.now_s
-
-
-def open_writer(bag_dir, storage='mcap', label='forward'):
-    clock = FakeClock()
-    clip = ClipWriter(bag_dir, storage, {'label': label}, flush_period_s=0.1, monotonic_s=clock)
-    clip.open()
-    for topic, msgtype in [(JOINT_STATES, JOINT_STATE_TYPE), (WRENCH, WRENCH_TYPE)]:
-        clip.add_topic(TopicSpec(topic, msgtype, *DEFINITIONS.definition(msgtype)))
-    clip.flush()
-    return clip, clock
 
 
 def write_flushed(clip, clock, stamps, per_flush=50):
