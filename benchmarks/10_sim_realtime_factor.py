@@ -16,6 +16,7 @@ os.environ['ROS_DOMAIN_ID'] = str(random.Random(os.getpid()).randint(1, 101))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 
+from stylepong_common import markdown  # noqa: E402
 from stylepong_common.node_process import NodeProcess  # noqa: E402
 from stylepong_sim import world_spec  # noqa: E402
 from stylepong_sim.cell import Cell  # noqa: E402
@@ -95,14 +96,14 @@ def main() -> int:
           f'and a randomized ball launched every wall second for {NODE_WINDOW_S:.0f} s. '
           'Rates are messages received by the probe per wall second; CPU is the node process\'s share of one core. '
           f'1-minute load average at the end: {load:.1f} (other work on the machine lowers these figures).\n')
-    print('| setting | real-time factor achieved | /joint_states Hz | wrench Hz | /ball/state Hz | node CPU |')
-    print('|---|---|---|---|---|---|')
-    print(f'| Cell alone, no ball | {idle_steps / 1000:.1f} | | | | 1 core |')
-    print(f'| Cell alone, ball in flight | {ball_steps / 1000:.1f} | | | | 1 core |')
+    header = ['setting', 'real-time factor achieved', '/joint_states Hz', 'wrench Hz', '/ball/state Hz', 'node CPU']
+    rows = [['Cell alone, no ball', f'{idle_steps / 1000:.1f}', '', '', '', '1 core'],
+            ['Cell alone, ball in flight', f'{ball_steps / 1000:.1f}', '', '', '', '1 core']]
     for name, r in (('Node, real_time_factor 0 (as fast as possible)', fast),
                     ('Node, real_time_factor 1 (default)', paced)):
-        print(f"| {name} | {r['speed']:.2f} | {r['joint_hz']:.0f} | {r['wrench_hz']:.0f} | {r['ball_hz']:.0f} | "
-              f"{100 * r['cpu']:.0f} % |")
+        rows.append([name, f"{r['speed']:.2f}", f"{r['joint_hz']:.0f}", f"{r['wrench_hz']:.0f}",
+                     f"{r['ball_hz']:.0f}", f"{100 * r['cpu']:.0f} %"])
+    print('\n'.join(markdown.table(header, rows)))
     print('\nTargets (docs/ACCEPTANCE.md): /joint_states and wrench >= 450 Hz at '
           'real_time_factor 1; /clock >= 1.5x wall time at real_time_factor 0.')
     return 0

@@ -16,16 +16,20 @@ os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see tra
 
 import torch
 
+from stylepong_common import markdown
+
 NUM_ENVS = int(os.environ.get('BENCH_PPO_NUM_ENVS', 4096))
 WARMUP_ITERATIONS = 1
 MEASURED_ITERATIONS = 2
 NETWORKS = ([512, 256, 128], [256, 128, 64])
+SHARES = ('world_share', 'policy_share', 'learn_share')   # the table's columns of measure_throughput's shares
 
 
 def measure(hidden_dims: list[int]) -> dict[str, float]:
     from stylepong_policy import task
     from stylepong_policy.rl.config import load_config
     from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+    from stylepong_policy.rl.throughput import measure_throughput
     from stylepong_policy.train import default_config_path
 
     cfg = load_config(default_config_path())
@@ -37,18 +41,9 @@ def measure(hidden_dims: list[int]) -> dict[str, float]:
     env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
     with tempfile.TemporaryDirectory() as run_dir:
         runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False)
-        runner.learn(WARMUP_ITERATIONS, progress_bar=False)
-        totals = {'world_s': 0.0, 'policy_s': 0.0, 'learn_s': 0.0, 'iteration_time_s': 0.0}
-        for it in range(MEASURED_ITERATIONS):
-            stats = runner.learn(WARMUP_ITERATIONS + it + 1, progress_bar=False)
-            for key in totals:
-                totals[key] += stats[key]
-    samples = MEASURED_ITERATIONS * cfg.ppo.num_steps_per_env * NUM_ENVS
-    wall = totals['iteration_time_s']
-    return {'samples_per_s': samples / wall, 'iteration_s': wall / MEASURED_ITERATIONS,
-            'world_share': totals['world_s'] / wall, 'policy_share': totals['policy_s'] / wall,
-            'learn_share': totals['learn_s'] / wall, 'steps': cfg.ppo.num_steps_per_env,
-            'epochs': cfg.ppo.num_learning_epochs, 'minibatches': cfg.ppo.num_mini_batches}
+        throughput = measure_throughput(runner, WARMUP_ITERATIONS, MEASURED_ITERATIONS)
+    return {**throughput, 'steps': cfg.ppo.num_steps_per_env, 'epochs': cfg.ppo.num_learning_epochs,
+            'minibatches': cfg.ppo.num_mini_batches}
 
 
 def main() -> int:
@@ -66,11 +61,10 @@ def main() -> int:
           f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
           f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '
           f'Load average before the run: {load_before:.1f} (other work on the 2 cores slows every figure).\n')
-    print('| hidden sizes | samples/s | s/iteration | world share | policy inference (rollout) | PPO update |')
-    print('|---|---|---|---|---|---|')
-    for dims, r, _ in rows:
-        print(f'| {dims} | {r["samples_per_s"]:,.0f} | {r["iteration_s"]:.1f} | {100 * r["world_share"]:.0f} % | '
-              f'{100 * r["policy_share"]:.0f} % | {100 * r["learn_share"]:.0f} % |')
+    header = ['hidden sizes', 'samples/s', 's/iteration', 'world share', 'policy inference (rollout)', 'PPO update']
+    cells = [[str(dims), f'{r["samples_per_s"]:,.0f}', f'{r["iteration_s"]:.1f}',
+              *(f'{100 * r[share]:.0f} %' for share in SHARES)] for dims, r, _ in rows]
+    print('\n'.join(markdown.table(header, cells)))
     print('\nShares are of training wall time (the rest, a few %, is GAE, logging and checkpoints).')
     return 0
 

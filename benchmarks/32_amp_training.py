@@ -19,16 +19,20 @@ os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see tra
 
 import torch
 
+from stylepong_common import markdown
+
 NUM_ENVS = int(os.environ.get('BENCH_AMP_NUM_ENVS', 1024))
 WARMUP_ITERATIONS = 1
 MEASURED_ITERATIONS = 2
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+SHARES = ('world_share', 'policy_share', 'learn_share', 'style_share')   # the table's columns of the shares
 
 
 def measure(run_dir: pathlib.Path) -> dict[str, float]:
     from stylepong_policy import task
     from stylepong_policy.rl.config import load_config
     from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+    from stylepong_policy.rl.throughput import measure_throughput
     from stylepong_policy.train import default_config_path, make_motion_prior
 
     cfg = load_config(default_config_path('amp'))
@@ -38,18 +42,7 @@ def measure(run_dir: pathlib.Path) -> dict[str, float]:
     env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
     prior, _ = make_motion_prior(cfg, env, run_dir, torch.device('cpu'))
     runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False, motion_prior=prior)
-    runner.learn(WARMUP_ITERATIONS, progress_bar=False)
-    keys = ('world_s', 'policy_s', 'learn_s', 'style_s', 'iteration_time_s')
-    totals = dict.fromkeys(keys, 0.0)
-    for it in range(MEASURED_ITERATIONS):
-        stats = runner.learn(WARMUP_ITERATIONS + it + 1, progress_bar=False)
-        for key in keys:
-            totals[key] += stats[key]
-    samples = MEASURED_ITERATIONS * cfg.ppo.num_steps_per_env * NUM_ENVS
-    wall = totals['iteration_time_s']
-    return {'samples_per_s': samples / wall, 'iteration_s': wall / MEASURED_ITERATIONS,
-            'world_share': totals['world_s'] / wall, 'policy_share': totals['policy_s'] / wall,
-            'learn_share': totals['learn_s'] / wall, 'style_share': totals['style_s'] / wall,
+    return {**measure_throughput(runner, WARMUP_ITERATIONS, MEASURED_ITERATIONS),
             'hidden': cfg.policy.actor_hidden_dims, 'disc_hidden': cfg.amp.hidden_dims,
             'length': cfg.amp.sequence_length, 'updates': cfg.amp.updates_per_iteration,
             'batch': cfg.amp.batch_size}
@@ -68,10 +61,10 @@ def main() -> int:
           f'{r["length"]} arm states, {r["updates"]} discriminator steps of {r["batch"]} + {r["batch"]} windows '
           f'per iteration), reference motions built from `ros2_ws/bags`; {WARMUP_ITERATIONS} warm-up iteration, '
           f'then the mean of {MEASURED_ITERATIONS}. Load average before the run: {load_before:.1f}.\n')
-    print('| samples/s | s/iteration | world | policy inference | PPO update | discriminator (scoring + updates) |')
-    print('|---|---|---|---|---|---|')
-    print(f'| {r["samples_per_s"]:,.0f} | {r["iteration_s"]:.1f} | {100 * r["world_share"]:.0f} % | '
-          f'{100 * r["policy_share"]:.0f} % | {100 * r["learn_share"]:.0f} % | {100 * r["style_share"]:.0f} % |')
+    header = ['samples/s', 's/iteration', 'world', 'policy inference', 'PPO update',
+              'discriminator (scoring + updates)']
+    cells = [f'{r["samples_per_s"]:,.0f}', f'{r["iteration_s"]:.1f}', *(f'{100 * r[share]:.0f} %' for share in SHARES)]
+    print('\n'.join(markdown.table(header, [cells])))
     print('\nShares are of training wall time. The shipped style actors were trained on a GPU; their summaries '
           '(`models/amp_summary.json`, `models/amp_noaug_summary.json`) give the samples per second there.')
     return 0

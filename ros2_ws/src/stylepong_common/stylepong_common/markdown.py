@@ -1,0 +1,15 @@
+"""Markdown that the workspace's reports and benchmark sections write (no rclpy): tables of text cells."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    """A Markdown table's lines: the header, the separator under it (one column per header cell), a line
+    per row."""
+    lines = [_row(header), '|' + '|'.join('---' for _ in header) + '|']
+    return lines + [_row(row) for row in rows]
+
+
+def _row(cells: Sequence[str]) -> str:
+    return '| ' + ' | '.join(cells) + ' |'

@@ -1,0 +1,10 @@
+"""markdown: tables as the reports and benchmarks print them."""
+from stylepong_common.markdown import table
+
+
+def test_a_table_has_its_header_a_separator_per_column_and_a_line_per_row():
+    assert table(['a', 'b'], [['1', '2'], ['3', '']]) == ['| a | b |', '|---|---|', '| 1 | 2 |', '| 3 |  |']
+
+
+def test_a_table_without_rows_is_its_header():
+    assert table(['only'], []) == ['| only |', '|---|']
