@@ -70,13 +70,6 @@ JOINT_VELOCITY_FACTOR = 2.0
 STATS_WINDOW = 4096
 
 
-class State(str, enum.Enum):
-    """The player's state: disabled, ready (at home) or playing."""
-    DISABLED = 'disabled'
-    READY = 'ready'
-    PLAYING = 'playing'
-
-
 # --- limits and the command limiter ------------------------------------------------------------------
 @dataclass(frozen=True)
 class JointLimits:
@@ -348,6 +341,13 @@ def check_goal(goal_xy_m: Sequence[float]) -> None:
     if not (math.isfinite(x) and math.isfinite(y) and 0.0 < x <= half_length_m and abs(y) <= half_width_m):
         raise ValueError(f"goal ({x}, {y}) m is not on the opponent's half "
                          f'(0 < x <= {robot_cell.HALF_LENGTH_M}, |y| <= {robot_cell.HALF_WIDTH_M})')
+
+
+class State(str, enum.Enum):
+    """The player's state: disabled, ready (at home) or playing."""
+    DISABLED = 'disabled'
+    READY = 'ready'
+    PLAYING = 'playing'
 
 
 @dataclass

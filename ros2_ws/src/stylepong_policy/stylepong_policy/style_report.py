@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stylepong_common import markdown
 from stylepong_policy import style_metrics
 from stylepong_policy.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
 
@@ -288,11 +289,6 @@ def _percent(value: float | None, std: float | None = None) -> str:
     return f'{100 * value:.1f} %' + (f' ± {100 * std:.1f}' if std is not None else '')
 
 
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    lines = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
-    return lines + ['| ' + ' | '.join(row) + ' |' for row in rows]
-
-
 def _same_balls(results: Mapping[str, ActorResults]) -> bool:
     keys = {(tuple(r.all_speeds['seeds']), r.all_speeds['balls_per_seed']) for r in results.values()}
     return len(keys) == 1
@@ -311,8 +307,8 @@ def success_section(results: Mapping[str, ActorResults]) -> list[str]:
     lines = ['## Success', '', f'All speeds: {setting_text(style.all_speeds)}.']
     if style.high_speeds is not None:
         lines.append(f'High speeds: {setting_text(style.high_speeds)}.')
-    return [*lines, '', *_table(['Actor', 'File', 'All speeds (± std over seeds)', 'High speeds', 'Hit rate'], rows),
-            '', f'![success]({SUCCESS_PNG})', '']
+    header = ['Actor', 'File', 'All speeds (± std over seeds)', 'High speeds', 'Hit rate']
+    return [*lines, '', *markdown.table(header, rows), '', f'![success]({SUCCESS_PNG})', '']
 
 
 def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_name: str,
@@ -330,7 +326,7 @@ def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_
              f'`{dataset_name}` (all speed factors), by the direction the ball came from; `{OVERALL}` is the mean '
              'over every stroke that had clips of its label. Demonstration clips per label (originals): '
              + ', '.join(f'{d} {clips.get(d, 0)}' for d in DIRECTIONS) + '.', '',
-             *_table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
+             *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
     if missing:
         lines += [f'No demonstration labelled {", ".join(missing)}: those strokes have no DTW here.', '']
     return [*lines, f'![DTW]({DTW_PNG})', '']
@@ -348,8 +344,8 @@ def smoothness_section(results: Mapping[str, ActorResults], reference: Mapping[s
         values = reference.get(d)
         rows.append(['demonstrations (x1)', d] + [_number(values and values[m], 1) for m in measures])
     return ['## Smoothness', '', 'Per stroke from the 60 Hz joint positions (style_metrics), mean over strokes.', '',
-            *_table(['Actor', 'Direction', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
-                     'Mean |jerk| (rad/s³)'], rows), '', f'![smoothness]({SMOOTHNESS_PNG})', '']
+            *markdown.table(['Actor', 'Direction', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
+                             'Mean |jerk| (rad/s³)'], rows), '', f'![smoothness]({SMOOTHNESS_PNG})', '']
 
 
 def strips_section(strips: Sequence[dict]) -> list[str]:
@@ -375,7 +371,7 @@ def run_section(timings_s: Mapping[str, float], checkpoints) -> list[str]:
     rows = [[stage, f'{seconds:.0f}', f'{seconds / 60:.1f}'] for stage, seconds in timings_s.items()]
     total = sum(timings_s.values())
     rows.append(['**total**', f'{total:.0f}', f'{total / 60:.1f}'])
-    return ['## The run', '', *_table(['Stage', 'Wall time (s)', '(min)'], rows), '', 'Chosen checkpoints:', '',
+    return ['## The run', '', *markdown.table(['Stage', 'Wall time (s)', '(min)'], rows), '', 'Chosen checkpoints:', '',
             '```', json.dumps(checkpoints, indent=2, default=str), '```', '']
 
 
