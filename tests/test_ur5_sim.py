@@ -144,12 +144,12 @@ def _first_bounce_and_apex(probe: Ur5SimProbe, ball_id: int):
 
 
 @pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
-def test_forty_randomized_balls_need_every_stroke(sim):
+def test_randomized_balls_need_every_stroke(sim):
     _, probe = sim
     probe.reset()
     _move_and_settle(probe, PARKED)   # the arm out of the balls' way: the distribution alone is measured
     speeds, lateral_m = [], []
-    for seed in range(100, 140):
+    for seed in range(100, 124):
         response = probe.launch(randomize=True, seed=seed, speed_min=0.0, speed_max=0.0)
         assert response.success, response.message
         speeds.append(math.sqrt(response.velocity.x ** 2 + response.velocity.y ** 2 + response.velocity.z ** 2))
@@ -160,7 +160,7 @@ def test_forty_randomized_balls_need_every_stroke(sim):
         assert -world_spec.HALF_LENGTH_M <= bounce.position.x < 0.0, seed
         assert abs(bounce.position.y) <= world_spec.HALF_WIDTH_M, seed
         lateral_m.append(apex[1])
-    print(f'40 balls: speeds {min(speeds):.2f}-{max(speeds):.2f} m/s, apex y {min(lateral_m):.2f} to '
+    print(f'{len(speeds)} balls: speeds {min(speeds):.2f}-{max(speeds):.2f} m/s, apex y {min(lateral_m):.2f} to '
           f'{max(lateral_m):.2f} m (span {max(lateral_m) - min(lateral_m):.2f} m)')
     assert min(speeds) >= 4.0 and max(speeds) <= 6.6
     assert max(speeds) - min(speeds) >= 2.0
