@@ -1,14 +1,16 @@
 """config/ur5_sim.yaml lists every ur5_sim parameter with the node's default; realistic_sensing.yaml is valid;
 bad values are refused in one line naming the parameter, at start-up and (real_time_factor) at run time."""
+import contextlib
 import math
 import pathlib
+from collections.abc import Iterator
 
 import pytest
-import rclpy
-import yaml
 from rclpy.parameter import Parameter
 
+from stylepong_common.node_context import node_in_context, ros_context
 from stylepong_common.node_support import ParameterError
+from stylepong_common.parameter_files import file_parameters
 from stylepong_sim import world_spec
 from stylepong_sim.ur5_sim_node import PARAMETERS, Ur5SimNode
 
@@ -16,28 +18,20 @@ CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config'
 
 
 def _yaml_parameters(name: str) -> dict:
-    return yaml.safe_load((CONFIG / name).read_text())['ur5_sim']['ros__parameters']
+    return file_parameters(CONFIG / name, 'ur5_sim')
 
 
-def _node(*ros_args: str) -> tuple[Ur5SimNode, rclpy.Context]:
-    context = rclpy.Context()
-    rclpy.init(args=['--ros-args', *ros_args], context=context)
-    return Ur5SimNode(context=context), context
-
-
-def _close(node, context) -> None:
-    node.close()
-    node.destroy_node()
-    rclpy.try_shutdown(context=context)
+@contextlib.contextmanager
+def _node(*ros_args: str) -> Iterator[Ur5SimNode]:
+    """The node, closed (its cell and video) before it is destroyed."""
+    with node_in_context(Ur5SimNode, *ros_args) as node, contextlib.closing(node):
+        yield node
 
 
 def test_the_yaml_holds_every_parameter_with_its_default():
-    node, context = _node()
-    try:
+    with _node() as node:
         declared = {name: p.value for name, p in node._parameters.items()
                     if name not in ('use_sim_time', 'start_type_description_service')}
-    finally:
-        _close(node, context)
     in_yaml = _yaml_parameters('ur5_sim.yaml')
     assert set(in_yaml) == set(declared)
     for name, value in in_yaml.items():
@@ -52,12 +46,9 @@ def test_the_yaml_holds_every_parameter_with_its_default():
 
 def test_realistic_sensing_is_valid_and_not_perfect():
     realistic = _yaml_parameters('realistic_sensing.yaml')
-    node, context = _node('--params-file', str(CONFIG / 'realistic_sensing.yaml'))
-    try:
+    with _node('--params-file', str(CONFIG / 'realistic_sensing.yaml')) as node:
         for name, value in realistic.items():
             assert node.get_parameter(name).value == pytest.approx(value), name
-    finally:
-        _close(node, context)
     for name in ('ball_position_noise_std_m', 'ball_latency_s', 'ball_dropout_probability', 'ft_force_noise_std_n'):
         assert realistic[name] > 0.0
     assert any(v != 0.0 for v in realistic['ft_force_bias_n'])
@@ -76,32 +67,21 @@ def test_the_table_names_every_parameter_in_the_yaml_order():
                                         (('-p', 'sensing_seed:=-3'), 'sensing_seed'),
                                         (('-p', 'video_width:=8.0'), 'video_width')])
 def test_bad_parameters_stop_the_node_with_one_line_naming_them(args, name):
-    context = rclpy.Context()
-    rclpy.init(args=['--ros-args', *args], context=context)
-    try:
-        with pytest.raises(ParameterError) as error:
-            Ur5SimNode(context=context)
-        assert name in str(error.value) and '\n' not in str(error.value)
-    finally:
-        rclpy.try_shutdown(context=context)
+    with ros_context(*args) as context, pytest.raises(ParameterError) as error:
+        Ur5SimNode(context=context)
+    assert name in str(error.value) and '\n' not in str(error.value)
 
 
 def test_real_time_factor_changes_at_run_time_within_its_bounds_only():
-    node, context = _node()
-    try:
+    with _node() as node:
         assert node.set_parameters([Parameter('real_time_factor', value=2)])[0].successful
         assert node._real_time_factor == 2.0
         refused = node.set_parameters([Parameter('real_time_factor', value=101.0)])[0]
         assert not refused.successful and 'real_time_factor' in refused.reason
         assert node._real_time_factor == 2.0
         assert not node.set_parameters([Parameter('max_lag_s', value=1.0)])[0].successful   # read-only
-    finally:
-        _close(node, context)
 
 
 def test_an_integer_real_time_factor_is_accepted():
-    node, context = _node('-p', 'real_time_factor:=0')
-    try:
+    with _node('-p', 'real_time_factor:=0') as node:
         assert node._real_time_factor == 0.0 and not math.isnan(node._real_time_factor)
-    finally:
-        _close(node, context)
