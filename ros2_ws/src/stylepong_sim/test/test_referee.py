@@ -44,10 +44,24 @@ def test_a_return_to_the_opponents_half_succeeds():
     assert not ref.rally_open
 
 
-def test_a_net_touching_return_fails_even_if_it_would_drop_over():
+# A contact as the cell reports it: (the referee's method, time s, ball position).
+TABLE, NET, PADDLE = referee.Referee.table_contact, referee.Referee.net_contact, referee.Referee.paddle_contact
+
+
+@pytest.mark.parametrize('contacts, verdict', [
+    pytest.param([(TABLE, 0.5, OWN), (PADDLE, 0.8, AIR), (NET, 1.0, AIR)], (False, 'net'),
+                 id='a_net_touching_return_fails_even_if_it_would_drop_over'),
+    pytest.param([(TABLE, 0.5, OWN), (TABLE, 0.9, OWN)], (False, 'second_bounce_own_side'),
+                 id='a_second_bounce_on_own_side_before_a_hit_fails'),
+    pytest.param([(PADDLE, 0.4, AIR), (TABLE, 0.9, OPPONENT)], (True, 'returned'),
+                 id='a_volley_is_judged_by_where_the_return_lands'),
+])
+def test_the_contacts_of_a_rally_earn_its_verdict(contacts, verdict):
     ref = referee.Referee()
-    events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR) + ref.net_contact(1.0, AIR)
-    assert _verdict(events) == (False, 'net')
+    events = _launched(ref)
+    for report, time_s, position in contacts:
+        events += report(ref, time_s, position)
+    assert _verdict(events) == verdict
 
 
 @pytest.mark.parametrize('second, reason', [
@@ -84,23 +98,11 @@ def test_a_returned_ball_below_the_table_top_outside_it_and_falling_is_out():
     assert _verdict(events) == (False, 'out')
 
 
-def test_second_bounce_on_own_side_before_a_hit_fails():
-    ref = referee.Referee()
-    events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.table_contact(0.9, OWN)
-    assert _verdict(events) == (False, 'second_bounce_own_side')
-
-
 def test_robot_contact_before_the_hit_fails():
     ref = referee.Referee()
     events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.robot_contact(0.7, AIR)
     assert _types(events) == [referee.LAUNCHED, referee.BOUNCE_OWN_SIDE, referee.ROBOT_CONTACT, referee.RALLY_END]
     assert _verdict(events) == (False, 'robot_contact')
-
-
-def test_a_volley_is_judged_by_where_the_return_lands():
-    ref = referee.Referee()
-    events = _launched(ref) + ref.paddle_contact(0.4, AIR) + ref.table_contact(0.9, OPPONENT)
-    assert _verdict(events) == (True, 'returned')
 
 
 def test_timeout():
