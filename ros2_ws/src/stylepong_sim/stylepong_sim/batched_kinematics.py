@@ -99,14 +99,6 @@ class ArmModel:
     velocity_limit_rad_s: torch.Tensor  # [6, 1]
     effort_limit_nm: torch.Tensor    # [6, 1]
 
-    @property
-    def device(self) -> torch.device:
-        return self.rot_a.device
-
-    @property
-    def dtype(self) -> torch.dtype:
-        return self.rot_a.dtype
-
 
 _AXES = {'JointModelRX': (1.0, 0.0, 0.0), 'JointModelRY': (0.0, 1.0, 0.0), 'JointModelRZ': (0.0, 0.0, 1.0)}
 

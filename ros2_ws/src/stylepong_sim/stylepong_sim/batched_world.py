@@ -211,13 +211,15 @@ class BatchedWorld:
         self._blade_radius_m = robot_model.PADDLE.blade_radius_m
         self._blade_half_thickness_m = robot_model.PADDLE.blade_thickness_m / 2.0
 
-    # --- public views (environment axis first, for the task) ---------------------------------------
+    # --- public views (after the last step; environment axis last, as everywhere here) --------------
     @property
     def paddle_pos_m(self) -> torch.Tensor:
+        """[3, N] the blade centre in the world."""
         return self._kin.paddle_pos_m
 
     @property
     def paddle_rot(self) -> torch.Tensor:
+        """[3, 3, N] columns: the paddle_centre frame's axes in the world (z: the blade's face normal)."""
         return self._kin.paddle_rot
 
     @property
