@@ -210,10 +210,13 @@ EXTENDS_KEY = 'extends'
 
 
 def _read_mapping(path: pathlib.Path) -> dict[str, Any]:
+    # Each try holds the one call whose error it names: reading fails with OSError, parsing with YAMLError.
     try:
-        data = yaml.safe_load(path.read_text())
+        text = path.read_text()
     except OSError as err:
         raise ValueError(f'cannot read config {path}: {err}') from err
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise ValueError(f'config {path} is not valid YAML: {err}') from err
     if data is not None and not isinstance(data, dict):
