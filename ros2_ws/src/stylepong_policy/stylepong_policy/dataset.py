@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from stylepong_common.settings import at_least, check_ranges, non_negative, positive
 from stylepong_sim.world_spec import POLICY_RATE_HZ
 
 DEFAULT_RATE_HZ = POLICY_RATE_HZ   # clips are played at the rate the policy acts
@@ -39,26 +40,19 @@ NS_PER_S = 1_000_000_000
 @dataclass(frozen=True)
 class ClipOptions:
     """How a recording becomes clips."""
-    rate_hz: float = DEFAULT_RATE_HZ
+    rate_hz: float = positive(DEFAULT_RATE_HZ)
     # Frames at the start and end whose fastest joint moves slower than this are idle (0: keep all).
-    idle_speed_rad_s: float = 0.05
+    idle_speed_rad_s: float = non_negative(0.05)
     # A longer silence (or 5 median message periods, whichever is longer) splits a recording.
-    max_gap_s: float = 0.1
+    max_gap_s: float = positive(0.1)
     # The bag's velocities are used when they match the position derivative per joint within
     # abs + rel * rms(derivative) (rms over the clip); else velocities come from the positions.
-    velocity_abs_tolerance_rad_s: float = 0.05
-    velocity_rel_tolerance: float = 0.2
-    min_frames: int = 2
+    velocity_abs_tolerance_rad_s: float = non_negative(0.05)
+    velocity_rel_tolerance: float = non_negative(0.2)
+    min_frames: int = at_least(2, 2)
 
     def validate(self) -> None:
-        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ValueError(f'rate_hz must be a positive number, got {self.rate_hz}')
-        if not (math.isfinite(self.idle_speed_rad_s) and self.idle_speed_rad_s >= 0):
-            raise ValueError(f'idle_speed_rad_s must be >= 0, got {self.idle_speed_rad_s}')
-        if not (math.isfinite(self.max_gap_s) and self.max_gap_s > 0):
-            raise ValueError(f'max_gap_s must be > 0, got {self.max_gap_s}')
-        if self.min_frames < 2:
-            raise ValueError(f'min_frames must be >= 2, got {self.min_frames}')
+        check_ranges(self)
 
 
 @dataclass

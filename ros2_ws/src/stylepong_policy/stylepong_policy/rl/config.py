@@ -23,6 +23,8 @@ from typing import Any
 
 import yaml
 
+from stylepong_common.settings import check_ranges, non_negative, positive, within
+
 SCHEDULES = ('adaptive', 'fixed', 'linear')
 
 
@@ -32,44 +34,44 @@ class PolicyConfig:
     actor_hidden_dims: list[int] = field(default_factory=lambda: [256, 128, 64])
     critic_hidden_dims: list[int] = field(default_factory=lambda: [256, 128, 64])
     activation: str = 'elu'
-    init_noise_std: float = 0.5          # initial std of the Gaussian policy, in action units
-    min_std: float = 1e-3                # floor on the std (keeps log-probs finite)
-    normalize_observations: bool = True  # running mean/var normalisation of actor and critic inputs
+    init_noise_std: float = positive(0.5)  # initial std of the Gaussian policy, in action units
+    min_std: float = 1e-3                  # floor on the std (keeps log-probs finite)
+    normalize_observations: bool = True    # running mean/var normalisation of actor and critic inputs
 
 
 @dataclass
 class PPOConfig:
     """PPO's hyperparameters: rollout length, epochs, minibatches, losses and learning-rate schedule."""
-    num_steps_per_env: int = 24          # rollout length T per iteration; batch = T x num_envs samples
-    num_learning_epochs: int = 5
-    num_mini_batches: int = 4
-    clip_param: float = 0.2              # PPO ratio clip epsilon
-    gamma: float = 0.99                  # discount per policy step (60 Hz)
-    lam: float = 0.95                    # GAE lambda
+    num_steps_per_env: int = positive(24)  # rollout length T per iteration; batch = T x num_envs samples
+    num_learning_epochs: int = positive(5)
+    num_mini_batches: int = positive(4)
+    clip_param: float = positive(0.2)      # PPO ratio clip epsilon
+    gamma: float = within(0.99, 0.0, 1.0)  # discount per policy step (60 Hz)
+    lam: float = within(0.95, 0.0, 1.0)    # GAE lambda
     value_loss_coef: float = 1.0
     use_clipped_value_loss: bool = True
     entropy_coef: float = 0.002
-    learning_rate: float = 1e-3
-    schedule: str = 'adaptive'           # adaptive (from the KL), fixed, or linear decay to min_learning_rate
-    desired_kl: float = 0.01             # target KL for the adaptive schedule
+    learning_rate: float = positive(1e-3)
+    schedule: str = 'adaptive'             # adaptive (from the KL), fixed, or linear decay to min_learning_rate
+    desired_kl: float = positive(0.01)     # target KL for the adaptive schedule
     min_learning_rate: float = 1e-5
     max_learning_rate: float = 1e-2
-    max_grad_norm: float = 1.0
+    max_grad_norm: float = positive(1.0)
     normalize_advantages: bool = True
 
 
 @dataclass
 class RunnerConfig:
     """The run: iterations, seed, device, threads and checkpointing."""
-    iterations: int = 1300               # total iterations of the run (a resumed run continues to this)
-    seed: int = 1                        # below world_spec.FIRST_EVALUATION_SEED
-    device: str = 'cpu'                  # 'cpu' or 'cuda' (or 'cuda:N')
-    num_threads: int = 2                 # torch intra-op threads on CPU
-    save_interval: int = 50              # iterations between numbered checkpoints (last.pt is every iteration)
-    keep_checkpoints: int = 0            # numbered checkpoints kept besides last.pt (0 keeps all)
+    iterations: int = non_negative(1300)     # total iterations of the run (a resumed run continues to this)
+    seed: int = non_negative(1)              # below world_spec.FIRST_EVALUATION_SEED
+    device: str = 'cpu'                      # 'cpu' or 'cuda' (or 'cuda:N')
+    num_threads: int = positive(2)           # torch intra-op threads on CPU
+    save_interval: int = positive(50)        # iterations between numbered checkpoints (last.pt is every iteration)
+    keep_checkpoints: int = non_negative(0)  # numbered checkpoints kept besides last.pt (0 keeps all)
     # The run's first iterations step the critic alone: a run started from another run's network (a skill)
     # meets rewards its critic never valued, and its first advantages would be noise that undoes the skill.
-    critic_warmup_iterations: int = 0
+    critic_warmup_iterations: int = non_negative(0)
     progress_bar: bool = True
 
 
@@ -80,44 +82,35 @@ FRAME_FEATURES = ('q_qdot', 'q')
 @dataclass
 class AMPConfig:
     """The adversarial motion prior (stylepong_policy.rl.amp); config/amp.yaml says why each value."""
-    dataset: str = ''                    # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
-    speed_factors: list[int] | None = None   # clips used (None: all; [1]: the originals only, "amp-noaug")
-    sequence_length: int = 4             # L arm states per discriminator window, at the policy rate
-    frame_features: str = 'q_qdot'       # of each arm state: 'q_qdot' (positions and velocities) or 'q'
+    dataset: str = ''                       # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
+    speed_factors: list[int] | None = None  # clips used (None: all; [1]: the originals only, "amp-noaug")
+    sequence_length: int = positive(4)      # L arm states per discriminator window, at the policy rate
+    frame_features: str = 'q_qdot'          # of each arm state: 'q_qdot' (positions and velocities) or 'q'
     hidden_dims: list[int] = field(default_factory=lambda: [512, 256])
     activation: str = 'elu'
-    normalizer_clip: float = 5.0
-    learning_rate: float = 1e-4
-    weight_decay_trunk: float = 1e-4
-    weight_decay_head: float = 1e-2
-    grad_penalty: float = 5.0            # weight of E_ref |grad D|^2
-    updates_per_iteration: int = 8       # discriminator minibatch steps per PPO update
-    batch_size: int = 4096               # reference and policy windows per discriminator step (each)
-    replay_size: int = 200000            # policy windows kept for the discriminator's negatives
-    style_reward: str = 'lsgan'          # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
-    condition_on_label: bool = False     # D also sees each window's label (the clip's; the env's 'style_label')
-    condition_on_phase: bool = False     # D also sees if a window ends before or after the hit ('style_phase')
-    w_task: float = 1.0
-    w_style: float = 0.05
+    normalizer_clip: float = positive(5.0)
+    learning_rate: float = positive(1e-4)
+    weight_decay_trunk: float = non_negative(1e-4)
+    weight_decay_head: float = non_negative(1e-2)
+    # The weight of E_ref |grad D|^2, and the discriminator's minibatch steps per PPO update.
+    grad_penalty: float = non_negative(5.0)
+    updates_per_iteration: int = non_negative(8)
+    batch_size: int = positive(4096)        # reference and policy windows per discriminator step (each)
+    replay_size: int = positive(200000)     # policy windows kept for the discriminator's negatives
+    style_reward: str = 'lsgan'             # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
+    condition_on_label: bool = False        # D also sees each window's label (the clip's; the env's 'style_label')
+    condition_on_phase: bool = False        # D also sees if a window ends before or after the hit ('style_phase')
+    w_task: float = non_negative(1.0)
+    w_style: float = non_negative(0.05)
     # The pose prior (rl.pose_prior): w_pose exp(-|q - nearest demonstrated pose of the label| / sigma) per step.
-    w_pose: float = 0.0
-    pose_sigma_rad: float = 0.3
+    w_pose: float = non_negative(0.0)
+    pose_sigma_rad: float = positive(0.3)
     # The stroke prior (rl.stroke_prior): w_stroke exp(-DTW(stroke, nearest clip) / (sigma frames)), once a stroke.
-    w_stroke: float = 0.0
-    stroke_sigma_rad: float = 0.4
+    w_stroke: float = non_negative(0.0)
+    stroke_sigma_rad: float = positive(0.4)
 
     def validate(self) -> None:
-        positive = {'sequence_length': self.sequence_length, 'learning_rate': self.learning_rate,
-                    'batch_size': self.batch_size, 'replay_size': self.replay_size,
-                    'normalizer_clip': self.normalizer_clip, 'pose_sigma_rad': self.pose_sigma_rad,
-                    'stroke_sigma_rad': self.stroke_sigma_rad}
-        for name, value in positive.items():
-            if not value > 0:
-                raise ValueError(f'amp.{name} must be positive, got {value}')
-        for name in ('weight_decay_trunk', 'weight_decay_head', 'grad_penalty', 'updates_per_iteration', 'w_task',
-                     'w_style', 'w_pose', 'w_stroke'):
-            if getattr(self, name) < 0:
-                raise ValueError(f'amp.{name} must not be negative, got {getattr(self, name)}')
+        check_ranges(self, prefix='amp.')
         if self.frame_features not in FRAME_FEATURES:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
@@ -139,24 +132,11 @@ class TrainConfig:
     amp: AMPConfig | None = None         # None: PPO on the task reward alone
 
     def validate(self) -> 'TrainConfig':
-        p, r = self.ppo, self.runner
-        if p.schedule not in SCHEDULES:
-            raise ValueError(f'ppo.schedule must be one of {SCHEDULES}, got {p.schedule!r}')
-        positive = {'ppo.num_steps_per_env': p.num_steps_per_env, 'ppo.num_learning_epochs': p.num_learning_epochs,
-                    'ppo.num_mini_batches': p.num_mini_batches, 'ppo.learning_rate': p.learning_rate,
-                    'ppo.clip_param': p.clip_param, 'ppo.desired_kl': p.desired_kl,
-                    'ppo.max_grad_norm': p.max_grad_norm, 'runner.save_interval': r.save_interval,
-                    'runner.num_threads': r.num_threads, 'policy.init_noise_std': self.policy.init_noise_std}
-        for name, value in positive.items():
-            if not value > 0:
-                raise ValueError(f'{name} must be positive, got {value}')
-        for name, value in {'ppo.gamma': p.gamma, 'ppo.lam': p.lam}.items():
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f'{name} must be in [0, 1], got {value}')
-        if r.iterations < 0 or r.keep_checkpoints < 0 or r.critic_warmup_iterations < 0:
-            raise ValueError('runner.iterations, keep_checkpoints and critic_warmup_iterations must not be negative')
-        if not 0 <= r.seed:
-            raise ValueError(f'runner.seed must not be negative, got {r.seed}')
+        if self.ppo.schedule not in SCHEDULES:
+            raise ValueError(f'ppo.schedule must be one of {SCHEDULES}, got {self.ppo.schedule!r}')
+        check_ranges(self.policy, prefix='policy.')
+        check_ranges(self.ppo, prefix='ppo.')
+        check_ranges(self.runner, prefix='runner.')
         if not isinstance(self.task, dict):
             raise ValueError(f'task must be a mapping of TaskConfig fields, got {type(self.task).__name__}')
         if self.amp is not None:
