@@ -4,10 +4,10 @@ import pathlib
 
 import pytest
 import rclpy
-import yaml
 from rclpy.parameter import Parameter
 
 from stylepong_common.node_support import ParameterError
+from stylepong_common.parameter_files import differences_from_defaults, file_parameters
 from stylepong_fdcc.drag_teach_node import PARAMETERS, DragTeachNode, quaternion_to_rotation
 from stylepong_fdcc.fdcc_config import FdccConfig
 
@@ -15,10 +15,7 @@ CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'drag_teach
 
 
 def test_the_yaml_file_holds_every_parameter_with_the_node_default():
-    values = yaml.safe_load(CONFIG.read_text())['drag_teach']['ros__parameters']
-    assert list(values) == [row.name for row in PARAMETERS]
-    for row in PARAMETERS:
-        assert values[row.name] == row.default and type(values[row.name]) is type(row.default), row.name
+    assert differences_from_defaults(PARAMETERS, file_parameters(CONFIG, 'drag_teach')) == []
 
 
 def test_every_solver_setting_is_a_parameter():
