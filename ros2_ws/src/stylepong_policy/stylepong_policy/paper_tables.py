@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from stylepong_common import markdown
 from stylepong_common.command_line import require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import evaluate, style_metrics
@@ -260,12 +261,6 @@ def number(value: float | None, digits: int = 2) -> str:
     return 'n/a' if value is None else f'{value:.{digits}f}'
 
 
-def table(header: list[str], rows: list[list[str]]) -> list[str]:
-    """A Markdown table's lines."""
-    lines = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
-    return lines + ['| ' + ' | '.join(row) + ' |' for row in rows]
-
-
 def table_one(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
     """Table I: success rate at all speeds, the paper's and ours."""
     rows = []
@@ -276,8 +271,9 @@ def table_one(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
                      number(fig.mean_success), number(ours['mean_successes_per_seed']), percent(fig.success_rate),
                      percent(ours['success_rate'], ours['success_rate_std']), percent(ours['hit_rate'])])
     return ['## Table I: success rate, all speeds', '', f'Setting: {protocol.setting("all")}.', '',
-            *table(['Method', 'Attempts per seed (paper / ours)', 'Mean success (paper)', 'Mean success (ours)',
-                    'Success rate (paper)', 'Success rate (ours, ± std over seeds)', 'Hit rate (ours)'], rows),
+            *markdown.table(['Method', 'Attempts per seed (paper / ours)', 'Mean success (paper)',
+                             'Mean success (ours)', 'Success rate (paper)', 'Success rate (ours, ± std over seeds)',
+                             'Hit rate (ours)'], rows),
             '', '![Table I](table1_success.png)', '']
 
 
@@ -310,11 +306,11 @@ def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
     clip_counts = ', '.join(f'{d} {dtw_ppo[d]["reference_clips"]}' for d in DIRECTIONS)
     return ['## Table II: DTW distance to the demonstrations (lower is better)', '',
             f'Setting: {protocol.setting("all")}; every ball\'s stroke, labelled by the direction it came from.', '',
-            *table(header, rows), '',
+            *markdown.table(header, rows), '',
             'Ours in every actor, with the spread over strokes and the distance per warping-path step '
             '(rad; strokes per direction forward / leftward / rightward):', '',
-            *table(['Actor'] + [f'{d} (rad)' for d in DIRECTIONS] + [f'{d} per step' for d in DIRECTIONS]
-                   + ['strokes'], extra), '',
+            *markdown.table(['Actor'] + [f'{d} (rad)' for d in DIRECTIONS] + [f'{d} per step' for d in DIRECTIONS]
+                            + ['strokes'], extra), '',
             f'DTW: joint positions (rad, 6 joints) at 60 Hz from the ball\'s launch to {FOLLOW_THROUGH_S} s after '
             'the paddle\'s first contact, against every demonstration clip of the same label (all speed factors: '
             f'{clip_counts} clips), the smallest per '
@@ -348,7 +344,7 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
                    for name in ACTOR_NAMES]
     return ['## Where the DTW distance lies (not in the paper)', '',
             f'Setting: {protocol.setting("all")}; the strokes and nearest clips of Table II.', '',
-            *table(header, rows), '',
+            *markdown.table(header, rows), '',
             'Per stroke, the mean over the strokes of all three directions (rad): each frame pair on the optimal '
             'warping path adds its Euclidean distance |d|, shared among the joints as d_k^2 / |d| and given to the '
             f'phase of its stroke frame: waiting until {style_metrics.SWING_S} s before the paddle\'s hit, the swing '
@@ -356,7 +352,7 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
             'The joints add up to the DTW column, and so do the phases.', '',
             'By how far to the side of the paddle\'s home the ball arrives (|arrival y - home y|; the demonstrated '
             'hits lie within 0.18 m of it): mean DTW distance (rad) and strokes.', '',
-            *table(['Actor'] + list(offsets), offset_rows), '']
+            *markdown.table(['Actor'] + list(offsets), offset_rows), '']
 
 
 @dataclass(frozen=True)
@@ -412,8 +408,8 @@ def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> li
                          percent(ours['success_rate'], ours['success_rate_std'])])
     return ['## Table III: success at low and high incoming speeds', '',
             f'Setting: {protocol.bands_setting()}: low {band_text("low")}, high {band_text("high")} m/s.', '',
-            *table(['Method', 'Speed', 'Attempts per seed (paper / ours)', 'Mean (paper)', 'Mean (ours)',
-                    'Success rate (paper)', 'Success rate (ours, ± std over seeds)'], rows), '',
+            *markdown.table(['Method', 'Speed', 'Attempts per seed (paper / ours)', 'Mean (paper)', 'Mean (ours)',
+                             'Success rate (paper)', 'Success rate (ours, ± std over seeds)'], rows), '',
             *augmentation_lines(summaries), '![Table III](table3_speed.png)', '']
 
 
@@ -437,8 +433,8 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
                      number(s and s['peak_joint_acceleration_rad_s2'], 1), number(s and s['mean_abs_jerk_rad_s3'], 1),
                      '-', '-'])
     return ['## Smoothness beside DTW (not in the paper)', '', f'Setting: {protocol.setting("all")}.', '',
-            *table(['Actor', 'Direction', 'Strokes', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
-                    'Mean |jerk| (rad/s³)', 'DTW (rad)', 'DTW per step (rad)'], rows), '',
+            *markdown.table(['Actor', 'Direction', 'Strokes', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
+                             'Mean |jerk| (rad/s³)', 'DTW (rad)', 'DTW per step (rad)'], rows), '',
             'Per stroke (the DTW sequences), then the mean over strokes: backward differences of the 60 Hz joint '
             'positions, qdot = Δq/Δt, qddot = Δqdot/Δt, jerk = Δqddot/Δt; peak speed and acceleration are the '
             'largest magnitude over frames and joints, the jerk the mean magnitude over frames and joints. '
@@ -455,7 +451,7 @@ def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol
         rows.append([f'`{name}`'] + [f'{directions[d]["balls"]}: {percent(directions[d]["success_rate"])}'
                                      for d in DIRECTIONS])
     return ['## Success per direction', '', f'Setting: {protocol.setting("all")}.', '',
-            *table(['Actor'] + [f'{d} (balls: success)' for d in DIRECTIONS], rows), '',
+            *markdown.table(['Actor'] + [f'{d} (balls: success)' for d in DIRECTIONS], rows), '',
             f'A ball\'s direction is where it crosses the paddle\'s home plane x = {rule["plane_x_m"]} m after its '
             f'bounce, relative to the paddle\'s home y = {rule["paddle_home_y_m"]} m (world +y is the robot\'s left): '
             f'leftward above +{rule["leftward_above_m"]} m, rightward below {rule["rightward_below_m"]} m, forward '
@@ -484,7 +480,7 @@ def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol
     return ['## Table IV: sim2sim transfer', '',
             f'Rows of ours other than the batched world come from {SIM2SIM_PATTERN} files in this folder (the '
             'deployment work writes them); each states its own setting there.', '',
-            *table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out), '',
+            *markdown.table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out), '',
             *(['Measured with:', '', *commands, ''] if commands else [])]
 
 

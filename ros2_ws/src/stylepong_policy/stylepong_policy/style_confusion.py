@@ -33,6 +33,7 @@ from typing import NoReturn
 
 import numpy as np
 
+from stylepong_common import markdown
 from stylepong_common.command_line import exit_with_run, require_counts
 from stylepong_policy import evaluate
 from stylepong_policy.dataset import ReferenceDataset
@@ -143,11 +144,6 @@ def _number(value: float | None, digits: int = 3) -> str:
     return 'n/a' if value is None else f'{value:.{digits}f}'
 
 
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    lines = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
-    return lines + ['| ' + ' | '.join(row) + ' |' for row in rows]
-
-
 def render_markdown(record: dict) -> str:
     """style_confusion.md from the JSON record."""
     sets = list(record['sets'])
@@ -171,7 +167,7 @@ def render_markdown(record: dict) -> str:
         rows.append([f'`{a}`', *cells, f'`{nearest}`' if nearest else 'n/a', _number(record['verdicts'][a]['margin']),
                      _number(record['verdicts'][a]['margin_ratio'], 2)])
     lines += ['', '## Normalised distance (actor / baseline on the same set; smaller is nearer)', '',
-              *_table(['Actor'] + [f'`{s}`' for s in sets] + ['nearest', 'margin', 'next / nearest'], rows), '',
+              *markdown.table(['Actor'] + [f'`{s}`' for s in sets] + ['nearest', 'margin', 'next / nearest'], rows), '',
               f'![confusion]({PNG_NAME})', '']
     own = [(a, v) for a, v in record['verdicts'].items() if v['own_set'] is not None]
     if own:
@@ -179,13 +175,13 @@ def render_markdown(record: dict) -> str:
                   + '; '.join(f'`{a}` is {"" if v["nearest_is_own"] else "NOT "}nearest its own set' for a, v in own)
                   + '.', '']
     lines += ['## Mean DTW (rad, not normalised)', '',
-              *_table(['Actor'] + [f'`{s}`' for s in sets],
-                      [[f'`{a}`'] + [_number(raw[a][s][OVERALL], 2) for s in sets]
-                       for a in [*actors, BASELINE]]), '',
+              *markdown.table(['Actor'] + [f'`{s}`' for s in sets],
+                               [[f'`{a}`'] + [_number(raw[a][s][OVERALL], 2) for s in sets]
+                                for a in [*actors, BASELINE]]), '',
               '## Normalised distance per direction', '',
-              *_table(['Actor', 'Set'] + list(DIRECTIONS),
-                      [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS]
-                       for a in actors for s in sets]), '']
+              *markdown.table(['Actor', 'Set'] + list(DIRECTIONS),
+                               [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS]
+                                for a in actors for s in sets]), '']
     return '\n'.join(lines)
 
 
