@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from stylepong_common.settings import check_ranges, non_negative, positive, within
 from stylepong_description import robot_model
 from stylepong_sim import world_spec
 
@@ -239,32 +240,34 @@ STROKE_S_RANGE = (1.5, 6.0)
 
 @dataclass(frozen=True)
 class TeacherConfig:
-    """Timing of the stroke and the hand's impedance (units in the names)."""
-    lead_in_s: float = 0.3             # recorded at rest at the ready pose before the back-swing
-    backswing_s: float = 0.8
-    forward_swing_s: float = 1.6
-    end_hold_s: float = 0.3            # recorded at rest after the follow-through
-    approach_speed_m_s: float = 0.25   # getting to the ready pose (not recorded)
-    approach_min_s: float = 1.0
-    settle_timeout_s: float = 4.0
-    settle_position_m: float = 0.015
-    settle_angle_rad: float = 0.05
-    settle_speed_m_s: float = 0.01
-    hand_stiffness_n_per_m: float = 200.0
-    hand_damping_ns_per_m: float = 10.0   # well below the arm's damping: with the loop's delays a gain near 1 rings
-    hand_rot_stiffness_nm_per_rad: float = 15.0
-    hand_rot_damping_nms_per_rad: float = 1.0
+    """Timing of the stroke and the hand's impedance (units in the names). Every setting declares its range
+    with its default (stylepong_common.settings); validate checks them and what ties settings together."""
+    lead_in_s: float = non_negative(0.3)             # recorded at rest at the ready pose before the back-swing
+    backswing_s: float = positive(0.8)
+    forward_swing_s: float = positive(1.6)
+    end_hold_s: float = non_negative(0.3)            # recorded at rest after the follow-through
+    approach_speed_m_s: float = positive(0.25)       # getting to the ready pose (not recorded)
+    approach_min_s: float = positive(1.0)
+    settle_timeout_s: float = non_negative(4.0)
+    settle_position_m: float = non_negative(0.015)
+    settle_angle_rad: float = non_negative(0.05)
+    settle_speed_m_s: float = non_negative(0.01)
+    hand_stiffness_n_per_m: float = non_negative(200.0)
+    # Well below the arm's damping: with the loop's delays a gain near 1 rings.
+    hand_damping_ns_per_m: float = non_negative(10.0)
+    hand_rot_stiffness_nm_per_rad: float = non_negative(15.0)
+    hand_rot_damping_nms_per_rad: float = non_negative(1.0)
     # How heavy the person expects the arm to feel (they push ahead of the motion): the arm's damping.
-    expected_damping_ns_per_m: float = 30.0
-    expected_rot_damping_nms_per_rad: float = 3.0
-    max_force_n: float = 35.0
-    max_torque_nm: float = 3.5
+    expected_damping_ns_per_m: float = non_negative(30.0)
+    expected_rot_damping_nms_per_rad: float = non_negative(3.0)
+    max_force_n: float = positive(35.0)
+    max_torque_nm: float = non_negative(3.5)
     # How far the person opens the blade (turns its face up, about its horizontal axis) during the back-swing
     # and holds it open through the hit and the follow-through. 0.6 rad gives the shipped clips, whose
     # strokes return balls; at 0 the blade stays upright as at home and strikes a ball down onto the robot's
     # own half (tools/demo_returns.py, docs/DESIGN.md Known limits). Beyond 1 rad it faces the ceiling more
     # than the opponent.
-    blade_pitch_rad: float = 0.6
+    blade_pitch_rad: float = within(0.6, 0.0, 1.0)
     # How far a leftward or rightward stroke is turned towards its side about the shoulder pan's axis (the
     # robot base's vertical): a person reaching for a wide ball swings the whole stroke round at the
     # shoulder. The key poses and the blade's yaw turn together, so from the end of the back-swing on the
@@ -273,34 +276,23 @@ class TeacherConfig:
     # 0 gives the nominal strokes, whose hits lie within 0.18 m of home; 0.4 rad meets the ball 0.13-0.15 m
     # further out and 0.8 rad 0.19-0.27 m, towards where most balls reach the robot (docs/DESIGN.md Known
     # limits).
-    side_turn_rad: float = 0.0
+    side_turn_rad: float = within(0.0, 0.0, MAX_SIDE_TURN_RAD)
     # How far a leftward or rightward stroke is carried further to its side (world y), the back-swing, hit
     # and follow-through together, with the arm reaching out rather than turning at the shoulder: where the
     # rightward balls reach the robot (up to 0.9 m right of home), a person stretches. 0 gives the nominal
     # strokes; the most for each side is MAX_SIDE_REACH_M (TeacherConfig.validate only bounds it by the
     # larger; check_side_reach the side's).
-    side_reach_m: float = 0.0
+    side_reach_m: float = within(0.0, 0.0, max(MAX_SIDE_REACH_M.values()))
     # A person waits for an arm that lags (a loaded machine stalls it): the stroke's clock slows down
     # when the paddle is further than this from the via-point, and stops beyond the second distance.
-    lag_slowdown_m: float = 0.03
-    lag_stop_m: float = 0.08
+    lag_slowdown_m: float = non_negative(0.03)
+    lag_stop_m: float = non_negative(0.08)
 
     def validate(self) -> None:
-        for name, value in self.__dict__.items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f'{name} must be a non-negative number, got {value!r}')
-        for name in ('backswing_s', 'forward_swing_s', 'approach_speed_m_s', 'approach_min_s', 'max_force_n'):
-            if getattr(self, name) <= 0:
-                raise ValueError(f'{name} must be positive')
+        """ValueError naming the first setting out of its range, then a bad pair or a stroke's length."""
+        check_ranges(self)
         if self.lag_stop_m <= self.lag_slowdown_m:
             raise ValueError('lag_stop_m must exceed lag_slowdown_m')
-        if self.blade_pitch_rad > 1.0:
-            raise ValueError(f'blade_pitch_rad must be within 0-1 rad, got {self.blade_pitch_rad!r}')
-        if self.side_turn_rad > MAX_SIDE_TURN_RAD:
-            raise ValueError(f'side_turn_rad must be within 0-{MAX_SIDE_TURN_RAD} rad, got {self.side_turn_rad!r}')
-        if self.side_reach_m > max(MAX_SIDE_REACH_M.values()):
-            raise ValueError(f'side_reach_m must be within 0-{max(MAX_SIDE_REACH_M.values())} m, got '
-                             f'{self.side_reach_m!r}')
         low_s, high_s = STROKE_S_RANGE
         if not low_s <= self.stroke_s <= high_s:
             raise ValueError(f'a stroke (back-swing to follow-through) takes {low_s:g}-{high_s:g} s like a slow drag, '
