@@ -109,6 +109,16 @@ def dtw_by_direction(summary: dict) -> dict[str, float | None]:
     return table
 
 
+def dtw_by_phase(summary: dict) -> dict[str, float | None]:
+    """Mean DTW per stroke (rad) in each phase of the stroke (style_metrics.PHASES: waiting for the ball,
+    the swing's last SWING_S before the hit, the follow-through), over the strokes with clips of their label:
+    where a stroke's distance from the demonstrations lies."""
+    entries = [entry for entry in summary['dtw'].values() if entry.get('sum_by_phase_rad')]
+    strokes = sum(entry['strokes'] for entry in entries)
+    return {phase: (sum(entry['sum_by_phase_rad'][phase] for entry in entries) / strokes if strokes else None)
+            for phase in style_metrics.PHASES}
+
+
 def ratio(numerator: float | None, denominator: float | None) -> float | None:
     """numerator / denominator, None when either is missing or the denominator is zero."""
     return numerator / denominator if numerator is not None and denominator else None
@@ -329,6 +339,13 @@ def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_
              *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
     if missing:
         lines += [f'No demonstration labelled {", ".join(missing)}: those strokes have no DTW here.', '']
+    phases = {name: dtw_by_phase(r.all_speeds) for name, r in results.items()}
+    lines += [f'Where the distance lies: the mean per stroke split by the stroke\'s phase (waiting from the '
+              f'launch to {style_metrics.SWING_S:g} s before the hit, the swing up to it, the follow-through '
+              'after it), rad.', '',
+              *markdown.table(['Actor', *(p.replace('_', '-') for p in style_metrics.PHASES)],
+                              [[ACTOR_TITLES[name]] + [_number(phases[name][p]) for p in style_metrics.PHASES]
+                               for name in results]), '']
     return [*lines, f'![DTW]({DTW_PNG})', '']
 
 
@@ -428,6 +445,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
                               'high': None if r.high_speeds is None else r.high_speeds['success_rate']}
                           for n, r in results.items()},
               'dtw_rad': distances, 'dtw_ratios': ratios,
+              'dtw_by_phase_rad': {n: dtw_by_phase(r.all_speeds) for n, r in results.items()},
               'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
               'demonstration_smoothness': reference, 'strips': strips, 'timings_s': dict(timings_s),
               'checkpoints': checkpoints, 'notes': list(notes)}

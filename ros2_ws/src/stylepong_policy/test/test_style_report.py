@@ -59,6 +59,7 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
                                strip_directions=[shown])
     assert path == run_dir / report.REPORT_MD
     text = path.read_text()
+    assert 'Where the distance lies' in text and '| follow-through |' in text
     for heading in ('## Success', '## DTW to the demonstrations', '## Smoothness',
                     '## Strokes beside the demonstrations', '## The run'):
         assert heading in text
@@ -101,6 +102,8 @@ def test_overall_dtw_is_the_mean_over_every_stroke(run_dir):
                  for s in saved]
     summary = json.loads(report.eval_files(run_dir, 'ppo').all_speeds_json.read_text())
     assert report.dtw_by_direction(summary)[report.OVERALL] == pytest.approx(np.mean(distances))
+    # The phases split that mean: waiting, swing and follow-through add up to it.
+    assert sum(report.dtw_by_phase(summary).values()) == pytest.approx(np.mean(distances))
 
 
 def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp_path):
