@@ -45,4 +45,6 @@ class StageBar:
             success = stats.get('success_rate')
             self.bar.set_postfix_str(f'it {stats.get("iteration")}'
                                      + (f', success {success:.3f}' if isinstance(success, float) else '')
-                                     + f', pose {stats.get("step_reward/pose", float("nan")):.3f}', refresh=False)
+                                     + f', pose {stats.get("step_reward/pose", float("nan")):.3f}'
+                                     + (f', style scale {stats["motion_scale"]:.2f}' if 'motion_scale' in stats else ''),
+                                     refresh=False)

@@ -219,6 +219,43 @@ def test_an_env_style_factor_scales_the_style_weight_per_environment(tmp_path):
     assert returns[2.0]['step_reward/style'] == returns[None]['step_reward/style']    # logged unweighted
 
 
+def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resumes_with_that_scale(tmp_path):
+    """amp.hold_success: the runner feeds each iteration's training success to rl.success_hold, and the
+    scale it returns weighs the next iteration's motion terms (a style-only reward returns nothing at
+    scale 0); a resumed run continues at the saved scale."""
+    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+                            'ppo': {'num_steps_per_env': 40},
+                            'runner': {'seed': 0, 'save_interval': 1000, 'critic_warmup_iterations': 2},
+                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
+                                    'w_style': 1.0, 'replay_size': 1000, 'hold_success': True,
+                                    'hold_success_gain': 100.0, 'hold_success_smoothing': 1.0}})
+
+    class FallingTask(TOY.ReachTask):
+        """Reports every episode a success for the first two iterations' worth of steps, then none."""
+        def step(self, actions):
+            obs, critic_obs, rewards, dones, extras = super().step(actions)
+            self.calls = getattr(self, 'calls', 0) + 1
+            if extras['log']:
+                extras['log']['success_rate'] = 1.0 if self.calls <= 2 * 40 else 0.0
+            return obs, critic_obs, rewards, dones, extras
+
+    seed_everything(0)
+    env = FallingTask(num_envs=16, seed=0, episode_steps=10)
+    reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
+    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    runner = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
+    warm = runner.learn(2, progress_bar=False)
+    assert warm['motion_scale'] == 1.0 and warm['mean_return'] > 0.0
+    fallen = runner.learn(3, progress_bar=False)                 # its success 0: far below the floor
+    assert fallen['motion_scale'] == 0.0 and prior.motion_scale == 0.0
+    assert runner.learn(4, progress_bar=False)['mean_return'] == 0.0
+    runner.save(tmp_path / 'held.pt')
+    again = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    resumed = OnPolicyRunner(env, cfg, tmp_path / 'resumed', tensorboard=False, motion_prior=again)
+    resumed.load(tmp_path / 'held.pt')
+    assert again.motion_scale == 0.0 and resumed.success_hold.floor == pytest.approx(0.97)
+
+
 def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_path):
     """AMP alone (no task reward) on the toy task, the reference a steady motion at 0.06 per step along
     +x: the style reward per step rises and the policy ends up moving like the clip."""

@@ -287,6 +287,8 @@ class MotionPrior:
         self.num_envs = int(num_envs)
         self.pose_prior = pose_prior
         self.stroke_prior = stroke_prior
+        # The motion terms' scale (1, or rl.success_hold's while a run holds its returns).
+        self.motion_scale = 1.0
         # A label without demonstrations earns no style reward: D has no example of it, so it could only
         # teach the policy what that stroke is not (item "labels without clips" in docs/DESIGN.md).
         self.labels_with_windows = (torch.bincount(reference.labels, minlength=self.num_labels) > 0
@@ -356,8 +358,8 @@ class MotionPrior:
 
     def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
             pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke, the motion terms times the
-        env's per-step factor [N] when it gives one."""
+        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke, the motion terms times
+        motion_scale and the env's per-step factor [N] when it gives one."""
         motion = self.cfg.w_style * style
         if pose is not None:
             motion = motion + self.cfg.w_pose * pose
@@ -365,7 +367,7 @@ class MotionPrior:
             motion = motion + self.cfg.w_stroke * stroke
         if style_factor is not None:
             motion = style_factor * motion
-        return self.cfg.w_task * task_reward + motion
+        return self.cfg.w_task * task_reward + self.motion_scale * motion
 
     # --- training ----------------------------------------------------------------------------------
     def update(self) -> dict[str, float]:

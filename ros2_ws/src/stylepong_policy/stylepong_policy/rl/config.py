@@ -108,6 +108,12 @@ class AMPConfig:
     # The stroke prior (rl.stroke_prior): w_stroke exp(-DTW(stroke, nearest clip) / (sigma frames)), once a stroke.
     w_stroke: float = non_negative(0.0)
     stroke_sigma_rad: float = positive(0.4)
+    # Held style (rl.success_hold): the motion terms scaled down while training success is below the skill's
+    # own (its warm-up iterations') less hold_success_margin, and back up as it recovers.
+    hold_success: bool = False
+    hold_success_margin: float = non_negative(0.03)
+    hold_success_gain: float = positive(0.5)
+    hold_success_smoothing: float = within(0.1, 0.01, 1.0)
 
     def validate(self) -> None:
         check_ranges(self, prefix='amp.')
@@ -115,7 +121,7 @@ class AMPConfig:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
-        for name in ('condition_on_label', 'condition_on_phase'):
+        for name in ('condition_on_label', 'condition_on_phase', 'hold_success'):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):

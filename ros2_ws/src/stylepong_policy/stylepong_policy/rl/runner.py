@@ -26,6 +26,7 @@ from .logger import TrainingLog
 from .networks import ActorCritic
 from .ppo import PPO
 from .storage import RolloutStorage
+from .success_hold import SuccessHold
 
 CHECKPOINT_FORMAT = 'stylepong-ppo-checkpoint'
 CHECKPOINT_VERSION = 1
@@ -189,6 +190,10 @@ class OnPolicyRunner:
         self.sessions: list[dict[str, Any]] = []   # one entry per learn() call, over all sessions
         self.last_stats: dict[str, Any] = {}
         self.interrupted = False
+        amp = cfg.amp
+        self.success_hold = (SuccessHold(cfg.runner.critic_warmup_iterations, amp.hold_success_margin,
+                                         amp.hold_success_gain, amp.hold_success_smoothing)
+                             if motion_prior is not None and amp is not None and amp.hold_success else None)
 
     # --- checkpoints -------------------------------------------------------------------------------
     @property
@@ -203,6 +208,7 @@ class OnPolicyRunner:
                 'config': config_to_dict(self.cfg), 'rng': capture_rng_state(self.shuffle),
                 'sessions': [dict(s) for s in self.sessions],
                 'motion_prior': self.motion_prior.state_dict() if self.motion_prior is not None else None,
+                'success_hold': self.success_hold.state_dict() if self.success_hold is not None else None,
                 'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))}}
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
@@ -234,6 +240,9 @@ class OnPolicyRunner:
         self.sessions = [dict(s) for s in data.get('sessions') or []]
         if self.motion_prior is not None and data.get('motion_prior') is not None:
             self.motion_prior.load_state_dict(data['motion_prior'])
+        if self.success_hold is not None and data.get('success_hold') is not None:
+            self.success_hold.load_state_dict(data['success_hold'])
+            self.motion_prior.motion_scale = self.success_hold.scale
         if restore_rng and data.get('rng') is not None:
             restore_rng_state(data['rng'], self.shuffle)
         return path
@@ -367,6 +376,10 @@ class OnPolicyRunner:
                                    'learn_s': t_disc - t_learn, 'style_s': style_s,
                                    'world_share': world_s / iteration_s, 'style_share': style_s / iteration_s,
                                    **stats.summary(), **losses}
+                if self.success_hold is not None:
+                    self.motion_prior.motion_scale = self.success_hold.observe(self.last_stats.get('success_rate'),
+                                                                                self.last_stats.get('episodes'))
+                    self.last_stats['motion_scale'] = self.motion_prior.motion_scale
                 log.write(self.last_stats)
                 self._save_checkpoints()
                 if on_iteration is not None:
