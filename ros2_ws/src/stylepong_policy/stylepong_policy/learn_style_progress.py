@@ -43,8 +43,8 @@ class StageBar:
         self.advance(float(stats.get('iteration_time_s', 0.0)))
         if self.bar is not None:
             success = stats.get('success_rate')
+            scale = stats.get('motion_scale')
             self.bar.set_postfix_str(f'it {stats.get("iteration")}'
                                      + (f', success {success:.3f}' if isinstance(success, float) else '')
                                      + f', pose {stats.get("step_reward/pose", float("nan")):.3f}'
-                                     + (f', style scale {stats["motion_scale"]:.2f}' if 'motion_scale' in stats else ''),
-                                     refresh=False)
+                                     + (f', style scale {scale:.2f}' if scale is not None else ''), refresh=False)
