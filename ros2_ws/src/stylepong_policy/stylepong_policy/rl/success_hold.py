@@ -4,7 +4,7 @@
     scale = hold.observe(success_rate, episodes)     # after every iteration; r = w_task r_task + scale * motion
 
 Why. Moving a skill to a new style trades returns for style along the whole run: with fixed weights the
-motion terms (up to about 60 an episode) outweigh a return (about 11), the strokes keep coming closer and
+motion terms (up to 66 an episode in pose) outweigh a return (about 11), the strokes keep coming closer and
 the returns keep falling, so the best checkpoint is an early one that has moved little (docs/DESIGN.md,
 "Learning a style"). Held, the problem is a constrained one: the closest style whose returns stay within
 `margin` of the skill's. A dual-ascent step on the scale does that without a weight tuned to a set:
@@ -13,10 +13,9 @@ the returns keep falling, so the best checkpoint is an early one that has moved 
     s     = S / E,  S <- (1 - smoothing) S + smoothing * successes,  E <- (1 - smoothing) E + smoothing * episodes
     scale <- clip(scale + gain (s - floor), 0, 1)
 
-s is the training success smoothed over iterations, each weighed by the episodes that ended in it: the
-first iterations of a run end few episodes, all started together, and their rates swing from 0 to 0.95.
-
-so the scale falls while the returns are below the floor and climbs back to 1 once they recover. The
+so the scale falls while the returns are below the floor and climbs back to 1 once they recover. s is the
+training success smoothed over iterations, each weighed by the episodes that ended in it: the first
+iterations of a run end few episodes, all started together, and their rates swing from 0 to 0.95. The
 warm-up iterations are those the runner steps the critic alone (runner.critic_warmup_iterations): the actor
 is still the skill there. Without warm-up iterations the floor is the first iteration's success.
 An iteration in which no episode ended changes nothing.
