@@ -321,9 +321,9 @@ def success_section(results: Mapping[str, ActorResults]) -> list[str]:
     return [*lines, '', *markdown.table(header, rows), '', f'![success]({SUCCESS_PNG})', '']
 
 
-def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_name: str,
+def dtw_section(results: Mapping[str, ActorResults], distances, ratios, phases, dataset_name: str,
                 clips: Mapping[str, int]) -> list[str]:
-    """DTW per direction of each actor, and the ratios."""
+    """DTW per direction of each actor, the ratios, and where each actor's distance lies by phase."""
     columns = (*DIRECTIONS, OVERALL)
     rows = [[ACTOR_TITLES[name]] + [_number(distances[name][c]) for c in columns]
             + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in DIRECTIONS)]
@@ -339,7 +339,6 @@ def dtw_section(results: Mapping[str, ActorResults], distances, ratios, dataset_
              *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
     if missing:
         lines += [f'No demonstration labelled {", ".join(missing)}: those strokes have no DTW here.', '']
-    phases = {name: dtw_by_phase(r.all_speeds) for name, r in results.items()}
     lines += [f'Where the distance lies: the mean per stroke split by the stroke\'s phase (waiting from the '
               f'launch to {style_metrics.SWING_S:g} s before the hit, the swing up to it, the follow-through '
               'after it), rad.', '',
@@ -413,6 +412,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     rate_hz = results['style'].rate_hz
     distances = {name: dtw_by_direction(r.all_speeds) for name, r in results.items()}
     ratios = dtw_ratios(distances)
+    phases = {name: dtw_by_phase(r.all_speeds) for name, r in results.items()}
     originals = dataset.label[dataset.speed_factor == 1].tolist()
     clips = {d: originals.count(d) for d in DIRECTIONS}
     reference = demonstration_smoothness(dataset)
@@ -434,7 +434,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
              + ('.' if _same_balls(results) else ' (NOT the same balls: the evaluations used different seeds).'), '']
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])
     lines += success_section(results)
-    lines += dtw_section(results, distances, ratios, dataset_name, clips)
+    lines += dtw_section(results, distances, ratios, phases, dataset_name, clips)
     lines += smoothness_section(results, reference)
     lines += strips_section(strips)
     lines += run_section(timings_s, checkpoints)
@@ -445,7 +445,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
                               'high': None if r.high_speeds is None else r.high_speeds['success_rate']}
                           for n, r in results.items()},
               'dtw_rad': distances, 'dtw_ratios': ratios,
-              'dtw_by_phase_rad': {n: dtw_by_phase(r.all_speeds) for n, r in results.items()},
+              'dtw_by_phase_rad': phases,
               'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
               'demonstration_smoothness': reference, 'strips': strips, 'timings_s': dict(timings_s),
               'checkpoints': checkpoints, 'notes': list(notes)}

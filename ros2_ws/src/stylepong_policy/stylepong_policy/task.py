@@ -192,8 +192,8 @@ class TableTennisEnv:
         self.num_critic_obs = spec.NUM_OBS + sum(size for _, size in PRIVILEGED_LAYOUT)
         threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
         self.world = batched_world.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
-                                     arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
-                                     cpu_threads=None, compile=cfg.compile_world)
+                                                arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
+                                                cpu_threads=None, compile=cfg.compile_world)
         self.cpu_threads = threads
         self.policy_dt_s = self.world.policy_dt_s
         if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \
@@ -203,7 +203,7 @@ class TableTennisEnv:
             raise ValueError(f'max_action_delay_s must not exceed one policy period ({self.policy_dt_s:.4f} s)')
         # Two streams: the balls (the sampler's own generator) and everything else the task draws.
         self.sampler = batched_launcher.IncomingBallSampler(cfg.speed_range_m_s, seed=seed, device=self.device,
-                                              batch=max(1024, 2 * self.num_envs))
+                                                            batch=max(1024, 2 * self.num_envs))
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(int(seed) * 7919 + 104729)
         n, kw = self.num_envs, dict(device=self.device, dtype=torch.float32)
