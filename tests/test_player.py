@@ -155,9 +155,9 @@ def check_commands(commands: list[Command], limits: player_core.JointLimits) -> 
     """Every command: six finite values within the position limits; between commands of consecutive
     periods, the per-period velocity and acceleration limits. Returns how many pairs were checked.
 
-    A period without a command (stale joint states, a stalled process) may end the stream: the next
-    command then starts from the measured joints, which can be anywhere. So only pairs published less
-    than 1.5 periods apart are checked (two periods apart, a restart would read as a violation): publish
+    More than 3 periods without a command (stale joint states, a stalled process) end the stream: the
+    next command then starts from the measured joints, which can be anywhere. So only pairs published less
+    than 1.5 periods apart are checked (further apart, a restart would read as a violation): publish
     times, not arrival times, since on a loaded machine commands published periods apart can arrive
     together."""
     pairs = 0

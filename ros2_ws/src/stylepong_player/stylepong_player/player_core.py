@@ -9,8 +9,9 @@ States
             joint position targets (spec's decoding) -> limiter; back to ready when no ball message has
             been accepted for ball_timeout_s (the ball is gone, or the camera lost it)
 No command at all while the joint states are stale (none accepted for joint_timeout_periods periods):
-ros2_control's forward_position_controller then holds its last target, which is the safe thing; when
-they come back, commands start again from the measured position, at rest.
+ros2_control's forward_position_controller then holds its last target, which is the safe thing. A command
+more than joint_timeout_periods after the previous one starts again from the measured position, at rest;
+one sooner continues the previous segment, so consecutive commands always keep the limits.
 
 Timing (the actor was trained with at most 1/60 s between observation and actuation and breaks when
 actuation timing drifts): while playing, a policy step runs when a ball message arrives whose stamp is
@@ -510,7 +511,8 @@ class Player:
         if self.state == State.DISABLED:
             return StepResult(None, self.state)
         if not self.joints_fresh(now_s):
-            self.limiter.stop()
+            # The limiter keeps its segment: joint states back within the timeout continue it, so two
+            # commands that close together never jump; only a longer silence restarts from the measured joints.
             return StepResult(None, self.state, problem='joint states stale: no command (the controller holds '
                                                         'its last target)')
         if not self.limiter.active or now_s - self._last_command_s > self.config.joint_timeout_periods * self.period_s:

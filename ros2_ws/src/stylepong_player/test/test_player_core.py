@@ -206,6 +206,19 @@ def test_stale_joint_states_stop_commands_and_restart_from_the_measured_position
     assert np.abs(command - moved).max() <= core.config.home_speed_rad_s * PERIOD_S + 1e-9
 
 
+def test_joint_states_back_within_the_timeout_continue_the_commands():
+    """Stale joints at one step, back at the next: the commands continue (no jump to where the joints say)."""
+    core = make_core()
+    core.set_enabled(True)
+    core.on_joint_state(NAMES, HOME, np.zeros(6), 0.0)
+    last = core.step(2.9 * PERIOD_S).command
+    assert last is not None
+    assert core.step(3.2 * PERIOD_S).command is None
+    core.on_joint_state(NAMES, HOME + 0.3, np.zeros(6), 3.3 * PERIOD_S)
+    command = core.step(3.4 * PERIOD_S).command
+    assert np.abs(command - last).max() <= core.config.home_speed_rad_s * PERIOD_S + 1e-9
+
+
 @pytest.mark.parametrize('names, positions, velocities, kind', [
     (NAMES[:5], list(HOME[:5]), [0.0] * 5, 'joint_names'),
     (NAMES, list(HOME[:5]), [0.0] * 6, 'joint_length'),
