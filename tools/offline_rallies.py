@@ -2,6 +2,7 @@
 """The shipped actor through the player's logic on a cell, without ROS: which part of a cell decides a sim2sim figure.
 
     tools/offline_rallies.py --engine pybullet --actuator ideal --joint-drive motor|pd --first-seed 1000 --balls 10
+                             [--actor PATH.pt|PATH.onnx]
 
 The player (stylepong_player.player_core.Player, the node's logic: the limiter, phase-locked steps) drives a
 cell stepped here at 1 ms: perfect sensing, the camera at 125 Hz, joint states at 500 Hz, no ROS timing. Balls
@@ -95,8 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--first-seed', type=int, default=1000)
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--balls', type=int, default=10)
+    parser.add_argument('--actor', type=pathlib.Path, default=ACTOR, help='default: the shipped style actor')
     args = parser.parse_args(argv)
-    actor = player_core.load_actor(ACTOR, 'onnx')
+    actor = player_core.load_actor(args.actor, 'onnx')
     cell = make_cell(args.engine, args.actuator, args.joint_drive)
     successes = total = 0
     for seed in range(args.first_seed, args.first_seed + args.seeds):

@@ -93,6 +93,13 @@ class PhysicsParams:
     paddle_tangential_factor: torch.Tensor
     kp_nm_per_rad: torch.Tensor
     kd_nms_per_rad: torch.Tensor
+    # Share of the joint drive that is a stiff velocity motor instead of world_spec's PD, in [0, 1] (0: the
+    # cell's law). The motor reaches joint velocity v_ref + (Kp / Kd)(q_ref - q) within each sub-step, torque
+    # permitting: Bullet's joint motors, and a UR's own joint controllers, which track servoj's setpoint
+    # without the PD's lag. Training draws it so an actor does not lean on one drive's dynamics.
+    velocity_drive: torch.Tensor
+    # Reflected rotor inertia per joint [6, N]: a UR's harmonic drives have it, the URDF and Bullet do not.
+    armature_kg_m2: torch.Tensor
 
     @staticmethod
     def nominal(num_envs: int, device: torch.device | str = 'cpu', dtype: torch.dtype = torch.float32
@@ -110,12 +117,21 @@ class PhysicsParams:
             paddle_restitution=full(world_spec.PADDLE_RESTITUTION),
             paddle_tangential_factor=full(world_spec.PADDLE_TANGENTIAL_FACTOR),
             kp_nm_per_rad=per_joint(world_spec.ARM_KP_NM_PER_RAD),
-            kd_nms_per_rad=per_joint(world_spec.ARM_KD_NMS_PER_RAD))
+            kd_nms_per_rad=per_joint(world_spec.ARM_KD_NMS_PER_RAD), velocity_drive=full(0.0),
+            armature_kg_m2=per_joint(world_spec.ARM_ARMATURE_KG_M2))
 
     def assign(self, env_ids: torch.Tensor, other: 'PhysicsParams') -> None:
         """Copy `other`'s values (for len(env_ids) environments) into these environments."""
         for f in fields(self):
             getattr(self, f.name)[..., env_ids] = getattr(other, f.name)
+
+
+class ArmDynamics(NamedTuple):
+    """The arm's joint-space dynamics at one state, held over a policy step's sub-steps ([6, 6, N], [6, N])."""
+    inertia: torch.Tensor                # M(q) + armature
+    inverse: torch.Tensor                # its inverse
+    coriolis: torch.Tensor               # C(q, qd) qd
+    gravity: torch.Tensor                # g(q)
 
 
 @dataclass
@@ -185,7 +201,7 @@ class BatchedWorld:
         self.success = torch.zeros(n, dtype=torch.bool, device=self.device)
         self.reason = torch.full((n,), referee.NO_VERDICT, dtype=torch.long, device=self.device)
         self.landing_xy_m = torch.zeros(2, n, **kw)
-        self._armature = torch.diag(torch.tensor(world_spec.ARM_ARMATURE_KG_M2, **kw))[..., None]   # [6, 6, 1]
+        self._eye6 = torch.eye(6, **kw)[..., None]   # [6, 6, 1]
         self.table_contact_pos_m = torch.zeros(3, n, **kw)
         self._kin = batched_kinematics.forward_kinematics(self.model, self.q_rad)
         self._constants()
@@ -276,8 +292,8 @@ class BatchedWorld:
             self.q_cmd_rad = command if delay_steps is None else torch.where(delay_steps > k, previous, command)
             kin_before = self._kin
             if k % self.dynamics_every == 0:
-                inverse, bias = self._arm_dynamics(kin_before)
-            self._arm_step(inverse, bias)
+                dynamics = self._arm_dynamics(kin_before)
+            self._arm_step(dynamics)
             self._kin = self._forward_kinematics(self.model, self.q_rad)
             hit, bounce = self._ball_step(kin_before, self._kin)
             paddle_hit = paddle_hit | hit
@@ -287,33 +303,48 @@ class BatchedWorld:
                           success=self.success & decided, reason=torch.where(decided, self.reason, referee.NO_VERDICT))
 
     # --- the arm -------------------------------------------------------------------------------------
-    def _arm_dynamics(self, kin: Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
-        """(M(q) + armature)^-1 [6, 6, N] and the Coriolis/centrifugal torques [6, N] at the current state."""
+    def _arm_dynamics(self, kin: Kinematics) -> ArmDynamics:
+        """The arm's joint-space dynamics at the current state."""
         sp = batched_kinematics.spatial(self.model, kin)
-        inertia = batched_kinematics.mass_matrix(sp) + self._armature
+        inertia = batched_kinematics.mass_matrix(sp) + self._eye6 * self.params.armature_kg_m2[None]
         inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)
-        return inverse, batched_kinematics.bias_torques(sp, self.qd_rad_s)   # gravity: ideally compensated
+        return ArmDynamics(inertia, inverse, batched_kinematics.bias_torques(sp, self.qd_rad_s),
+                           batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s),
+                                                           self.params.gravity_m_s2))
 
-    def _arm_step(self, inverse: torch.Tensor, bias: torch.Tensor) -> None:
-        """One physics step of the servo law (world_spec) in arm_substeps sub-steps, with the inertia and
-        bias torques of `_arm_dynamics` held.
+    def _arm_step(self, dynamics: ArmDynamics) -> None:
+        """One physics step of the servo law (world_spec) in arm_substeps sub-steps, with the dynamics of
+        `_arm_dynamics` held.
 
         Damping is explicit: MuJoCo's implicitfast drops a saturated actuator's damping derivative, so
         under saturation (a swing's start) the cell's law is the explicit one; at 480 Hz it is stable for
         the stiffest joint (Kd dt / I = 0.7 for wrist 3) and agrees with the cell within ~2 %.
+        Where `params.velocity_drive` w > 0 the drive torque is (1 - w) PD + w motor. The motor's is the
+        torque that reaches v_ref + (Kp / Kd)(q_ref - q) in one sub-step (exact, so stable at any stiffness),
+        gravity's share included in its effort limit, as in Bullet's motors and a real arm's drives.
         """
         m = self.model
         dt = self.physics_dt_s / self.arm_substeps
         kp, kd = self.params.kp_nm_per_rad, self.params.kd_nms_per_rad
+        motor_share = self.params.velocity_drive
         v_max, effort = m.velocity_limit_rad_s, m.effort_limit_nm
         step_max = v_max * dt
         q, qd, q_ref = self.q_rad, self.qd_rad_s, self.q_ref_rad
+        inertia, inverse, coriolis, gravity = dynamics
         for _ in range(self.arm_substeps):
             delta = torch.maximum(torch.minimum(self.q_cmd_rad - q_ref, step_max), -step_max)
             q_ref = q_ref + delta
             v_ref = delta / dt
-            torque = kp * (q_ref - q) + kd * (v_ref - qd)
-            torque = torch.maximum(torch.minimum(torque, effort), -effort) - bias
+            # Net of gravity: the PD's clipped torque (its gravity compensated outside the clip), the motor's
+            # clipped torque less gravity.
+            pd = kp * (q_ref - q) + kd * (v_ref - qd)
+            pd = torch.maximum(torch.minimum(pd, effort), -effort)
+            wanted_acceleration = (v_ref + kp / kd * (q_ref - q) - qd) / dt
+            motor = coriolis + gravity + inertia[:, 0] * wanted_acceleration[0]
+            for j in range(1, 6):
+                motor = motor + inertia[:, j] * wanted_acceleration[j]
+            motor = torch.maximum(torch.minimum(motor, effort), -effort) - gravity
+            torque = pd + motor_share * (motor - pd) - coriolis
             qdd = inverse[:, 0] * torque[0]
             for j in range(1, 6):
                 qdd = qdd + inverse[:, j] * torque[j]

@@ -376,9 +376,11 @@ class BulletCell(CellBase):
 
     def _check_robot_table_contacts(self) -> None:
         for obstacle in (self._table, self._net):
-            contacts = self._p.getContactPoints(bodyA=self._robot, bodyB=obstacle)
-            if contacts:
-                self._events += self._referee.robot_table_contact(self._time_s, contacts[0][6])
+            # Bullet also lists points of its contact manifold that are still apart (distance up to its
+            # breaking threshold, 2 cm): only a point pushing the bodies apart is a touch, as for the ball.
+            touching = [c for c in self._p.getContactPoints(bodyA=self._robot, bodyB=obstacle) if c[9] > 0.0]
+            if touching:
+                self._events += self._referee.robot_table_contact(self._time_s, touching[0][6])
                 return
 
     def _contact_kind(self, body: int, link: int) -> str | None:

@@ -252,9 +252,9 @@ def test_action_delay_of_d_physics_steps_applies_each_command_d_steps_late_per_e
     targets = []                                           # the servo target in every physics step
     arm_step = world._arm_step
 
-    def recording_arm_step(inverse, bias):
+    def recording_arm_step(dynamics):
         targets.append(world.q_cmd_rad[0].clone())
-        arm_step(inverse, bias)
+        arm_step(dynamics)
 
     world._arm_step = recording_arm_step
     home = world.q_rad[0].clone()
@@ -325,3 +325,22 @@ def test_incoming_ball_statistics_and_reproducibility():
     assert torch.equal(again[0], position) and torch.equal(again[1], velocity)
     other = batched_launcher.IncomingBallSampler(speed_range_m_s=world_spec.SPEED_RANGES_M_S['high'], seed=4).sample(10)
     assert not torch.equal(other[0], position[:, :10])
+
+
+def test_the_velocity_drive_follows_the_reference_and_settles_where_commanded():
+    """velocity_drive 1 (a stiff joint motor) follows a small step within its torque closer than the PD (0),
+    a half share in between; a large step saturates every drive; every share settles on the target."""
+    world = _world(3)
+    world.params.velocity_drive = torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64)
+    home = world.q_rad.clone()
+    small = home.clone()
+    small[5] += 5e-4                            # wrist_3: 13 N m of its 28 at the motor's acceleration
+    world.step(small)
+    error = (world.q_rad[5] - small[5]).abs() / 5e-4
+    assert error[2] < 0.04 and error[2] < error[1] < error[0], error
+    large = home.clone()
+    large[0] += 0.2
+    large[5] += 0.2
+    for _ in range(30):
+        world.step(large)
+    torch.testing.assert_close(world.q_rad, large, atol=1e-3, rtol=0.0)
