@@ -178,3 +178,25 @@ def test_episode_statistics_weight_the_env_log_by_the_episodes_it_averages():
     assert summary['episodes'] == 4
     assert summary['success_rate'] == pytest.approx((2 * 0.5 + 0.0 + 1.0) / 4)
     assert summary['mean_return'] == pytest.approx((2 + 2 + 3 + 2) / 4)
+
+
+@pytest.mark.parametrize('keep', [False, True])
+def test_a_run_from_a_skill_keeps_its_std_as_the_ceiling_when_asked(tmp_path, keep):
+    """A heavy entropy bonus widens the noise; with keep_skill_std the skill's std caps it, across a resume."""
+    seed_everything(3)
+    skill = make_runner(tmp_path / 'skill')
+    skill.learn(2, progress_bar=False)
+    skill_std = skill.actor_critic.action_std().detach().clone()
+    cfg = config_from_dict({
+        'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 1.0,
+                   'keep_skill_std': keep},
+        'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2, 'entropy_coef': 1.0},
+        'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2}})
+    run = make_runner(tmp_path / 'run', cfg)
+    run.start_from(tmp_path / 'skill')
+    run.learn(4, progress_bar=False)
+    wider = (run.actor_critic.action_std() > skill_std + 1e-6).any()
+    assert bool(wider) != keep
+    resumed = make_runner(tmp_path / 'resumed', cfg)
+    resumed.load(tmp_path / 'run')
+    assert (resumed.actor_critic.max_std is not None) == keep

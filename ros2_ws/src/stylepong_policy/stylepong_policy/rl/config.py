@@ -36,6 +36,9 @@ class PolicyConfig:
     activation: str = 'elu'
     init_noise_std: float = positive(0.5)  # initial std of the Gaussian policy, in action units
     min_std: float = 1e-3                  # floor on the std (keeps log-probs finite)
+    # From a skill (--from), its std is the ceiling: the entropy bonus otherwise widens the noise once the
+    # task is learnt, and training returns fall with it while the deterministic actor's do not.
+    keep_skill_std: bool = False
     normalize_observations: bool = True    # running mean/var normalisation of actor and critic inputs
 
 

@@ -60,6 +60,8 @@ class ActorCritic(nn.Module):
         self.critic = make_mlp(num_critic_obs, self.critic_hidden_dims, 1, activation, output_gain=1.0)
         # std itself (not log std) is the parameter, as in rsl_rl; clamped below at min_std when used.
         self.std = nn.Parameter(torch.full((num_actions,), float(init_noise_std)))
+        # An optional ceiling on the std (runner: a skill's own, `policy.keep_skill_std`); not a parameter.
+        self.max_std: torch.Tensor | None = None
         self.normalize_observations = bool(normalize_observations)
         self.obs_normalizer = RunningNormalizer(num_obs)
         self.critic_obs_normalizer = RunningNormalizer(num_critic_obs)
@@ -74,7 +76,8 @@ class ActorCritic(nn.Module):
         return self.obs_normalizer(obs), self.critic_obs_normalizer(critic_obs)
 
     def action_std(self) -> torch.Tensor:
-        return self.std.clamp_min(self.min_std)
+        std = self.std.clamp_min(self.min_std)
+        return std if self.max_std is None else torch.minimum(std, self.max_std)
 
     def distribution(self, norm_obs: torch.Tensor) -> Normal:
         mean = self.actor(norm_obs)

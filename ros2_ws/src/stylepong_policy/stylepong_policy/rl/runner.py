@@ -209,6 +209,7 @@ class OnPolicyRunner:
                 'sessions': [dict(s) for s in self.sessions],
                 'motion_prior': self.motion_prior.state_dict() if self.motion_prior is not None else None,
                 'success_hold': self.success_hold.state_dict() if self.success_hold is not None else None,
+                'max_std': None if self.actor_critic.max_std is None else self.actor_critic.max_std.tolist(),
                 'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))}}
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
@@ -243,6 +244,8 @@ class OnPolicyRunner:
         if self.success_hold is not None and data.get('success_hold') is not None:
             self.success_hold.load_state_dict(data['success_hold'])
             self.motion_prior.motion_scale = self.success_hold.scale
+        if data.get('max_std') is not None:
+            self.actor_critic.max_std = torch.tensor(data['max_std'], device=self.device)
         if restore_rng and data.get('rng') is not None:
             restore_rng_state(data['rng'], self.shuffle)
         return path
@@ -255,6 +258,8 @@ class OnPolicyRunner:
         if data['architecture'] != self.actor_critic.architecture():
             raise ValueError(f'checkpoint {path} holds a network of another shape: {data["architecture"]}')
         self.actor_critic.load_state_dict(data['model'])
+        if self.cfg.policy.keep_skill_std:
+            self.actor_critic.max_std = self.actor_critic.action_std().detach().clone()
         return path
 
     def _save_checkpoints(self) -> None:
