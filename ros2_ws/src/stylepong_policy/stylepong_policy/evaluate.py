@@ -30,6 +30,7 @@ import argparse
 import math
 import os
 import pathlib
+import shlex
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -62,6 +63,22 @@ NO_DECISION = 'episode_time_limit'   # an episode the env ended without the refe
 # The setting of a figure, said in every result (Table IV of paper_tables labels its rows with it).
 WORLDS = {False: 'batched world, nominal (no randomisation, no sensing noise)',
           True: 'batched world, training randomisation (physics, sensing noise, latencies; --randomize)'}
+
+
+@dataclass(frozen=True)
+class Drive:
+    """The arm's joint drive in the batched world (task.TaskConfig): the share of a stiff velocity motor
+    (0: the cells' PD) and the rotor inertia's scale (1: world_spec's; Bullet's arm has none)."""
+    velocity_motor: float = 0.0
+    armature_scale: float = 1.0
+
+    def describe(self) -> str:
+        """'' for the nominal drive, else the words a result's setting adds."""
+        if self == Drive():
+            return ''
+        return f'; joint drive {self.velocity_motor:g} velocity motor, rotor inertia x{self.armature_scale:g}'
+
+
 VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
 SPEEDS = ('all', 'low', 'high')
 # |arrival y - paddle home y| bands (m) of dtw_by_lateral_offset: the demonstrated hits lie within 0.18 m.
@@ -94,6 +111,7 @@ class Evaluation:
     randomize: bool
     balls_per_seed: int
     results: list[SeedResult]
+    drive: Drive = Drive()
 
     @property
     def strokes(self) -> list[Stroke]:
@@ -118,13 +136,15 @@ def portable_path(path: str | os.PathLike) -> str:
 
 
 def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.device | str, *, speed: str = 'all',
-                  randomize: bool = False) -> SeedResult:
+                  randomize: bool = False, drive: Drive = Drive()) -> SeedResult:
     """Play each of `balls` environments' first ball to its verdict and keep its stroke."""
     from stylepong_policy import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S
 
     started = time.perf_counter()
-    cfg = task.TaskConfig(num_envs=balls, speed_range_m_s=tuple(SPEED_RANGES_M_S[speed]), randomize=bool(randomize))
+    cfg = task.TaskConfig(num_envs=balls, speed_range_m_s=tuple(SPEED_RANGES_M_S[speed]), randomize=bool(randomize),
+                          velocity_drive_range=(drive.velocity_motor,) * 2,
+                          armature_scale_range=(drive.armature_scale,) * 2)
     env = task.make_env(cfg, device, seed)
     names = list(task.FAILURE_REASONS) + [NO_DECISION]
     decided = torch.zeros(balls, dtype=torch.bool, device=env.device)
@@ -195,7 +215,7 @@ def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.nda
 def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
                    first_seed: int = FIRST_EVALUATION_SEED, balls: int = 200, speed: str = 'all',
                    randomize: bool = False, device: str | torch.device = 'cpu',
-                   progress: Callable[[SeedResult], None] | None = None) -> Evaluation:
+                   progress: Callable[[SeedResult], None] | None = None, drive: Drive = Drive()) -> Evaluation:
     """Run the protocol (module docstring) and keep every stroke; `progress` is called after each seed."""
     if speed not in SPEEDS:
         raise ValueError(f'speed must be one of {SPEEDS}, got {speed!r}')
@@ -205,12 +225,12 @@ def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
     given = loaded.path if isinstance(actor, LoadedActor) else actor
     results = []
     for seed in range(first_seed, first_seed + seeds):
-        result = evaluate_seed(loaded, seed, balls, device, speed=speed, randomize=randomize)
+        result = evaluate_seed(loaded, seed, balls, device, speed=speed, randomize=randomize, drive=drive)
         results.append(result)
         if progress is not None:
             progress(result)
     return Evaluation(actor=portable_path(given), actor_spec_version=loaded.metadata.get('spec_version'), speed=speed,
-                      randomize=bool(randomize), balls_per_seed=balls, results=results)
+                      randomize=bool(randomize), balls_per_seed=balls, results=results, drive=drive)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -319,7 +339,8 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'hit_rate': sum(r.hits for r in results) / balls,
         'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
         'seeds': [r.seed for r in results], 'balls_per_seed': evaluation.balls_per_seed, 'speed': evaluation.speed,
-        'randomize': evaluation.randomize, 'world': WORLDS[evaluation.randomize], 'actor': evaluation.actor,
+        'randomize': evaluation.randomize, 'world': WORLDS[evaluation.randomize] + evaluation.drive.describe(),
+        'actor': evaluation.actor,
         'actor_spec_version': evaluation.actor_spec_version,
         'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
         'direction_rule': {'plane_x_m': round(plane_x, 4), 'paddle_home_y_m': round(home_y, 4),
@@ -411,6 +432,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="camera of the cell's scene for the video (overview, robot_view)")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--randomize', action='store_true', help='evaluate with domain randomisation on')
+    parser.add_argument('--velocity-drive', type=float, default=0.0, metavar='SHARE',
+                        help="the joint drive's share of a stiff velocity motor, 0-1 (0: the cells' PD)")
+    parser.add_argument('--armature-scale', type=float, default=1.0, metavar='SCALE',
+                        help='rotor inertia scale, 0-1 (1: the world spec\'s; 0: none, as in Bullet)')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
     require_counts(parser, args, ('seeds', 'balls', 'num_threads'))
@@ -418,11 +443,21 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error('--first-seed must not be negative')
     if args.video_strokes < 1:
         parser.error('--video-strokes must be at least 1')
+    for flag, value in (('--velocity-drive', args.velocity_drive), ('--armature-scale', args.armature_scale)):
+        if not 0.0 <= value <= 1.0:
+            parser.error(f'{flag} must be within [0, 1], got {value}')
     return args
+
+
+def command_line(argv: Sequence[str]) -> str:
+    """This evaluation as a person would type it again (paths as portable_path writes them)."""
+    words = [portable_path(w) if os.path.isabs(w) else w for w in argv]
+    return shlex.join(['ros2', 'run', 'stylepong_policy', 'evaluate', *words])
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the evaluate executable."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     try:
         actor = load_actor(args.actor)
@@ -455,8 +490,10 @@ def main(argv: list[str] | None = None) -> int:
               f'hits {result.hits}, failures {result.reasons}, {result.wall_time_s:.1f} s', flush=True)
 
     evaluation = evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
-                                speed=args.speed, randomize=args.randomize, device=device, progress=report)
+                                speed=args.speed, randomize=args.randomize, device=device, progress=report,
+                                drive=Drive(args.velocity_drive, args.armature_scale))
     summary = summarise(evaluation, dataset=dataset, dataset_path=args.dtw)
+    summary['command'] = command_line(argv)
     if args.save_strokes is not None:
         summary['strokes_file'] = save_evaluation_strokes(args.save_strokes, evaluation, actor)
     if args.video is not None:

@@ -303,6 +303,9 @@ class TableTennisEnv:
     def _physics_params(self, k: int) -> batched_world.PhysicsParams:
         params = batched_world.PhysicsParams.nominal(k, self.device)
         cfg = self.cfg
+        params.velocity_drive = self._drive_value(k, cfg.velocity_drive_range, params.velocity_drive)
+        params.armature_kg_m2 = params.armature_kg_m2 * self._drive_value(k, cfg.armature_scale_range,
+                                                                          torch.ones_like(params.velocity_drive))
         if not cfg.randomize:
             return params
         params.table_restitution = self._uniform(k, cfg.table_restitution_range)
@@ -313,16 +316,15 @@ class TableTennisEnv:
         params.gravity_m_s2 = self._uniform(k, cfg.gravity_range_m_s2)
         params.kp_nm_per_rad = params.kp_nm_per_rad * self._uniform(k, cfg.kp_scale_range)
         params.kd_nms_per_rad = params.kd_nms_per_rad * self._uniform(k, cfg.kd_scale_range)
-        # The drive's ranges draw only where they are ranges: the other draws stay as they were without them.
-        if cfg.velocity_drive_range[1] > cfg.velocity_drive_range[0]:
-            params.velocity_drive = self._uniform(k, cfg.velocity_drive_range)
-        else:
-            params.velocity_drive = params.velocity_drive + cfg.velocity_drive_range[0]
-        if cfg.armature_scale_range[1] > cfg.armature_scale_range[0]:
-            params.armature_kg_m2 = params.armature_kg_m2 * self._uniform(k, cfg.armature_scale_range)
-        else:
-            params.armature_kg_m2 = params.armature_kg_m2 * cfg.armature_scale_range[0]
         return params
+
+    def _drive_value(self, k: int, bounds: tuple[float, float], like: torch.Tensor) -> torch.Tensor:
+        """A drive setting per environment: drawn when randomising over a range, else its low end. A
+        single value draws nothing, so the other parameters' draws stay as they were without it."""
+        low, high = bounds
+        if self.cfg.randomize and high > low:
+            return self._uniform(k, bounds)
+        return torch.full_like(like, float(low))
 
     def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Start a new episode in every environment; returns (actor obs, critic obs)."""

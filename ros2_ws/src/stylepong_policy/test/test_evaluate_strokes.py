@@ -101,7 +101,9 @@ def test_run_evaluation_returns_what_evaluate_prints(evaluated):
     printed = json.loads((evaluated / 'out' / 'eval.json').read_text())
     assert summary['per_seed'] == printed['per_seed'] and summary['failures'] == printed['failures']
     assert summary['directions'] == printed['directions'] and 'dtw' not in summary
-    assert set(printed) - set(summary) == {'dtw', 'dtw_by_lateral_offset', 'dtw_dataset', 'dtw_call', 'strokes_file'}
+    assert set(printed) - set(summary) == {'dtw', 'dtw_by_lateral_offset', 'dtw_dataset', 'dtw_call', 'strokes_file',
+                                           'command'}
+    assert printed['command'].startswith('ros2 run stylepong_policy evaluate --actor ')
     # A loaded actor is accepted as well, and the path it was loaded from is reported as given.
     from stylepong_policy.rl.export import load_actor
     again = evaluate.run_evaluation(load_actor(PPO_ACTOR), seeds=1, first_seed=SEED, balls=BALLS)
@@ -113,3 +115,25 @@ def test_portable_path_keeps_relative_paths_and_never_writes_a_foreign_absolute_
     assert evaluate.portable_path('models/a.pt') == 'models/a.pt'
     assert evaluate.portable_path(tmp_path / 'x' / 'a.pt') == 'x/a.pt'
     assert evaluate.portable_path('/elsewhere/b.pt') == 'b.pt'
+
+
+def test_the_shipped_style_actor_behind_a_stiff_drive_returns_far_fewer_balls(tmp_path):
+    """--velocity-drive 1 swaps the PD for a stiff joint motor (as Bullet's, as a UR's): the shipped actor's
+    follow-through, trained behind the PD alone, then drives its paddle into the table."""
+    actor = PACKAGE / 'models' / 'amp_actor.pt'
+    results = {}
+    for share in ('0', '1'):
+        out = tmp_path / f'{share}.json'
+        assert evaluate.main(['--actor', str(actor), '--seeds', '1', '--first-seed', '900', '--balls', '60',
+                              '--velocity-drive', share, '--json', str(out), '--num-threads', '1']) == 0
+        results[share] = json.loads(out.read_text())
+    assert results['0']['success_rate'] >= 0.85 and results['1']['success_rate'] <= 0.6, results
+    assert results['1']['failures'].get('table_contact_by_robot', 0) >= 10
+    assert 'velocity motor' in results['1']['world'] and 'velocity motor' not in results['0']['world']
+
+
+@pytest.mark.parametrize('flag, value', [('--velocity-drive', '1.5'), ('--armature-scale', 'nan')])
+def test_a_drive_outside_its_range_is_refused(flag, value, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(['--actor', str(PPO_ACTOR), flag, value])
+    assert exit_info.value.code == 2 and flag in capsys.readouterr().err
