@@ -117,9 +117,10 @@ def test_portable_path_keeps_relative_paths_and_never_writes_a_foreign_absolute_
     assert evaluate.portable_path('/elsewhere/b.pt') == 'b.pt'
 
 
-def test_the_shipped_style_actor_behind_a_stiff_drive_returns_far_fewer_balls(tmp_path):
-    """--velocity-drive 1 swaps the PD for a stiff joint motor (as Bullet's, as a UR's): the shipped actor's
-    follow-through, trained behind the PD alone, then drives its paddle into the table."""
+def test_a_stiff_drive_changes_the_world_and_the_result_says_so(tmp_path):
+    """--velocity-drive 1 swaps the PD for a stiff joint motor (as Bullet's, as a UR's). The shipped actor,
+    trained behind the PD alone, leans on its lag (docs/DESIGN.md, Known limits): its follow-through then
+    drives the paddle into the table. A retrained actor may return more there; this pins today's."""
     actor = PACKAGE / 'models' / 'amp_actor.pt'
     results = {}
     for share in ('0', '1'):
