@@ -96,7 +96,7 @@ class PhysicsParams:
     # Share of the joint drive that is a stiff velocity motor instead of world_spec's PD, in [0, 1] (0: the
     # cell's law). The motor reaches joint velocity v_ref + (Kp / Kd)(q_ref - q) within each sub-step, torque
     # permitting: Bullet's joint motors, and a UR's own joint controllers, which track servoj's setpoint
-    # without the PD's lag. Training draws it so an actor does not lean on one drive's dynamics.
+    # without the PD's lag. `evaluate --velocity-drive` sets it; the task can draw it (the recipe does not).
     velocity_drive: torch.Tensor
     # Reflected rotor inertia per joint [6, N]: a UR's harmonic drives have it, the URDF and Bullet do not.
     armature_kg_m2: torch.Tensor
