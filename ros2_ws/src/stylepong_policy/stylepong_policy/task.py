@@ -198,7 +198,8 @@ class TableTennisEnv:
         threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
         self.world = batched_world.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
                                                 arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
-                                                cpu_threads=None, compile=cfg.compile_world)
+                                                cpu_threads=None, compile=cfg.compile_world,
+                                                velocity_drive=max(cfg.velocity_drive_range) > 0.0)
         self.cpu_threads = threads
         self.policy_dt_s = self.world.policy_dt_s
         if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \

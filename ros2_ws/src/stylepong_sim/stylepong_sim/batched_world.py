@@ -159,7 +159,7 @@ class BatchedWorld:
                  policy_rate_hz: float = world_spec.POLICY_RATE_HZ, physics_rate_hz: float = PHYSICS_RATE_HZ,
                  arm_substeps: int = ARM_SUBSTEPS,
                  timeout_s: float = world_spec.BALL_TIMEOUT_S, dynamics_every: int | None = None,
-                 cpu_threads: int | None = 1, compile: bool = False):
+                 cpu_threads: int | None = 1, compile: bool = False, velocity_drive: bool = False):
         if num_envs < 1:
             raise ValueError('num_envs must be positive')
         steps = physics_rate_hz / policy_rate_hz
@@ -181,6 +181,9 @@ class BatchedWorld:
         # Physics steps between updates of the inertia and bias torques: by default once per policy
         # step (measured: agreement with the cell unchanged, 1.2-1.8 % either way; half the cost).
         self.dynamics_every = self.physics_steps if dynamics_every is None else int(dynamics_every)
+        # Whether params.velocity_drive is stepped at all: the motor's torques and gravity cost the world
+        # about an eighth of its step (benchmarked with 1024 environments), so worlds without it skip them.
+        self.velocity_drive = bool(velocity_drive)
         if self.dynamics_every < 1:
             raise ValueError('dynamics_every must be at least 1')
         self.model = batched_kinematics.build_arm_model(self.device, dtype)
@@ -308,9 +311,10 @@ class BatchedWorld:
         sp = batched_kinematics.spatial(self.model, kin)
         inertia = batched_kinematics.mass_matrix(sp) + self._eye6 * self.params.armature_kg_m2[None]
         inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)
-        return ArmDynamics(inertia, inverse, batched_kinematics.bias_torques(sp, self.qd_rad_s),
-                           batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s),
-                                                           self.params.gravity_m_s2))
+        coriolis = batched_kinematics.bias_torques(sp, self.qd_rad_s)
+        gravity = (batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s), self.params.gravity_m_s2)
+                   if self.velocity_drive else torch.zeros_like(coriolis))
+        return ArmDynamics(inertia, inverse, coriolis, gravity)
 
     def _arm_step(self, dynamics: ArmDynamics) -> None:
         """One physics step of the servo law (world_spec) in arm_substeps sub-steps, with the dynamics of
@@ -319,7 +323,7 @@ class BatchedWorld:
         Damping is explicit: MuJoCo's implicitfast drops a saturated actuator's damping derivative, so
         under saturation (a swing's start) the cell's law is the explicit one; at 480 Hz it is stable for
         the stiffest joint (Kd dt / I = 0.7 for wrist 3) and agrees with the cell within ~2 %.
-        Where `params.velocity_drive` w > 0 the drive torque is (1 - w) PD + w motor. The motor's is the
+        In a world built with velocity_drive, where `params.velocity_drive` w > 0 the drive torque is (1 - w) PD + w motor. The motor's is the
         torque that reaches v_ref + (Kp / Kd)(q_ref - q) in one sub-step (exact, so stable at any stiffness),
         gravity's share included in its effort limit, as in Bullet's motors and a real arm's drives.
         """
@@ -338,13 +342,15 @@ class BatchedWorld:
             # Net of gravity: the PD's clipped torque (its gravity compensated outside the clip), the motor's
             # clipped torque less gravity.
             pd = kp * (q_ref - q) + kd * (v_ref - qd)
-            pd = torch.maximum(torch.minimum(pd, effort), -effort)
-            wanted_acceleration = (v_ref + kp / kd * (q_ref - q) - qd) / dt
-            motor = coriolis + gravity + inertia[:, 0] * wanted_acceleration[0]
-            for j in range(1, 6):
-                motor = motor + inertia[:, j] * wanted_acceleration[j]
-            motor = torch.maximum(torch.minimum(motor, effort), -effort) - gravity
-            torque = pd + motor_share * (motor - pd) - coriolis
+            torque = torch.maximum(torch.minimum(pd, effort), -effort)
+            if self.velocity_drive:
+                wanted_acceleration = (v_ref + kp / kd * (q_ref - q) - qd) / dt
+                motor = coriolis + gravity + inertia[:, 0] * wanted_acceleration[0]
+                for j in range(1, 6):
+                    motor = motor + inertia[:, j] * wanted_acceleration[j]
+                motor = torch.maximum(torch.minimum(motor, effort), -effort) - gravity
+                torque = torque + motor_share * (motor - torque)
+            torque = torque - coriolis
             qdd = inverse[:, 0] * torque[0]
             for j in range(1, 6):
                 qdd = qdd + inverse[:, j] * torque[j]

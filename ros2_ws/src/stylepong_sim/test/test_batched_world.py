@@ -329,13 +329,19 @@ def test_incoming_ball_statistics_and_reproducibility():
 
 def test_the_velocity_drive_follows_the_reference_and_settles_where_commanded():
     """velocity_drive 1 (a stiff joint motor) follows a small step within its torque closer than the PD (0),
-    a half share in between; a large step saturates every drive; every share settles on the target."""
-    world = _world(3)
+    a half share in between; a large step saturates every drive; every share settles on the target. A world
+    built without velocity_drive steps the PD alone, whatever the parameter says."""
+    world = _world(3, velocity_drive=True)
     world.params.velocity_drive = torch.tensor([0.0, 0.5, 1.0], dtype=torch.float64)
+    pd_only = _world(3)
+    pd_only.params.velocity_drive = world.params.velocity_drive.clone()
     home = world.q_rad.clone()
     small = home.clone()
     small[5] += 5e-4                            # wrist_3: 13 N m of its 28 at the motor's acceleration
     world.step(small)
+    pd_only.step(small)
+    torch.testing.assert_close(pd_only.q_rad[:, 2], pd_only.q_rad[:, 0], rtol=0.0, atol=0.0)
+    torch.testing.assert_close(pd_only.q_rad[:, 0], world.q_rad[:, 0], rtol=0.0, atol=1e-12)
     error = (world.q_rad[5] - small[5]).abs() / 5e-4
     assert error[2] < 0.04 and error[2] < error[1] < error[0], error
     large = home.clone()
