@@ -323,9 +323,10 @@ class BatchedWorld:
         Damping is explicit: MuJoCo's implicitfast drops a saturated actuator's damping derivative, so
         under saturation (a swing's start) the cell's law is the explicit one; at 480 Hz it is stable for
         the stiffest joint (Kd dt / I = 0.7 for wrist 3) and agrees with the cell within ~2 %.
-        In a world built with velocity_drive, where `params.velocity_drive` w > 0 the drive torque is (1 - w) PD + w motor. The motor's is the
-        torque that reaches v_ref + (Kp / Kd)(q_ref - q) in one sub-step (exact, so stable at any stiffness),
-        gravity's share included in its effort limit, as in Bullet's motors and a real arm's drives.
+        In a world built with velocity_drive, where `params.velocity_drive` w > 0 the drive torque is
+        (1 - w) PD + w motor. The motor's is the torque that reaches v_ref + (Kp / Kd)(q_ref - q) in one
+        sub-step (exact, so stable at any stiffness), gravity's share included in its effort limit, as in
+        Bullet's motors and a real arm's drives.
         """
         m = self.model
         dt = self.physics_dt_s / self.arm_substeps
