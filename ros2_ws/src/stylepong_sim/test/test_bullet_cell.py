@@ -179,3 +179,19 @@ def test_the_pd_joint_drive_follows_a_step_with_world_specs_servo():
     cell.close()
     with pytest.raises(ValueError, match='joint_drive'):
         BulletCell(joint_drive='servo')
+
+
+def test_the_robot_touches_the_table_only_where_a_contact_point_pushes(cell, monkeypatch):
+    """Bullet lists manifold points still apart (distance up to its breaking threshold, normal force 0):
+    those are not a touch; a point that pushes is, and the referee ends the rally on it."""
+    cell.reset()
+    cell.launch_ball([1.0, 0.0, 1.0], [-3.0, 0.0, 0.0])
+    cell.pop_events()
+    blade = (0, cell._robot, cell._table, cell._blade_link, -1, (0.0, 0.0, 0.77), (0.0, 0.0, 0.77), (0.0, 0.0, 1.0))
+    points = {'apart': [(*blade, 0.004, 0.0)], 'pushing': [(*blade, -0.0005, 40.0)]}
+    for kind, expected in (('apart', False), ('pushing', True)):
+        monkeypatch.setattr(cell._p, 'getContactPoints',
+                            lambda bodyA=None, bodyB=None, _k=kind: points[_k] if bodyB == cell._table else [])
+        cell._check_robot_table_contacts()
+        touched = referee.TABLE_CONTACT_BY_ROBOT in [e.type for e in cell.pop_events()]
+        assert touched == expected, kind
