@@ -306,10 +306,12 @@ def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device
 def report_stage(paths: Paths, state: dict) -> pathlib.Path:
     """RUN/report.md and its figures."""
     from stylepong_policy import style_report
+    from stylepong_policy.evaluate import portable_path
     stages = state.get('stages', {})
     missing = [label for label, count in stages.get('dataset', {}).get('clips_per_label', {}).items() if not count]
     notes = [f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',
-             f'Recipe: {state.get("config")}, from the skill {state.get("skill")}; command: `{state.get("command")}`.']
+             f'Recipe: {portable_path(state.get("config", "?"))}, from the skill '
+             f'{portable_path(state.get("skill", "?"))}; command: `{state.get("command")}`.']
     if missing:
         notes.append(f'No clip labelled {", ".join(missing)}: those balls earned no style term in training and are '
                      'returned with the stroke of the skill the run started from; no DTW is measured for them.')
