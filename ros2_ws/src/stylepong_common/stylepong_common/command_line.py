@@ -1,9 +1,11 @@
-"""What the workspace's command-line tools share (no rclpy): how Ctrl-C ends them, and their JSON summary."""
+"""What the workspace's command-line tools share (no rclpy): how Ctrl-C ends them, their JSON summary and the
+command line a result records."""
 from __future__ import annotations
 
 import argparse
 import json
 import pathlib
+import shlex
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
@@ -35,6 +37,11 @@ def write_lines(path: pathlib.Path, lines: Sequence[str]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text('\n'.join(lines) + '\n')
     print(f'wrote {path}')
+
+
+def ros2_run_line(package: str, executable: str, argv: Sequence[str]) -> str:
+    """`ros2 run PACKAGE EXECUTABLE ARGS...` as a person would type it again, quoted where a shell needs it."""
+    return shlex.join(['ros2', 'run', package, executable, *argv])
 
 
 def print_and_write_json(summary: dict, path: pathlib.Path | None) -> None:

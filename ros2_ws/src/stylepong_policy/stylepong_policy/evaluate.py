@@ -30,7 +30,6 @@ import argparse
 import math
 import os
 import pathlib
-import shlex
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -39,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from stylepong_common.command_line import print_and_write_json, require_counts
+from stylepong_common.command_line import print_and_write_json, require_counts, ros2_run_line
 from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import style_metrics
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
@@ -451,8 +450,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def command_line(argv: Sequence[str]) -> str:
     """This evaluation as a person would type it again (paths as portable_path writes them)."""
-    words = [portable_path(w) if os.path.isabs(w) else w for w in argv]
-    return shlex.join(['ros2', 'run', 'stylepong_policy', 'evaluate', *words])
+    return ros2_run_line('stylepong_policy', 'evaluate', [portable_path(w) if os.path.isabs(w) else w for w in argv])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -34,7 +34,7 @@ from typing import NoReturn
 import numpy as np
 
 from stylepong_common import markdown
-from stylepong_common.command_line import exit_with_run, require_counts
+from stylepong_common.command_line import exit_with_run, require_counts, ros2_run_line
 from stylepong_policy import evaluate
 from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.strokes import DIRECTIONS, Stroke
@@ -253,11 +253,6 @@ def _unique(parser: argparse.ArgumentParser, items: Sequence[tuple[str, pathlib.
     return dict(items)
 
 
-def command_line(argv: Sequence[str]) -> str:
-    """The command as a person would type it (paths as given)."""
-    return 'ros2 run stylepong_policy style_confusion ' + ' '.join(argv)
-
-
 def run(argv: Sequence[str] | None = None) -> int:
     """Evaluate, measure and write (module docstring); returns the exit code."""
     import torch
@@ -321,7 +316,8 @@ def run(argv: Sequence[str] | None = None) -> int:
     last_seed = args.first_seed + args.seeds - 1
     seeds = f'seed {args.first_seed}' if args.seeds == 1 else f'seeds {args.first_seed}-{last_seed}'
     record = {
-        'command': command_line(argv), 'generated': datetime.date.today().isoformat(),
+        'command': ros2_run_line('stylepong_policy', 'style_confusion', argv),
+        'generated': datetime.date.today().isoformat(),
         'setting': f'{evaluate.WORLDS[False]}; {seeds} x {args.balls} balls; all speeds; deterministic actors',
         'baseline': evaluate.portable_path(args.baseline),
         'actors': {name: {'path': evaluate.portable_path(path), 'success_rate': success[name]}

@@ -304,9 +304,8 @@ class TableTennisEnv:
     def _physics_params(self, k: int) -> batched_world.PhysicsParams:
         params = batched_world.PhysicsParams.nominal(k, self.device)
         cfg = self.cfg
-        params.velocity_drive = self._drive_value(k, cfg.velocity_drive_range, params.velocity_drive)
-        params.armature_kg_m2 = params.armature_kg_m2 * self._drive_value(k, cfg.armature_scale_range,
-                                                                          torch.ones_like(params.velocity_drive))
+        params.velocity_drive = self._drive_value(k, cfg.velocity_drive_range)
+        params.armature_kg_m2 = params.armature_kg_m2 * self._drive_value(k, cfg.armature_scale_range)
         if not cfg.randomize:
             return params
         params.table_restitution = self._uniform(k, cfg.table_restitution_range)
@@ -319,13 +318,13 @@ class TableTennisEnv:
         params.kd_nms_per_rad = params.kd_nms_per_rad * self._uniform(k, cfg.kd_scale_range)
         return params
 
-    def _drive_value(self, k: int, bounds: tuple[float, float], like: torch.Tensor) -> torch.Tensor:
+    def _drive_value(self, k: int, bounds: tuple[float, float]) -> torch.Tensor:
         """A drive setting per environment: drawn when randomising over a range, else its low end. A
         single value draws nothing, so the other parameters' draws stay as they were without it."""
         low, high = bounds
         if self.cfg.randomize and high > low:
             return self._uniform(k, bounds)
-        return torch.full_like(like, float(low))
+        return torch.full((k,), float(low), device=self.device)
 
     def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Start a new episode in every environment; returns (actor obs, critic obs)."""

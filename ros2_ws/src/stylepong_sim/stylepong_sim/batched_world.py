@@ -331,7 +331,7 @@ class BatchedWorld:
         m = self.model
         dt = self.physics_dt_s / self.arm_substeps
         kp, kd = self.params.kp_nm_per_rad, self.params.kd_nms_per_rad
-        motor_share = self.params.velocity_drive
+        motor_share, position_gain = self.params.velocity_drive, kp / kd
         v_max, effort = m.velocity_limit_rad_s, m.effort_limit_nm
         step_max = v_max * dt
         q, qd, q_ref = self.q_rad, self.qd_rad_s, self.q_ref_rad
@@ -345,7 +345,7 @@ class BatchedWorld:
             pd = kp * (q_ref - q) + kd * (v_ref - qd)
             torque = torch.maximum(torch.minimum(pd, effort), -effort)
             if self.velocity_drive:
-                wanted_acceleration = (v_ref + kp / kd * (q_ref - q) - qd) / dt
+                wanted_acceleration = (v_ref + position_gain * (q_ref - q) - qd) / dt
                 motor = coriolis + gravity + inertia[:, 0] * wanted_acceleration[0]
                 for j in range(1, 6):
                     motor = motor + inertia[:, j] * wanted_acceleration[j]
