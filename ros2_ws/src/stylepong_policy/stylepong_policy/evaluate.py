@@ -67,7 +67,7 @@ WORLDS = {False: 'batched world, nominal (no randomisation, no sensing noise)',
 @dataclass(frozen=True)
 class Drive:
     """The arm's joint drive in the batched world (task.TaskConfig): the share of a stiff velocity motor
-    (0: the cells' PD) and the rotor inertia's scale (1: world_spec's; Bullet's arm has none)."""
+    (0: the cells' PD) and the rotor inertia's scale (1: world_spec's; 0: none)."""
     velocity_motor: float = 0.0
     armature_scale: float = 1.0
 
@@ -434,7 +434,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--velocity-drive', type=float, default=0.0, metavar='SHARE',
                         help="the joint drive's share of a stiff velocity motor, 0-1 (0: the cells' PD)")
     parser.add_argument('--armature-scale', type=float, default=1.0, metavar='SCALE',
-                        help='rotor inertia scale, 0-1 (1: the world spec\'s; 0: none, as in Bullet)')
+                        help='rotor inertia scale, 0-1 (1: the world spec\'s; 0: none)')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
     require_counts(parser, args, ('seeds', 'balls', 'num_threads'))

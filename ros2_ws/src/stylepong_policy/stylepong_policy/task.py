@@ -90,9 +90,9 @@ class TaskConfig:
     kd_scale_range: tuple[float, float] = (0.8, 1.2)
     # The joint drive, from the cells' PD (0) to a stiff velocity motor (1: Bullet's, a UR's own joint
     # control; batched_world.PhysicsParams.velocity_drive): an actor trained on one drive alone returned
-    # 31 of 100 balls behind Bullet's motors against 90 behind MuJoCo's PD (docs/DESIGN.md, Known limits).
+    # 56 of 100 balls behind Bullet's motors against 90 behind MuJoCo's PD (docs/DESIGN.md, Known limits).
     velocity_drive_range: tuple[float, float] = (0.0, 0.0)
-    armature_scale_range: tuple[float, float] = (1.0, 1.0)   # of world_spec's rotor inertia (Bullet's: 0)
+    armature_scale_range: tuple[float, float] = (1.0, 1.0)   # of world_spec's rotor inertia
     # Reward weights and scales.
     w_bat: float = 0.1
     sigma_bat_m: float = 0.3

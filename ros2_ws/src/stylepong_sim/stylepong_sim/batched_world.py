@@ -98,7 +98,7 @@ class PhysicsParams:
     # permitting: Bullet's joint motors, and a UR's own joint controllers, which track servoj's setpoint
     # without the PD's lag. `evaluate --velocity-drive` sets it; the task can draw it (the recipe does not).
     velocity_drive: torch.Tensor
-    # Reflected rotor inertia per joint [6, N]: a UR's harmonic drives have it, the URDF and Bullet do not.
+    # Reflected rotor inertia per joint [6, N]: a UR's harmonic drives have it, the URDF does not.
     armature_kg_m2: torch.Tensor
 
     @staticmethod

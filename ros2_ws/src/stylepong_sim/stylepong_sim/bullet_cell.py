@@ -17,14 +17,15 @@ What is Bullet's and what is shared with the other simulators:
   table, net, paddle and arm from Bullet's collision detection and constraint solver. Nothing here imports
   ball_contacts or batched_world, nor calls world_spec.contact_response.
 
-The arm: URDF loaded with its inertias; every joint's motor gets the reference (q_ref, v_ref) from the
-actuator model each step and solves joint velocity = v_ref + (Kp/Kd)(q_ref - q) (Bullet's positionGain
-(Kp/Kd) dt, velocityGain 1: the corner frequency of world_spec's PD, 20 rad/s big joints, 25 wrists) with
-its torque capped at the URDF effort (gravity included: Bullet has no separate compensation); joint speed
-capped at the URDF velocity limit (maxJointVelocity). No link or joint damping. joint_drive='pd' instead applies
-world_spec's servo as joint torques (PD clipped to the efforts, gravity from Bullet's inverse dynamics outside
-the clip; no armature: Bullet has none): the MuJoCo cell's servo law on Bullet's dynamics and contacts, a
-diagnostic (its explicit damping on the light wrist_3 without armature leaves a 6 mrad limit cycle there).
+The arm: URDF loaded with its inertias, and the drives' rotor inertia (world_spec's armature, which the URDF
+lacks and a real UR's joints have) as a rotor geared 1:1 to each joint, since Bullet's multibody has no
+armature field. Every joint's motor gets the reference (q_ref, v_ref) from the actuator model each step and
+solves joint velocity = v_ref + (Kp/Kd)(q_ref - q) (Bullet's positionGain (Kp/Kd) dt, velocityGain 1: the
+corner frequency of world_spec's PD, 20 rad/s big joints, 25 wrists) with its torque capped at the URDF effort
+(gravity included: Bullet has no separate compensation); joint speed capped at the URDF velocity limit
+(maxJointVelocity). No link or joint damping. joint_drive='pd' instead applies world_spec's servo as joint
+torques (PD clipped to the efforts, gravity from Bullet's inverse dynamics outside the clip): the MuJoCo
+cell's servo law on Bullet's dynamics and contacts, a diagnostic.
 
 The ball: 2.7 g, radius 20 mm, a thin shell (inertia 2/3 m r^2), air drag a = -k|v|v applied as an external
 force before every step (Bullet has no aerodynamics), no Magnus force. Contacts (Bullet multiplies the two
@@ -76,6 +77,9 @@ TABLE_TANGENT_OVER_NORMAL = 1.67          # mean |v_t|/|v_n| of the incoming bal
 CONTACT_TANGENT_OVER_NORMAL = 0.5         # guessed for blade, net and links
 BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * world_spec.BALL_MASS_KG * world_spec.BALL_RADIUS_M ** 2
 SOLVER_ITERATIONS = 50
+ROTORS_POSITION_M = [0.0, 0.0, -5.0]      # out of the way (the rotors collide with nothing anyway)
+ROTOR_MASS_KG = 1.0                       # on the rotor's axis: no gravity torque, only its inertia counts
+GEAR_MAX_TORQUE_NM = 1.0e5                # a rigid gear: far above any joint's effort
 
 
 def coulomb_friction(tangential_factor: float, restitution: float, tangent_over_normal: float) -> float:
@@ -173,6 +177,7 @@ class BulletCell(CellBase):
         self._net = self._static_box((low + high) / 2.0, (high - low) / 2.0, SURFACES['net'])
         self._floor = p.createMultiBody(0.0, p.createCollisionShape(pybullet.GEOM_PLANE), useMaximalCoordinates=True)
         self._robot, self._joints, self._links = self._load_robot()
+        self._rotors = self._add_rotors()
         self._blade_link = self._links[robot_model.PADDLE_BODY]
         self._handle_link = self._links[PADDLE_HANDLE_LINK]
         self._tool_link = self._links[robot_model.TOOL_FRAME]
@@ -229,6 +234,30 @@ class BulletCell(CellBase):
                              rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
                              contactProcessingThreshold=0.0)
         return robot, joints, links
+
+    def _add_rotors(self) -> int:
+        """The drives' rotor inertia (world_spec.ARM_ARMATURE_KG_M2), which a real UR's joints have and the URDF
+        lacks: a fixed-base body of six free rotors, each geared 1:1 to its arm joint. Bullet's multibody has no
+        armature; the gear constraints add it to the joint-space inertia exactly (M(q) + diag(armature)), solved
+        with the motors, so a drive's effort accelerates its rotor too. The rotors have no collision shape."""
+        p = self._p
+        armature = [float(a) for a in world_spec.ARM_ARMATURE_KG_M2]
+        identity = [0.0, 0.0, 0.0, 1.0]
+        rotors = p.createMultiBody(
+            baseMass=0.0, basePosition=ROTORS_POSITION_M,
+            linkMasses=[ROTOR_MASS_KG] * 6, linkCollisionShapeIndices=[-1] * 6, linkVisualShapeIndices=[-1] * 6,
+            linkPositions=[[0.0, 0.0, 0.0]] * 6, linkOrientations=[identity] * 6,
+            linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 6, linkInertialFrameOrientations=[identity] * 6,
+            linkParentIndices=[0] * 6, linkJointTypes=[pybullet.JOINT_REVOLUTE] * 6, linkJointAxis=[[0.0, 0.0, 1.0]] * 6)
+        for rotor, (joint, inertia) in enumerate(zip(self._joints, armature)):
+            p.changeDynamics(rotors, rotor, localInertiaDiagonal=[inertia] * 3, linearDamping=0.0, angularDamping=0.0,
+                             jointDamping=0.0)
+            gear = p.createConstraint(self._robot, joint, rotors, rotor, pybullet.JOINT_GEAR, [0.0, 0.0, 1.0],
+                                      [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+            # gearRatio -1: the rotor turns with its joint; erp 0: only velocities are tied (angles may drift apart).
+            p.changeConstraint(gear, gearRatio=-1.0, maxForce=GEAR_MAX_TORQUE_NM, erp=0.0)
+        p.setJointMotorControlArray(rotors, list(range(6)), pybullet.VELOCITY_CONTROL, forces=[0.0] * 6)
+        return rotors
 
     # --- the engine's side of the commands (CellBase has the rest) ---------------------------------
     def _command_reference(self, q_rad: np.ndarray) -> None:
@@ -304,8 +333,9 @@ class BulletCell(CellBase):
     # --- internals ---------------------------------------------------------------------------------
     def _reset_robot(self) -> None:
         p = self._p
-        for joint, q in zip(self._joints, self.home_joint_positions_rad):
+        for rotor, (joint, q) in enumerate(zip(self._joints, self.home_joint_positions_rad)):
             p.resetJointState(self._robot, joint, float(q), 0.0)
+            p.resetJointState(self._rotors, rotor, float(q), 0.0)
         self._q_cmd = self.home_joint_positions_rad.copy()
         self._reference.reset(self.home_joint_positions_rad, self._time_s)
         self._tool_velocity_prev = None

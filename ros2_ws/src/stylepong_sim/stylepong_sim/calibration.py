@@ -329,7 +329,7 @@ def markdown(result: dict) -> list[str]:
               f'along its face normal at {INCOMING_SPEED_M_S} m/s meets it at {HIT_TIME_S} s (aimed with the MuJoCo '
               'arm\'s blade). The return at the first 60 Hz sample after the hit, and its first table contact. The '
               'batched world\'s arm is held to the MuJoCo arm by its agreement test; the PyBullet arm (Bullet\'s joint '
-              'motors, gravity within the torque limits, no rotor inertia) has its blade elsewhere at the hit time:',
+              'motors, gravity within the torque limits) has its blade elsewhere at the hit time:',
               '']
     lines += [f'- {row["stroke"]}: PyBullet blade {row["pybullet_blade_offset_mm"]:.0f} mm from the MuJoCo blade, '
               f'its face turned {row["pybullet_blade_tilt_deg"]:.1f} deg' for row in result['strokes']]

@@ -175,10 +175,29 @@ def test_the_pd_joint_drive_follows_a_step_with_world_specs_servo():
     target = HOME + 0.2
     cell.set_joint_targets(target)
     cell.step_for(0.6)
-    assert cell.joint_positions_rad == pytest.approx(target, abs=0.01)   # wrist_3 keeps a 6 mrad limit cycle
+    assert cell.joint_positions_rad == pytest.approx(target, abs=1e-3)
     cell.close()
     with pytest.raises(ValueError, match='joint_drive'):
         BulletCell(joint_drive='servo')
+
+
+def test_every_joint_carries_world_specs_rotor_inertia():
+    # From rest at home, one 1 ms step of the PD drive's torques (gravity compensated) on wrist_3: the joints
+    # accelerate as (M(q) + diag(armature))^-1 tau, where Bullet's own mass matrix M lacks the rotors.
+    cell = BulletCell(joint_drive='pd')
+    cell.set_joint_targets(HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5]))
+    cell.step(1)
+    zeros = [0.0] * 6
+    gravity = np.array(cell._p.calculateInverseDynamics(cell._robot, HOME.tolist(), zeros, zeros))
+    net_torque = cell.joint_efforts_nm - gravity
+    mass_matrix = np.array(cell._p.calculateMassMatrix(cell._robot, HOME.tolist()))
+    acceleration = cell.joint_velocities_rad_s / cell.dt_s
+    cell.close()
+    assert net_torque[5] > 1.0
+    expected = np.linalg.solve(mass_matrix + np.diag(world_spec.ARM_ARMATURE_KG_M2), net_torque)
+    assert acceleration == pytest.approx(expected, rel=0.02, abs=0.05)
+    without_rotors = np.linalg.solve(mass_matrix, net_torque)
+    assert abs(acceleration[5]) < 0.5 * abs(without_rotors[5])
 
 
 def test_the_robot_touches_the_table_only_where_a_contact_point_pushes(cell, monkeypatch):
