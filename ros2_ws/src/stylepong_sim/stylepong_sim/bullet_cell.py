@@ -248,7 +248,8 @@ class BulletCell(CellBase):
             linkMasses=[ROTOR_MASS_KG] * 6, linkCollisionShapeIndices=[-1] * 6, linkVisualShapeIndices=[-1] * 6,
             linkPositions=[[0.0, 0.0, 0.0]] * 6, linkOrientations=[identity] * 6,
             linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 6, linkInertialFrameOrientations=[identity] * 6,
-            linkParentIndices=[0] * 6, linkJointTypes=[pybullet.JOINT_REVOLUTE] * 6, linkJointAxis=[[0.0, 0.0, 1.0]] * 6)
+            linkParentIndices=[0] * 6, linkJointTypes=[pybullet.JOINT_REVOLUTE] * 6,
+            linkJointAxis=[[0.0, 0.0, 1.0]] * 6)
         for rotor, (joint, inertia) in enumerate(zip(self._joints, armature)):
             p.changeDynamics(rotors, rotor, localInertiaDiagonal=[inertia] * 3, linearDamping=0.0, angularDamping=0.0,
                              jointDamping=0.0)
