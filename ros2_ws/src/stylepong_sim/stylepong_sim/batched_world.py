@@ -131,7 +131,7 @@ class ArmDynamics(NamedTuple):
     inertia: torch.Tensor                # M(q) + armature
     inverse: torch.Tensor                # its inverse
     coriolis: torch.Tensor               # C(q, qd) qd
-    gravity: torch.Tensor                # g(q)
+    gravity: torch.Tensor | None         # g(q); None in a world without velocity_drive (the PD's is compensated)
 
 
 @dataclass
@@ -313,7 +313,7 @@ class BatchedWorld:
         inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)
         coriolis = batched_kinematics.bias_torques(sp, self.qd_rad_s)
         gravity = (batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s), self.params.gravity_m_s2)
-                   if self.velocity_drive else torch.zeros_like(coriolis))
+                   if self.velocity_drive else None)
         return ArmDynamics(inertia, inverse, coriolis, gravity)
 
     def _arm_step(self, dynamics: ArmDynamics) -> None:
