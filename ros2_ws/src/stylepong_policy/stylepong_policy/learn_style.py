@@ -172,6 +172,14 @@ def dataset_stage(found, paths: Paths) -> dict:
     return {'clips': int(dataset.num_clips), 'frames': int(len(dataset.q)), 'clips_per_label': found.clips_per_label()}
 
 
+def trained_s(train_dir: pathlib.Path) -> float:
+    """The training time a stopped run has behind it (its progress log's last wall time; 0 without one)."""
+    from stylepong_policy.rl.logger import CSV_NAME, read_progress
+    csv_path = train_dir / CSV_NAME
+    wall_times = read_progress(csv_path).get('wall_time_s', []) if csv_path.is_file() else []
+    return wall_times[-1] if wall_times else 0.0
+
+
 def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill: pathlib.Path,
                 budget_s: float, command: str) -> dict:
     """Learn the style from the skill until the run's training time reaches budget_s (resumes a run)."""
@@ -179,7 +187,7 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
     from stylepong_policy.learn_style_progress import StageBar
     cfg.amp.dataset = str(paths.dataset)
     resume = '' if (paths.train / 'checkpoints' / 'last.pt').is_file() else None
-    with StageBar('train', budget_s) as bar:
+    with StageBar('train', budget_s, initial=trained_s(paths.train) if resume is not None else 0.0) as bar:
         result = train.train_run(cfg, paths.train, 'amp', config_source=str(config_path), resume=resume,
                                  start_from=None if resume is not None else skill, tensorboard=False,
                                  until_wall_time_s=budget_s, on_iteration=bar.iteration, command=command)

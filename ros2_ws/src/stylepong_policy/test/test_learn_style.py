@@ -131,3 +131,19 @@ def test_training_gets_all_but_the_reserve():
     assert REAL_BUDGET(60.0) == 60.0 * 60.0 - learn_style.RESERVE_S
     assert REAL_BUDGET(4.0) == pytest.approx(180.0)
     assert REAL_BUDGET(0.1) == learn_style.MIN_TRAIN_S
+
+
+def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clock(tmp_path):
+    """The train bar counts the run's training time against the budget: a resumed run's starts where the
+    stopped one was (its progress log's last wall time), so its ETA is the budget really left."""
+    from stylepong_policy.learn_style_progress import StageBar
+    from stylepong_policy.rl.logger import CSV_NAME
+    assert learn_style.trained_s(tmp_path) == 0.0
+    (tmp_path / CSV_NAME).write_text('iteration,wall_time_s\n1,2.5\n2,828.0\n')
+    assert learn_style.trained_s(tmp_path) == 828.0
+    with StageBar('train', 3060.0, initial=learn_style.trained_s(tmp_path)) as bar:
+        assert bar.bar.n == 828.0
+        bar.iteration({'iteration': 3, 'wall_time_s': 830.0, 'iteration_time_s': 2.0})
+        assert bar.bar.n == 830.0
+        bar.iteration({'iteration': 4, 'wall_time_s': 4000.0, 'iteration_time_s': 2.0})
+        assert bar.bar.n == 3060.0                    # never past the budget
