@@ -2,8 +2,8 @@
 
 The training stage is budgeted in time, so its bar counts the run's seconds of training against the budget
 (a resumed run's bar starts at the time trained before) and its ETA is the budget left; the other stages
-count their evaluations. On a terminal the bar redraws in
-place; in a log file (nohup) it writes a line every LOG_INTERVAL_S.
+count their evaluations. On a terminal the bar redraws in place; in a log file (nohup) it writes a line
+every LOG_INTERVAL_S.
 """
 from __future__ import annotations
 
@@ -43,9 +43,9 @@ class StageBar:
 
     def iteration(self, stats: dict) -> None:
         """The runner's per-iteration callback: the run's training time so far and a few figures."""
-        if self.bar is not None and 'wall_time_s' in stats:
-            self.advance(float(stats['wall_time_s']) - self.bar.n)
         if self.bar is not None:
+            if 'wall_time_s' in stats:
+                self.advance(float(stats['wall_time_s']) - self.bar.n)
             success = stats.get('success_rate')
             scale = stats.get('motion_scale')
             self.bar.set_postfix_str(f'it {stats.get("iteration")}'
