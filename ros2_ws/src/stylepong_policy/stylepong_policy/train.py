@@ -64,7 +64,7 @@ def default_config_path(method: str = 'ppo') -> pathlib.Path:
         path = pathlib.Path(get_package_share_directory(PACKAGE)) / 'config' / name
         if path.is_file():
             return path
-    except (ImportError, LookupError, ValueError):
+    except (ImportError, LookupError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH
         pass
     return pathlib.Path(__file__).resolve().parent.parent / 'config' / name
 
