@@ -5,13 +5,15 @@ Runs `ros2 run stylepong_policy learn_style ros2_ws/bags --out TMP --minutes M` 
 recipe as shipped, M = BENCH_LEARN_STYLE_MINUTES, default 6: every stage runs, the training for all but
 a quarter of M) in a subprocess and reads the run's record (learn_style.json); prints one Markdown
 section for BENCHMARKS.md. With the default 60 minutes the training stage gets 51 of them and the other
-stages take what they take here.
+stages take what they take here. The section ends with the GPU figures read from GPU_LOG, the log of a
+learn_style run on a lent GPU (this machine has none).
 """
 from __future__ import annotations
 
 import json
 import os
 import pathlib
+import re
 import subprocess
 import sys
 import tempfile
@@ -20,6 +22,25 @@ import time
 MINUTES = float(os.environ.get('BENCH_LEARN_STYLE_MINUTES', 6))
 DEVICE = os.environ.get('BENCH_LEARN_STYLE_DEVICE', 'cpu')
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+GPU_LOG = ROOT / 'benchmarks' / 'logs' / 'learn_style_cuda_h100.log'
+STEPS_PER_ENV = 24        # config/amp.yaml ppo.num_steps_per_env
+
+
+def gpu_paragraph(log: pathlib.Path) -> str:
+    """The GPU run's training throughput, from its progress lines ('train ... | T/B s [..., it K, ...')."""
+    text = log.read_text()
+    envs = int(re.search(r'(\d+) envs on cuda', text).group(1))
+    points = [(float(t), int(k)) for t, k in re.findall(r'train .*?\| *([\d.]+)/[\d.]+ s \[[^,\n]*, it (\d+)', text)]
+    (t0, k0), (t1, k1) = points[0], points[-1]
+    samples_per_iteration = STEPS_PER_ENV * envs
+    steady = (k1 - k0) / (t1 - t0) * samples_per_iteration
+    first_iteration_s = t0 - k0 * samples_per_iteration / steady
+    machine, command = (line.lstrip('# ') for line in text.splitlines()[:2])
+    return (f'On a GPU ({machine}; {command}; not run by `make bench`, read from [its log]({log.relative_to(ROOT)})): '
+            f'{k1} iterations in {t1:.0f} s of training, {k1 * samples_per_iteration / t1:.0f} samples/s overall; '
+            f'the first iteration after about {first_iteration_s:.0f} s (torch.compile of the world), then '
+            f'**{steady:.0f} samples/s**. At {envs} environments a world step and a minibatch are bound by kernel '
+            'launches, not arithmetic, so the GPU gives the recipe little.')
 
 
 def main() -> int:
@@ -50,6 +71,8 @@ def main() -> int:
           f'{train["training_time_s"]:.0f} s of training, **{train["samples_per_s"]:.0f} samples/s** (the '
           'world, PPO, the discriminator and the pose and stroke priors). With the default --minutes 60 the '
           'training stage gets 51 minutes; the stages after it take about what they take here.')
+    if GPU_LOG.is_file():
+        print('\n' + gpu_paragraph(GPU_LOG))
     return 0
 
 
