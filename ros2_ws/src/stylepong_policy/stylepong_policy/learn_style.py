@@ -156,6 +156,15 @@ def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
     return cfg, path
 
 
+def require_device(device: str) -> None:
+    """StyleError, before anything is written, for a device this machine cannot train on (cuda without CUDA)."""
+    from stylepong_policy.train import resolve_device
+    try:
+        resolve_device(device)
+    except ValueError as err:
+        raise StyleError(str(err)) from err
+
+
 def check_stage(source: pathlib.Path, cfg: TrainConfig):
     """The checked demonstrations (demo_check.DemonstrationSet); StyleError with one line per bad bag."""
     from stylepong_policy import demo_check
@@ -372,6 +381,7 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
         if not source.exists():
             raise StyleError(f'{source}: no such folder or dataset')
         skill = skill_checkpoint(args.start_from)
+    require_device(device)
     cfg, config_path = recipe(device)
     started = time.perf_counter()
     found = check_stage(source, cfg)   # again on resume: it is quick, and the bags may have changed

@@ -108,6 +108,15 @@ def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
     assert time.monotonic() - started < 30.0
 
 
+def test_a_device_without_cuda_is_refused_in_one_line_before_anything_is_written(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(torch.cuda, 'is_available', lambda: False)
+    out = tmp_path / 'run'
+    assert learn_style.main([str(BAGS), '--out', str(out), '--device', 'cuda']) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and 'no CUDA' in lines[0], lines
+    assert not out.exists()
+
+
 def test_candidates_are_averages_along_the_end_of_the_run_and_the_last_checkpoint(tmp_path, monkeypatch):
     from stylepong_policy import select_checkpoint
     numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]     # 12 checkpoints
