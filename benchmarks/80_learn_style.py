@@ -23,16 +23,17 @@ MINUTES = float(os.environ.get('BENCH_LEARN_STYLE_MINUTES', 6))
 DEVICE = os.environ.get('BENCH_LEARN_STYLE_DEVICE', 'cpu')
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 GPU_LOG = ROOT / 'benchmarks' / 'logs' / 'learn_style_cuda_h100.log'
-STEPS_PER_ENV = 24        # config/amp.yaml ppo.num_steps_per_env
 
 
 def gpu_paragraph(log: pathlib.Path) -> str:
     """The GPU run's training throughput, from its progress lines ('train ... | T/B s [..., it K, ...')."""
+    from stylepong_policy import learn_style
+    steps_per_env = learn_style.recipe(None)[0].ppo.num_steps_per_env
     text = log.read_text()
     envs = int(re.search(r'(\d+) envs on cuda', text).group(1))
     points = [(float(t), int(k)) for t, k in re.findall(r'train .*?\| *([\d.]+)/[\d.]+ s \[[^,\n]*, it (\d+)', text)]
     (t0, k0), (t1, k1) = points[0], points[-1]
-    samples_per_iteration = STEPS_PER_ENV * envs
+    samples_per_iteration = steps_per_env * envs
     steady = (k1 - k0) / (t1 - t0) * samples_per_iteration
     first_iteration_s = t0 - k0 * samples_per_iteration / steady
     machine, command = (line.lstrip('# ') for line in text.splitlines()[:2])
