@@ -1,4 +1,4 @@
-"""virtual_teacher drags the simulated arm through each stroke while the recorder records it:
+"""virtual_teacher drags the simulated arm through a forward and a rightward stroke while the recorder records them:
 ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/record_demos.sh runs them: the
 cell at a quarter of real time, drag_teach and the teacher on its clock, so that a loaded machine stays in step
 (at half of real time a loaded machine let the arm lag and catch up: a forward take peaked at 1.02 m/s, its
@@ -13,13 +13,16 @@ from rosbags.highlevel import AnyReader
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model
 from stylepong_sim import world_spec
-from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, TeacherConfig, sample_variation
+from stylepong_sim.teacher import CellKinematics, StrokePath, TeacherConfig, sample_variation
 
 KIN = CellKinematics()
 CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
 TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
 HOME_CENTRE = KIN.pose(np.array(world_spec.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
 SEED = 0   # the node's default take
+# Forward and the fastest take (rightward): leftward mirrors rightward, and all three are dragged through the
+# FDCC without ROS in stylepong_fdcc's test_teacher_drags_fdcc.py. A third take here costs the suite 18 s.
+SWINGS = ('forward', 'rightward')
 
 
 def read_clip(bag: pathlib.Path):
@@ -82,4 +85,4 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
         recorder.stop()
         drag.stop()
         sim.stop()
-    assert hits['leftward'][1] > hits['forward'][1] + 0.1 > hits['rightward'][1] + 0.2
+    assert hits['forward'][1] > hits['rightward'][1] + 0.1   # the rightward take meets the ball to the right
