@@ -25,6 +25,8 @@ Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus sig
                    dof    w_dof (exp(-|q - home| / sigma_dof) - 1)        only ever lower the reward)
                    rate   w_rate (exp(-|a_t - a_t-1| / sigma_rate) - 1)
                    action -w_action max|a_t|
+                   command  -w_command when the commanded joint positions put the arm below the table top
+                          (a stiff drive would take it there; the PD's lag hides it). 0 by default: no cost.
   r = the sum of the above: the task reward. The style reward of the motion prior is added by the
   trainer (stylepong_policy.rl.amp), from the arm states this env reports as its style frames.
 Goal: the centre of a 0.25 m region drawn uniformly so that the region lies on the opponent's half,
@@ -53,7 +55,7 @@ ILLEGAL_REASONS = (referee.REASON_ROBOT_CONTACT, referee.REASON_TABLE_CONTACT_BY
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
 # The slowest approach the style clock divides by: a ball this slow along x is about to be decided anyway.
 MIN_APPROACH_SPEED_M_S = 0.5
-REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action')
+REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'command')
 
 
 @dataclass
@@ -113,6 +115,7 @@ class TaskConfig:
     w_rate: float = 0.02
     sigma_rate: float = 0.5
     w_action: float = 0.01
+    w_command: float = 0.0
     # A factor on the motion prior's style weight from the paddle's first touch of the ball, where no task
     # term pays for how the arm moves (1: the same weight throughout; PPO ignores it). It lasts
     # style_weight_after_hit_s (0.3 s: the follow-through evaluate's strokes include), or to the verdict
@@ -400,11 +403,12 @@ class TableTennisEnv:
             raise ValueError('actions contain NaN or inf')
         action = spec.clip_action(actions.to(self.device, torch.float32))
         hit_before = w.hit.clone()
-        events = w.step(spec.decode_action(action).T, self.episode.action_delay_physics_steps)
+        q_cmd = spec.decode_action(action).T
+        events = w.step(q_cmd, self.episode.action_delay_physics_steps)
 
         q, qd = w.q_rad.T, w.qd_rad_s.T
         arm_state = torch.cat((q, qd), dim=1)
-        terms = self._rewards(action, hit_before, events, q, qd)
+        terms = self._rewards(action, q_cmd, hit_before, events, q, qd)
         reward = sum(terms[name] for name in REWARD_TERMS)
         for name in REWARD_TERMS:
             self.episode.reward_sums[name] += terms[name]
@@ -457,7 +461,7 @@ class TableTennisEnv:
             return struck
         return struck & (self._steps_since_hit <= self._style_weight_steps)
 
-    def _rewards(self, action, hit_before, events: batched_world.StepEvents, q, qd) -> dict[str, torch.Tensor]:
+    def _rewards(self, action, q_cmd, hit_before, events: batched_world.StepEvents, q, qd) -> dict[str, torch.Tensor]:
         cfg = self.cfg
         w = self.world
         ball = w.ball_pos_m.T
@@ -483,10 +487,13 @@ class TableTennisEnv:
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
         rate = cfg.w_rate * (torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate)
                              - 1.0)
+        command = torch.zeros_like(acc)
+        if cfg.w_command:
+            command = -cfg.w_command * w.commands_below_table_top(q_cmd).float()
         return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land,
                 'success': cfg.w_success * success.float(),
                 'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
-                'action': -cfg.w_action * action.abs().amax(dim=1)}
+                'action': -cfg.w_action * action.abs().amax(dim=1), 'command': command}
 
     def _aim_quality(self, just_hit: torch.Tensor) -> torch.Tensor:
         """How well the ball's drag-free flight from its state now heads for the goal, where it was just hit.

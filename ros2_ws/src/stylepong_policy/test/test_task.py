@@ -195,7 +195,7 @@ def test_regularisation_terms_only_ever_lower_the_reward():
     for _ in range(30):
         _, _, _, _, info = env.step(3.0 * torch.randn(64, 6, generator=generator))
         terms = info['reward_terms']
-        for name in ('acc', 'dof', 'rate', 'action', 'illegal'):
+        for name in ('acc', 'dof', 'rate', 'action', 'illegal', 'command'):
             assert (terms[name] <= 0).all(), name
         for name in ('bat', 'hit', 'goal', 'land', 'success'):
             assert (terms[name] >= 0).all(), name
@@ -205,6 +205,17 @@ def test_regularisation_terms_only_ever_lower_the_reward():
     _, _, _, _, info = still.step(torch.zeros(2, 6))
     for name in ('dof', 'rate', 'action'):
         assert info['reward_terms'][name].abs().max() < 1e-6, name
+
+
+def test_a_command_below_the_table_top_costs_w_command_per_step_and_nothing_by_default():
+    into = torch.zeros(2, 6)
+    into[1, 1] = 0.9 / spec.ACTION_SCALE_RAD[1]     # shoulder lift down and elbow stretched, env 1 only
+    into[1, 2] = -0.6 / spec.ACTION_SCALE_RAD[2]
+    for weight, expected in ((0.0, [0.0, 0.0]), (1.5, [0.0, -1.5])):
+        env = _env(2, randomize=False, w_command=weight)
+        env.reset()
+        _, _, _, _, info = env.step(into)
+        assert info['reward_terms']['command'].tolist() == pytest.approx(expected), weight
 
 
 def test_done_envs_restart_with_a_new_ball_and_the_arm_near_home():

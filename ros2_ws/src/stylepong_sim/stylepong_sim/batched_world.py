@@ -30,6 +30,7 @@ collision meshes (the cell queries the meshes themselves).
 from __future__ import annotations
 
 import contextlib
+import math
 from dataclasses import dataclass, fields
 from typing import NamedTuple
 
@@ -555,14 +556,23 @@ class BatchedWorld:
         d = ap - t * ab
         return (batched_kinematics.dot(d, d) < self._link_reach_sq_m2).any(0)
 
-    def _robot_touches_table(self, kin: Kinematics, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        """Any robot geometry inside the table top: the capsules' end spheres (a segment's lowest point
-        is one of its ends) and the blade's lowest point."""
+    def commands_below_table_top(self, q_cmd_rad: torch.Tensor) -> torch.Tensor:
+        """[N] bool: the arm at the commanded joint positions [6, N] would have geometry over the table and
+        below its top, inside the slab or under it. A stiff drive takes the arm where it is commanded, so
+        such a command drives it into the table; the PD's lag only hides it (docs/DESIGN.md, Known limits)."""
+        kin = batched_kinematics.forward_kinematics(self.model, q_cmd_rad)
+        a, b = batched_kinematics.capsule_segments(self.model, kin)
+        return self._robot_touches_table(kin, a, b, bottom_m=-math.inf)
+
+    def _robot_touches_table(self, kin: Kinematics, a: torch.Tensor, b: torch.Tensor,
+                             bottom_m: float = world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M
+                             ) -> torch.Tensor:
+        """Any robot geometry inside the table top (between bottom_m and the top surface): the capsules'
+        end spheres (a segment's lowest point is one of its ends) and the blade's lowest point."""
         points = torch.cat((a, b), dim=1)                                     # [3, 2L, N]
         gap_x = (points[0].abs() - world_spec.HALF_LENGTH_M).clamp_min(0.0)
         gap_y = (points[1].abs() - world_spec.HALF_WIDTH_M).clamp_min(0.0)
-        gap_z = (points[2] - world_spec.TABLE_HEIGHT_M).clamp_min(0.0) \
-            + (world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M - points[2]).clamp_min(0.0)
+        gap_z = (points[2] - world_spec.TABLE_HEIGHT_M).clamp_min(0.0) + (bottom_m - points[2]).clamp_min(0.0)
         touching = (gap_x * gap_x + gap_y * gap_y + gap_z * gap_z < self._capsule_end_radius_sq_m2).any(0)
         # The blade: a disc of radius R and half thickness h; its lowest point.
         normal = kin.paddle_rot[:, 2]
@@ -572,6 +582,5 @@ class BatchedWorld:
         lowest_x = kin.paddle_pos_m[0] + scale * nz * normal[0]
         lowest_y = kin.paddle_pos_m[1] + scale * nz * normal[1]
         lowest_z = kin.paddle_pos_m[2] - self._blade_radius_m * in_plane - self._blade_half_thickness_m * nz.abs()
-        blade = world_spec.on_table(lowest_x, lowest_y) & (lowest_z < world_spec.TABLE_HEIGHT_M) \
-            & (lowest_z > world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M)
+        blade = world_spec.on_table(lowest_x, lowest_y) & (lowest_z < world_spec.TABLE_HEIGHT_M) & (lowest_z > bottom_m)
         return touching | blade
