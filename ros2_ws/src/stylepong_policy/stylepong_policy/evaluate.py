@@ -18,8 +18,10 @@ build_dataset) each direction's strokes are compared with the reference clips of
 stylepong_policy.style_metrics gives the convention and the smoothness measures reported beside it.
 
 Printed and written as JSON: success_rate (mean over seeds), success_rate_std, per_seed,
-mean_successes_per_seed, hit_rate, failures (verdict -> count), balls, seeds, per-direction balls and
-success (`directions`), smoothness and, with --dtw, DTW per direction. Paths in it are as given on the
+mean_successes_per_seed, hit_rate, failures (verdict -> count), commanded_into_table (the share of balls
+before whose verdict a command put the arm below the table top: a stiff drive would follow it there, where
+the PD's lag keeps the arm above), balls, seeds, per-direction balls and success (`directions`),
+smoothness and, with --dtw, DTW per direction. Paths in it are as given on the
 command line (an absolute one under the working directory is made relative to it).
 In Python: `run_evaluation(actor, seeds=..., first_seed=..., balls=..., speed=..., randomize=...,
 device=...)` returns the same dict.
@@ -39,6 +41,7 @@ import numpy as np
 import torch
 
 from stylepong_common.command_line import print_and_write_json, require_counts, ros2_run_line
+from stylepong_player import spec
 from stylepong_player.spec import ACTION_RATE_HZ
 from stylepong_policy import style_metrics
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
@@ -95,6 +98,7 @@ class SeedResult:
     reasons: dict[str, int]
     wall_time_s: float
     strokes: list[Stroke] = field(default_factory=list)
+    commanded_into_table: int = 0     # balls before whose verdict a command put the arm below the table top
 
     @property
     def success_rate(self) -> float:
@@ -149,6 +153,7 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
     decided = torch.zeros(balls, dtype=torch.bool, device=env.device)
     success = torch.zeros_like(decided)
     hit = torch.zeros_like(decided)
+    into_table = torch.zeros_like(decided)
     reason = torch.full((balls,), -1, dtype=torch.int64, device=env.device)
     verdict_frame = torch.full((balls,), NO_FRAME, dtype=torch.int64, device=env.device)
     hit_frame = torch.full_like(verdict_frame, NO_FRAME)
@@ -166,6 +171,7 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
                 raise RuntimeError(f'seed {seed}: {int((~decided).sum())} balls undecided after {step} steps; '
                                    'the env never ended their episodes')
             actions = actor(obs.to('cpu')).to(env.device)
+            into_table |= ~decided & env.world.commands_below_table_top(spec.decode_action(actions).T)
             obs, _, _, dones, extras = env.step(actions)
             step += 1
             q_frames.append(extras['arm_state'][:, :6].cpu())
@@ -190,7 +196,8 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
                        verdict_frame.tolist())
     return SeedResult(seed=seed, balls=balls, successes=int(success.sum()), hits=int(hit.sum()),
                       reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
-                      wall_time_s=time.perf_counter() - started, strokes=strokes)
+                      wall_time_s=time.perf_counter() - started, strokes=strokes,
+                      commanded_into_table=int(into_table.sum()))
 
 
 def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.ndarray, outcomes: list[str],
@@ -337,6 +344,7 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
         'mean_successes_per_seed': float(np.mean([r.successes for r in results])),
         'hit_rate': sum(r.hits for r in results) / balls,
         'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
+        'commanded_into_table': sum(r.commanded_into_table for r in results) / balls,
         'seeds': [r.seed for r in results], 'balls_per_seed': evaluation.balls_per_seed, 'speed': evaluation.speed,
         'randomize': evaluation.randomize, 'world': WORLDS[evaluation.randomize] + evaluation.drive.describe(),
         'actor': evaluation.actor,

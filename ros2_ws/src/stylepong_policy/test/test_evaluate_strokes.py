@@ -130,6 +130,8 @@ def test_a_stiff_drive_changes_the_world_and_the_result_says_so(tmp_path):
         results[share] = json.loads(out.read_text())
     assert results['0']['success_rate'] >= 0.85 and results['1']['success_rate'] <= 0.6, results
     assert results['1']['failures'].get('table_contact_by_robot', 0) >= 10
+    # Behind the PD it returns the balls, yet commands the arm below the table top for most of them.
+    assert results['0']['commanded_into_table'] >= 0.5, results['0']['commanded_into_table']
     assert 'velocity motor' in results['1']['world'] and 'velocity motor' not in results['0']['world']
 
 
