@@ -3,8 +3,8 @@
 A fresh `ros2` process often sees a running node only at that node's next discovery announcement (every
 3 s with Fast DDS), later still when the CPU is contended; a fixed 1 s wait then lists only the helper's
 own /parameter_events. These tests start the cell, load every core with a busy loop, and check that
-`ros2 topic list`, run 6 times one after another, shows the cell's topics every time, and that `echo`
-and `hz` stopped by `timeout` (SIGTERM) or Ctrl-C (SIGINT) end without a traceback. About 35 s: each
+`ros2 topic list`, run 4 times one after another, shows the cell's topics every time, and that `echo`
+and `hz` stopped by `timeout` (SIGTERM) or Ctrl-C (SIGINT) end without a traceback. About 30 s: each
 `topic list` waits for discovery to settle (at least its --spin-time, 3.5 s).
 """
 import os
@@ -20,7 +20,7 @@ from stylepong_common.node_process import NodeProcess, wait_until
 # The cell's own topics (README, "The simulated cell").
 CELL_TOPICS = {'/joint_states', '/force_torque_sensor_broadcaster/wrench', '/clock', '/rally/events',
                '/forward_position_controller/commands', '/sim/hand_wrench'}
-LIST_RUNS = 6     # each a fresh participant discovering the cell on busy cores
+LIST_RUNS = 4     # each a fresh participant discovering the cell on busy cores
 
 
 @pytest.fixture(scope='module')
