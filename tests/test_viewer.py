@@ -24,7 +24,9 @@ from stylepong_common.node_process import NodeProcess, free_port
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 REACH_RIGHT_RAD = [-1.5, -1.2, 1.2, -1.57, -1.57, -1.57]   # paddle at world y about -0.6 m from the base
-PAGE_DEADLINE_S = 10.0     # from the viewer's start to a page showing the arm and the table
+# From the viewer's start to a page showing the arm and the table, timed when the screenshot that shows them
+# was asked for: under SwiftShader one shot takes 3-5 s to draw, the test's camera and not the viewer.
+PAGE_DEADLINE_S = 10.0
 RELOAD_AFTER_S = 8.0       # a page without a cell view this long after it was opened is opened again
 # Share of the arm's pixels right of the view's centre line: about 0.6 reaching right (the base stands on the
 # line), 0.16 at the home pose, less at the URDF's zero pose.
@@ -64,6 +66,7 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
             browser.navigate(url)
             opened, shots = time.monotonic(), []
             while time.monotonic() - started < PAGE_DEADLINE_S + 15.0:   # keeps looking, to say how late it was
+                asked_s = time.monotonic() - started
                 try:
                     png = browser.shoot(timeout_s=30.0)
                 except BrowserError as error:   # the tab lost its renderer (it crashed): a person reloads it
@@ -71,7 +74,7 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
                     browser.navigate(url)
                     opened = time.monotonic()
                     continue
-                shots.append((time.monotonic() - started, png, cell_view_pixels(png, BACKGROUND_RGB)))
+                shots.append((asked_s, png, cell_view_pixels(png, BACKGROUND_RGB)))
                 found = shots[-1][2]
                 if found['table'] > 2000 and found['arm'] > 1000 and found['arm_right_fraction'] > ARM_RIGHT_FRACTION:
                     break
@@ -81,7 +84,7 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
                     browser.navigate(url)
                     opened = time.monotonic()
                 time.sleep(0.5)
-        print('shots (s after start: table, arm pixels, right share):',
+        print('shots (s after start, when asked for: table, arm pixels, right share):',
               ', '.join(f'{t:.1f}: {f["table"]}/{f["arm"]}/{f["arm_right_fraction"]:.2f}' for t, _, f in shots))
         assert shots, f'Chromium gave no screenshot in {PAGE_DEADLINE_S + 15.0:.0f} s'
         elapsed_s, png, found = shots[-1]
@@ -95,7 +98,8 @@ def test_page_shows_the_arm_where_the_joint_states_put_it(ros_env, tmp_path):
             f'the arm is not where the joint states put it: {found}, {artefact}'
         load = os.getloadavg()[0]
         if load <= OVERLOADED_PER_CORE * os.cpu_count():
-            assert elapsed_s <= PAGE_DEADLINE_S, f'the page showed the cell only {elapsed_s:.1f} s after start'
+            assert elapsed_s <= PAGE_DEADLINE_S, \
+                f'the page showed the cell only in a shot asked for {elapsed_s:.1f} s after start'
         else:   # the content is still checked above; only its timing is not judged on a saturated machine
             print(f'load average {load:.1f} on {os.cpu_count()} cores: the {PAGE_DEADLINE_S:.0f} s deadline '
                   f'is not judged ({elapsed_s:.1f} s)')
