@@ -1,4 +1,4 @@
-"""virtual_teacher drags the simulated arm through a forward and a rightward stroke while the recorder records them:
+"""virtual_teacher drags the simulated arm through a rightward stroke while the recorder records it:
 ur5_sim + drag_teach + recorder + virtual_teacher through `ros2 run`, as tools/record_demos.sh runs them: the
 cell at a quarter of real time, drag_teach and the teacher on its clock, so that a loaded machine stays in step
 (at half of real time a loaded machine let the arm lag and catch up: a forward take peaked at 1.02 m/s, its
@@ -20,9 +20,10 @@ CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
 TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
 HOME_CENTRE = KIN.pose(np.array(world_spec.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
 SEED = 0   # the node's default take
-# Forward and the fastest take (rightward): leftward mirrors rightward, and all three are dragged through the
-# FDCC without ROS in stylepong_fdcc's test_teacher_drags_fdcc.py. A third take here costs the suite 18 s.
-SWINGS = ('forward', 'rightward')
+# The fastest take: the chain (teacher, drag_teach, cell, recorder) is the same for every swing, all three are
+# dragged through the FDCC without ROS in stylepong_fdcc's test_teacher_drags_fdcc.py, and test_teacher.py
+# tells them apart. Each take here costs the suite 18 s.
+SWINGS = ('rightward',)
 
 
 def read_clip(bag: pathlib.Path):
@@ -48,12 +49,11 @@ def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> n
 
 
 @pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
-def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
+def test_the_teacher_drags_and_records_a_stroke(ros_env, tmp_path):
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
     recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
     limits = robot_model.joint_limits()
-    hits = {}
     try:
         for swing in SWINGS:
             teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
@@ -80,9 +80,7 @@ def test_the_teacher_drags_and_records_each_stroke(ros_env, tmp_path):
             assert miss < 0.04, f'{swing}: the paddle passed {miss * 100:.1f} cm from the hitting point'
             assert np.min(np.linalg.norm(centres - path.back, axis=1)) < 0.04
             assert np.linalg.norm(centres[-1] - path.follow) < 0.04
-            hits[swing] = centres[np.argmin(np.linalg.norm(centres - path.hit, axis=1))]
     finally:
         recorder.stop()
         drag.stop()
         sim.stop()
-    assert hits['forward'][1] > hits['rightward'][1] + 0.1   # the rightward take meets the ball to the right
