@@ -23,7 +23,7 @@ SEED = 0   # the node's default take
 # The fastest take: the chain (teacher, drag_teach, cell, recorder) is the same for every swing, all three are
 # dragged through the FDCC without ROS in stylepong_fdcc's test_teacher_drags_fdcc.py, and test_teacher.py
 # tells them apart. Each take here costs the suite 18 s.
-SWINGS = ('rightward',)
+SWING = 'rightward'
 
 
 def read_clip(bag: pathlib.Path):
@@ -55,31 +55,30 @@ def test_the_teacher_drags_and_records_a_stroke(ros_env, tmp_path):
     recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
     limits = robot_model.joint_limits()
     try:
-        for swing in SWINGS:
-            teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
-                                  params={'swing': swing, 'seed': SEED, 'use_sim_time': True}).start()
-            try:
-                assert wait_until(lambda: not teacher.running(), 90.0), f'{swing}: the teacher never finished'
-            finally:
-                code = teacher.stop()
-            assert code == 0, f'{swing} teacher failed:\n{teacher.output()[-3000:]}\n{recorder.output()[-2000:]}'
-            bags = sorted(tmp_path.glob(f'{swing}_*'))
-            assert len(bags) == 1, f'{swing}: bags {bags}'
-            assert f'label: {swing}' in (bags[0] / 'metadata.yaml').read_text()
-            times, q, _ = read_clip(bags[0])
-            duration_s = times[-1] - times[0]
-            path = StrokePath(swing, TeacherConfig(), HOME_CENTRE, sample_variation(swing, SEED))
-            assert path.stroke_s <= duration_s <= path.duration_s + 0.5, f'{swing}: a {duration_s:.2f} s clip'
-            assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
-            speeds = tool_speeds(times, q)
-            assert 0.3 < speeds.max() < 1.0, f'{swing}: peak tool speed {speeds.max():.2f} m/s'
-            assert speeds[0] < 0.05 and speeds[-1] < 0.05, f'{swing}: the clip does not start and end at rest'
-            # The paddle went back, then forwards through the take's hitting point.
-            centres = np.array([KIN.pose(a, CENTRE).translation for a in q])
-            miss = np.min(np.linalg.norm(centres - path.hit, axis=1))
-            assert miss < 0.04, f'{swing}: the paddle passed {miss * 100:.1f} cm from the hitting point'
-            assert np.min(np.linalg.norm(centres - path.back, axis=1)) < 0.04
-            assert np.linalg.norm(centres[-1] - path.follow) < 0.04
+        teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
+                              params={'swing': SWING, 'seed': SEED, 'use_sim_time': True}).start()
+        try:
+            assert wait_until(lambda: not teacher.running(), 90.0), f'{SWING}: the teacher never finished'
+        finally:
+            code = teacher.stop()
+        assert code == 0, f'{SWING} teacher failed:\n{teacher.output()[-3000:]}\n{recorder.output()[-2000:]}'
+        bags = sorted(tmp_path.glob(f'{SWING}_*'))
+        assert len(bags) == 1, f'{SWING}: bags {bags}'
+        assert f'label: {SWING}' in (bags[0] / 'metadata.yaml').read_text()
+        times, q, _ = read_clip(bags[0])
+        duration_s = times[-1] - times[0]
+        path = StrokePath(SWING, TeacherConfig(), HOME_CENTRE, sample_variation(SWING, SEED))
+        assert path.stroke_s <= duration_s <= path.duration_s + 0.5, f'{SWING}: a {duration_s:.2f} s clip'
+        assert np.all(q > limits.lower_rad) and np.all(q < limits.upper_rad)
+        speeds = tool_speeds(times, q)
+        assert 0.3 < speeds.max() < 1.0, f'{SWING}: peak tool speed {speeds.max():.2f} m/s'
+        assert speeds[0] < 0.05 and speeds[-1] < 0.05, f'{SWING}: the clip does not start and end at rest'
+        # The paddle went back, then forwards through the take's hitting point.
+        centres = np.array([KIN.pose(a, CENTRE).translation for a in q])
+        miss = np.min(np.linalg.norm(centres - path.hit, axis=1))
+        assert miss < 0.04, f'{SWING}: the paddle passed {miss * 100:.1f} cm from the hitting point'
+        assert np.min(np.linalg.norm(centres - path.back, axis=1)) < 0.04
+        assert np.linalg.norm(centres[-1] - path.follow) < 0.04
     finally:
         recorder.stop()
         drag.stop()

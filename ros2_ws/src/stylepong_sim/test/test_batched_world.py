@@ -213,7 +213,7 @@ def test_paddle_on_the_table_ends_the_rally():
 
 
 def test_a_command_into_the_table_is_told_apart_from_one_above_it():
-    world = _world()
+    world = _world(3)
     home = world.q_rad[:, :1].clone()
     into = home.clone()
     into[1] += 0.9      # the command of the test above: the arm would reach down onto the table's end
@@ -221,10 +221,9 @@ def test_a_command_into_the_table_is_told_apart_from_one_above_it():
     under = home.clone()
     under[1] += 1.6     # further: the forearm goes through the top and below the slab
     commands = torch.cat((home, into, under), dim=1)
-    world3 = batched_world.BatchedWorld(3)
-    assert world3.commands_below_table_top(commands).tolist() == [False, True, True]
+    assert world.commands_below_table_top(commands).tolist() == [False, True, True]
     # Only the first lies above the top; the check is of the command, not of where the arm is.
-    assert not bool(world3.commands_below_table_top(world3.q_rad).any())
+    assert not bool(world.commands_below_table_top(world.q_rad).any())
 
 
 def test_timeout():
