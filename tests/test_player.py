@@ -35,6 +35,8 @@ SHIPPED = ROOT / 'ros2_ws/src/stylepong_policy/models/ppo_actor.pt'
 PERIOD_S = 1.0 / spec.ACTION_RATE_HZ
 HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD)
 NAMES = list(spec.JOINT_NAMES)
+# Between the player reading its clock for a streamed point and the middleware stamping it (a loaded machine).
+STAMP_SLACK_S = 0.002
 
 
 class Command(NamedTuple):
@@ -152,42 +154,43 @@ def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: 
 
 
 def check_commands(commands: list[Command], limits: player_core.JointLimits) -> int:
-    """Every command: six finite values within the position limits; between commands of consecutive
-    periods, the per-period velocity and acceleration limits. Returns how many pairs were checked.
+    """Every command: six finite values within the position limits; between two commands published one
+    period or more (and less than 3 periods) apart, no joint faster than its velocity limit. Returns how
+    many such windows were checked.
 
-    More than 3 periods without a command (stale joint states, a stalled process) end the stream: the
-    next command then starts from the measured joints, which can be anywhere. So only pairs published less
-    than 1.5 periods apart are checked (further apart, a restart would read as a violation): publish
-    times, not arrival times, since on a loaded machine commands published periods apart can arrive
-    together."""
-    pairs = 0
-    previous = None
-    previous_velocity = None
-    for command in commands:
+    The player streams points on the straight path between its 60 Hz commands (stream_commands), each
+    segment within the velocity limits, so the check holds over any window; one of at least a period keeps
+    the slack for the time between the player reading its clock and the publish stamp (STAMP_SLACK_S) small.
+    More than 3 periods without a command (stale joint states, a stalled process) end the stream: the next
+    command then starts from the measured joints, which can be anywhere, so windows never span such a gap.
+    Publish times, not arrival times, since on a loaded machine commands published apart can arrive together.
+    (The acceleration limit on the 60 Hz commands is the limiter's, tested in test_player_core.py.)"""
+    windows = 0
+    run_start = 0      # the first command after the last gap of 3 periods or more
+    i = 0              # the window's first command
+    for k, command in enumerate(commands):
         q = np.asarray(command.q)
         assert q.shape == (6,) and np.isfinite(q).all(), command.q
         assert (q >= limits.lower_rad - 1e-9).all() and (q <= limits.upper_rad + 1e-9).all(), command.q
-        if previous is not None and command.published_s - previous[0] < 1.5 * PERIOD_S:
-            velocity = (q - previous[1]) / PERIOD_S
-            assert (np.abs(velocity) <= limits.velocity_rad_s + 1e-6).all(), velocity
-            if previous_velocity is not None:
-                acceleration = (velocity - previous_velocity) / PERIOD_S
-                assert (np.abs(acceleration) <= limits.acceleration_rad_s2 + 1e-3).all(), acceleration
-            previous_velocity = velocity
-            pairs += 1
-        else:
-            previous_velocity = None
-        previous = (command.published_s, q)
-    return pairs
+        if k > 0 and command.published_s - commands[k - 1].published_s >= 3 * PERIOD_S:
+            run_start = i = k
+        while i + 1 < k and command.published_s - commands[i + 1].published_s >= PERIOD_S:
+            i += 1
+        elapsed_s = command.published_s - commands[i].published_s
+        if i >= run_start and PERIOD_S <= elapsed_s < 3 * PERIOD_S:
+            move = np.abs(q - np.asarray(commands[i].q))
+            assert (move <= limits.velocity_rad_s * (elapsed_s + STAMP_SLACK_S) + 1e-9).all(), (elapsed_s, move)
+            windows += 1
+    return windows
 
 
-def test_the_command_check_judges_pairs_by_publish_time():
+def test_the_command_check_judges_windows_by_publish_time():
     """The fuzz test's check: a step too fast between commands published one period apart fails it, even
     when they arrive far apart; the same step after a gap in publishing (a restart) does not, even when
     the two arrive together."""
     limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
                                                   player_core.PlayerConfig().acceleration_limit_rad_s2)
-    too_fast = HOME + 1.1 * limits.velocity_rad_s * PERIOD_S
+    too_fast = HOME + 1.5 * limits.velocity_rad_s * PERIOD_S
     with pytest.raises(AssertionError):
         check_commands([Command(0.0, 0.0, list(HOME)), Command(0.5, PERIOD_S, list(too_fast))], limits)
     assert check_commands([Command(0.0, 0.0, list(HOME)), Command(0.001, 4 * PERIOD_S, list(too_fast))], limits) == 0
@@ -218,14 +221,14 @@ def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
             assert player.running(), player.output()
             limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
                                                           player_core.PlayerConfig().acceleration_limit_rad_s2)
-            pairs = check_commands(rig.commands, limits)
-            assert pairs > 300, pairs
+            windows = check_commands(rig.commands, limits)
+            assert windows > 300, windows
             status = rig.status
             assert (status['rejected'].get('ball_not_finite', 0) > 0
                     and status['rejected'].get('joint_not_finite', 0) > 0)
             assert status['rejected'].get('joint_length', 0) > 0 and status['rejected'].get('ball_frame', 0) > 0
             assert status['counts'].get('policy_steps', 0) > 100
-            print(f'{len(rig.commands)} commands, {pairs} pairs checked; rejected {status["rejected"]}')
+            print(f'{len(rig.commands)} commands, {windows} windows checked; rejected {status["rejected"]}')
         finally:
             rig.close()
         assert player.stop() == 0

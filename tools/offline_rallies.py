@@ -2,7 +2,7 @@
 """The shipped actor through the player's logic on a cell, without ROS: which part of a cell decides a sim2sim figure.
 
     tools/offline_rallies.py --engine pybullet --actuator ideal --joint-drive motor|pd --first-seed 1000 --balls 10
-                             [--actor PATH.pt|PATH.onnx]
+                             [--actor PATH.pt|PATH.onnx] [--no-stream]
 
 The player (stylepong_player.player_core.Player, the node's logic: the limiter, phase-locked steps) drives a
 cell stepped here at 1 ms: perfect sensing, the camera at 125 Hz, joint states at 500 Hz, no ROS timing. Balls
@@ -55,9 +55,13 @@ def play(cell, player, position, velocity, goal) -> tuple[str, list[str]]:
     names = list(robot_model.JOINT_NAMES)
 
     def drive(now_s: float, step: int, ball: bool) -> None:
+        due = False
         if step % JOINT_STATE_PERIOD_STEPS == 0:
             player.on_joint_state(names, cell.joint_positions_rad, cell.joint_velocities_rad_s, now_s)
-        due = False
+            if not player.fallback_step_due(now_s):
+                point = player.stream_command(now_s)
+                if point is not None:
+                    cell.set_joint_targets(point)
         if ball and step % CAMERA_PERIOD_STEPS == 0 and cell.ball_in_play:
             player.on_ball('world', now_s, cell.ball_position_m, cell.ball_velocity_m_s, now_s)
             due = player.ball_step_due(now_s)
@@ -96,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--first-seed', type=int, default=1000)
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--balls', type=int, default=10)
+    parser.add_argument('--no-stream', action='store_true', help="the player's stream_commands false")
     parser.add_argument('--actor', type=pathlib.Path, default=ACTOR, help='default: the shipped style actor')
     args = parser.parse_args(argv)
     actor = player_core.load_actor(args.actor, 'onnx')
@@ -105,13 +110,14 @@ def main(argv: list[str] | None = None) -> int:
         positions, velocities = balls_for_seed(seed, args.balls, 'all')
         goals = goals_for_seed(seed, args.balls)
         for i in range(args.balls):
-            player = player_core.Player(player_core.PlayerConfig(), actor)
+            player = player_core.Player(player_core.PlayerConfig(stream_commands=not args.no_stream), actor)
             player.set_enabled(True)
             reason, links = play(cell, player, positions[i], velocities[i], goals[i])
             successes += reason == referee.REASON_RETURNED
             total += 1
             print(f'seed {seed} ball {i}: {reason}{" " + ",".join(links) if links else ""}', flush=True)
-    print(f'{args.engine} {args.actuator} joint_drive {args.joint_drive}: {successes}/{total} returned')
+    stream = 'one command per period' if args.no_stream else 'streamed commands'
+    print(f'{args.engine} {args.actuator} joint_drive {args.joint_drive}, {stream}: {successes}/{total} returned')
     return 0
 
 

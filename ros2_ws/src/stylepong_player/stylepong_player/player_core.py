@@ -23,7 +23,10 @@ state). Ready moves, where nothing is fast, run on a plain 60 Hz timer.
 
 Every command passes CommandLimiter: within the URDF position limits less a margin, at most the velocity
 limit per period and the acceleration limit, braking early enough that the position limits hold without
-ever exceeding the acceleration limit. Messages with NaN/inf, the wrong length or joint names, the wrong
+ever exceeding the acceleration limit. With stream_commands (the default) the node publishes the limited commands as a
+stream (CommandStream): on every joint state, the point on the straight path from where the stream was to
+the latest command, reached one period after its step, so the arm's controller samples a ramp at its own
+rate instead of a step every period. Messages with NaN/inf, the wrong length or joint names, the wrong
 frame, implausible values or stamps are rejected (counted, a throttled warning in the node) and never
 reach the actor.
 """
@@ -69,6 +72,7 @@ MIN_STEP_SPACING_PERIODS = 0.5
 JOINT_POSITION_TOLERANCE_RAD = 0.05
 JOINT_VELOCITY_FACTOR = 2.0
 STATS_WINDOW = 4096
+ARRIVAL_TOLERANCE_S = 1e-9     # a stream segment has ended (times are sums of floats)
 
 
 # --- limits and the command limiter ------------------------------------------------------------------
@@ -154,6 +158,59 @@ class CommandLimiter:
         self.velocity_rad_s = (command - x) / dt
         self.position_rad = command
         return command.copy()
+
+
+class CommandStream:
+    """The limiter's commands, one per period, as a stream of points at the controller's rate.
+
+    Each new command starts a segment from the point the stream is at to the command, travelled at constant
+    speed over one period (longer if a joint would exceed its velocity limit: a command that comes while the
+    previous segment is unfinished); `point(now)` is where the segment is at `now`, held at its end once
+    there. Why: a position-controlled joint fed a step every 1/60 s moves in dashes (the ideal servo
+    reference runs at full speed to each step, then waits; a stiff drive follows it and saturates its
+    torques), where a UR controller at 125-500 Hz fed the same path as a ramp moves smoothly. Points lie on
+    segments between commands, so the limiter's position limits hold for every point, and its velocity
+    limits for every segment.
+    """
+
+    def __init__(self, velocity_limit_rad_s: np.ndarray, period_s: float):
+        self.velocity_limit_rad_s = np.asarray(velocity_limit_rad_s, dtype=float)
+        self.period_s = period_s
+        self._start_rad: np.ndarray | None = None
+        self._end_rad: np.ndarray | None = None
+        self._start_s = -math.inf
+        self._duration_s = period_s
+
+    @property
+    def active(self) -> bool:
+        return self._end_rad is not None
+
+    def start(self, position_rad: np.ndarray) -> None:
+        """At rest at position_rad (a restart from the measured joints)."""
+        self._start_rad = np.array(position_rad, dtype=float)
+        self._end_rad = self._start_rad.copy()
+        self._start_s, self._duration_s = -math.inf, self.period_s
+
+    def stop(self) -> None:
+        self._start_rad = self._end_rad = None
+
+    def aim(self, command_rad: np.ndarray, now_s: float) -> None:
+        """A new segment from the point at now_s to command_rad."""
+        origin = self.point(now_s)
+        target = np.array(command_rad, dtype=float)
+        shortest_s = float(np.max(np.abs(target - origin) / self.velocity_limit_rad_s))
+        self._start_rad, self._end_rad = origin, target
+        self._start_s, self._duration_s = now_s, max(self.period_s, shortest_s)
+
+    def point(self, now_s: float) -> np.ndarray:
+        """The stream's point at now_s."""
+        if self.arrived(now_s):
+            return self._end_rad.copy()
+        fraction = max((now_s - self._start_s) / self._duration_s, 0.0)
+        return self._start_rad + fraction * (self._end_rad - self._start_rad)
+
+    def arrived(self, now_s: float) -> bool:
+        return now_s - self._start_s >= self._duration_s - ARRIVAL_TOLERANCE_S
 
 
 # --- observation and action ---------------------------------------------------------------------------
@@ -322,6 +379,7 @@ class PlayerConfig:
     ball_timeout_s: float = 0.05
     max_ball_age_s: float = 0.2
     max_ball_speed_m_s: float = 30.0
+    stream_commands: bool = True
 
     @property
     def period_s(self) -> float:
@@ -381,6 +439,8 @@ class Player:
         self.limits = JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
                                                config.acceleration_limit_rad_s2)
         self.limiter = CommandLimiter(self.limits, self.period_s)
+        self.stream = CommandStream(self.limits.velocity_rad_s, self.period_s) if config.stream_commands else None
+        self._stream_at_end = True          # the stream's last point has been handed out
         self.state = State.DISABLED
         self.goal_xy_m = np.asarray(config.goal_xy_m, dtype=np.float32)
         self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)
@@ -417,10 +477,15 @@ class Player:
     def set_enabled(self, enabled: bool) -> None:
         if enabled and self.state == State.DISABLED:
             self.state = State.READY
-            self.limiter.stop()        # the next command starts from the measured position
+            self._stop_commands()      # the next command starts from the measured position
         elif not enabled:
             self.state = State.DISABLED
-            self.limiter.stop()
+            self._stop_commands()
+
+    def _stop_commands(self) -> None:
+        self.limiter.stop()
+        if self.stream is not None:
+            self.stream.stop()
 
     def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
                        now_s: float) -> str | None:
@@ -517,6 +582,8 @@ class Player:
                                                         'its last target)')
         if not self.limiter.active or now_s - self._last_command_s > self.config.joint_timeout_periods * self.period_s:
             self.limiter.start(self._q)
+            if self.stream is not None:
+                self.stream.start(self.limiter.position_rad)
         if self.state == State.PLAYING and not self.ball_fresh(now_s):
             self.state = State.READY
         elif self.state == State.READY and self.ball_fresh(now_s):
@@ -531,7 +598,20 @@ class Player:
         else:
             command = self.limiter.step(_HOME, self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2)
         self._record_command(now_s, wall_s, policy)
+        if self.stream is not None:
+            self.stream.aim(command, now_s)
+            self._stream_at_end = False
+            command = self.stream.point(now_s)
         return StepResult(command, self.state, policy=policy)
+
+    def stream_command(self, now_s: float) -> np.ndarray | None:
+        """Between steps (call it at the controller's rate, e.g. on every joint state): the stream's point to
+        publish now, or None (not streaming, disabled, joint states stale, or the segment's end already sent)."""
+        if (self.stream is None or not self.stream.active or self.state == State.DISABLED
+                or not self.joints_fresh(now_s) or self._stream_at_end):
+            return None
+        self._stream_at_end = self.stream.arrived(now_s)
+        return self.stream.point(now_s)
 
     def _policy_command(self) -> np.ndarray:
         ball = self._ball

@@ -3,7 +3,9 @@
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
             frame world, stamp = instant observed), /player/goal (geometry_msgs/PointStamped, frame world),
             /player/enable (std_msgs/Bool: true enables, false disables)
-Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order),
+Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order; with
+            stream_commands one per joint state along the straight path to the latest 60 Hz command, else
+            one per step),
             /player/status (std_msgs/String, JSON, status_rate_hz: state, at_home, period and its jitter,
             ball-stamp-to-command latency, arrival-to-command latency, inference time, counts, rejected
             messages by kind; times in ms)
@@ -72,6 +74,8 @@ PARAMETERS = (
     Param('max_ball_age_s', _D.max_ball_age_s, 'ball messages stamped longer ago than this are rejected',
           low=0.01, high=2.0),
     Param('max_ball_speed_m_s', _D.max_ball_speed_m_s, 'faster ball messages are rejected', low=1.0, high=100.0),
+    Param('stream_commands', _D.stream_commands, 'publish on every joint state the point on the straight path to '
+          'the latest command (reached one period after its step); false: one command per 60 Hz period'),
     Param('status_rate_hz', 2.0, '/player/status rate', low=0.1, high=50.0),
 )
 
@@ -89,7 +93,7 @@ class PlayerNode(Node):
                 home_speed_rad_s=value['home_speed_rad_s'], home_acceleration_rad_s2=value['home_acceleration_rad_s2'],
                 home_tolerance_rad=value['home_tolerance_rad'], joint_timeout_periods=value['joint_timeout_periods'],
                 ball_timeout_s=value['ball_timeout_s'], max_ball_age_s=value['max_ball_age_s'],
-                max_ball_speed_m_s=value['max_ball_speed_m_s'])
+                max_ball_speed_m_s=value['max_ball_speed_m_s'], stream_commands=value['stream_commands'])
             config.validate()
         except ValueError as error:
             raise ParameterError(str(error)) from error
@@ -130,6 +134,10 @@ class PlayerNode(Node):
             self._warnings.warn('joint_state', lambda: f'/joint_states rejected: {problem}')
         elif self.core.fallback_step_due(now_s):
             self._step(now_s, ball_driven=False)
+        else:
+            point = self.core.stream_command(now_s)
+            if point is not None:
+                self._publish(point)
 
     def _on_ball(self, msg: BallState) -> None:
         received_wall_s = time.perf_counter()
@@ -173,14 +181,17 @@ class PlayerNode(Node):
         before = self.core.state
         result = self.core.step(now_s)
         if result.command is not None:
-            self._command.data = result.command.tolist()
-            self._command_pub.publish(self._command)
+            self._publish(result.command)
             if result.policy:
                 self.core.record_published(self._now_s(), ball_driven, received_wall_s, time.perf_counter())
         elif result.problem:
             self._warnings.warn('step', result.problem)
         if result.state != before:
             self.get_logger().info(f'{before.value} -> {result.state.value}')
+
+    def _publish(self, command) -> None:
+        self._command.data = command.tolist()
+        self._command_pub.publish(self._command)
 
     def _publish_status(self) -> None:
         status = self.core.status(self._now_s())

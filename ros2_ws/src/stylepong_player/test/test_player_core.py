@@ -35,6 +35,9 @@ class WildActor:
 
 
 def make_core(actor=None, **config) -> player_core.Player:
+    """A player; unless told otherwise without the stream, so that a step's command is the limiter's (the
+    stream's own tests say stream_commands=True)."""
+    config.setdefault('stream_commands', False)
     return player_core.Player(player_core.PlayerConfig(**config), actor or WildActor())
 
 
@@ -149,6 +152,71 @@ def test_every_command_is_within_the_limits_for_adversarial_inputs():
     assert len(commands) > 500
     check_commands(commands, limits)
     assert core.counts['actor_output_rejected'] > 0
+
+
+def test_the_stream_reaches_each_command_one_period_after_its_step_along_a_straight_path():
+    core = make_core(lambda obs: np.full((1, 6), 0.3, dtype=np.float32), stream_commands=True)
+    core.set_enabled(True)
+    t = 1.0
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    core.on_ball('world', t, BALL_P, BALL_V, t)
+    np.testing.assert_allclose(core.step(t).command, HOME, atol=1e-12)   # the path starts where the arm is
+    target = core.limiter.position_rad.copy()
+    assert np.abs(target - HOME).max() > 1e-3
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t + PERIOD_S / 2)
+    np.testing.assert_allclose(core.stream_command(t + PERIOD_S / 2), (HOME + target) / 2, atol=1e-12)
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t + PERIOD_S)
+    np.testing.assert_allclose(core.stream_command(t + PERIOD_S), target, atol=1e-12)
+    assert core.stream_command(t + 1.2 * PERIOD_S) is None        # its end was sent: nothing new to say
+    # A command before the segment's end: from where the stream is, no faster than the velocity limits.
+    stream = player_core.CommandStream(core.limits.velocity_rad_s, PERIOD_S)
+    stream.start(HOME)
+    stream.aim(HOME + 0.05, 0.0)
+    halfway = stream.point(PERIOD_S / 2)
+    stream.aim(HOME - 0.05, PERIOD_S / 2)
+    np.testing.assert_allclose(stream.point(PERIOD_S / 2), halfway, atol=1e-12)
+    duration_s = 0.075 / core.limits.velocity_rad_s.min()
+    assert not stream.arrived(PERIOD_S / 2 + 0.99 * duration_s) and stream.arrived(PERIOD_S / 2 + duration_s)
+
+
+def test_streamed_points_keep_the_limits_in_time_for_adversarial_inputs():
+    """Points at joint-state times and at steps: within the position limits, and between any two the
+    joints move no faster than the velocity limits (a pause longer than the joint timeout restarts)."""
+    rng = np.random.default_rng(5)
+    core = make_core(WildActor(6), stream_commands=True)
+    core.set_enabled(True)
+    limits = core.limits
+    points, t, q = [], 5.0, HOME.copy()
+    for k in range(6000):
+        t += rng.uniform(0.0005, 0.004)
+        if rng.random() < 0.05:
+            q = rng.uniform(limits.lower_rad, limits.upper_rad)
+        core.on_joint_state(NAMES, [np.nan] * 6 if rng.random() < 0.1 else q, rng.normal(0, 1, 6), t)
+        ball = rng.normal(0, 3, 3) if rng.random() < 0.5 else np.array([np.inf, 0, 0])
+        accepted = rng.random() < 0.3 and core.on_ball('world', t, ball, rng.normal(0, 5, 3), t) is None
+        if (accepted and core.ball_step_due(t)) or core.timer_step_due(t) or core.fallback_step_due(t):
+            point = core.step(t).command
+        else:
+            point = core.stream_command(t)
+        if point is not None:
+            points.append((t, point))
+    assert len(points) > 2000
+    for (t0, p0), (t1, p1) in zip(points, points[1:]):
+        assert (p1 >= limits.lower_rad - 1e-9).all() and (p1 <= limits.upper_rad + 1e-9).all()
+        if t1 - t0 < core.config.joint_timeout_periods * PERIOD_S:
+            assert (np.abs(p1 - p0) <= limits.velocity_rad_s * (t1 - t0) + 1e-9).all(), (t0, t1)
+
+
+def test_the_stream_says_nothing_while_disabled_or_with_stale_joint_states():
+    core = make_core(stream_commands=True)
+    core.set_enabled(True)
+    core.on_joint_state(NAMES, HOME + 0.2, np.zeros(6), 0.0)
+    core.step(0.0)
+    assert core.stream_command(0.5 * PERIOD_S) is not None
+    assert core.stream_command(3.5 * PERIOD_S) is None              # no joint state for over 3 periods
+    core.on_joint_state(NAMES, HOME + 0.2, np.zeros(6), 3.6 * PERIOD_S)
+    core.set_enabled(False)
+    assert core.stream_command(3.7 * PERIOD_S) is None
 
 
 @pytest.mark.parametrize('start', ['lower', 'upper'])
