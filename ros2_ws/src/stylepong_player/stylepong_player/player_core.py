@@ -23,10 +23,10 @@ state). Ready moves, where nothing is fast, run on a plain 60 Hz timer.
 
 Every command passes CommandLimiter: within the URDF position limits less a margin, at most the velocity
 limit per period and the acceleration limit, braking early enough that the position limits hold without
-ever exceeding the acceleration limit. With stream_commands (the default) the node publishes the limited commands as a
-stream (CommandStream): on every joint state, the point on the straight path from where the stream was to
-the latest command, reached one period after its step, so the arm's controller samples a ramp at its own
-rate instead of a step every period. Messages with NaN/inf, the wrong length or joint names, the wrong
+ever exceeding the acceleration limit. With stream_commands (the default) the node publishes the limited
+commands as a stream (CommandStream): on every joint state, the point on the straight path from where the
+stream was to the latest command, reached one period after its step, so the arm's controller samples a
+ramp at its own rate instead of a step every period. Messages with NaN/inf, the wrong length or joint names, the wrong
 frame, implausible values or stamps are rejected (counted, a throttled warning in the node) and never
 reach the actor.
 """
