@@ -194,13 +194,14 @@ class CommandStream:
     def stop(self) -> None:
         self._start_rad = self._end_rad = None
 
-    def aim(self, command_rad: np.ndarray, now_s: float) -> None:
-        """A new segment from the point at now_s to command_rad."""
+    def aim(self, command_rad: np.ndarray, now_s: float) -> np.ndarray:
+        """A new segment from the point at now_s to command_rad; that point (where the segment starts)."""
         origin = self.point(now_s)
         target = np.array(command_rad, dtype=float)
         shortest_s = float(np.max(np.abs(target - origin) / self.velocity_limit_rad_s))
         self._start_rad, self._end_rad = origin, target
         self._start_s, self._duration_s = now_s, max(self.period_s, shortest_s)
+        return origin.copy()
 
     def point(self, now_s: float) -> np.ndarray:
         """The stream's point at now_s."""
@@ -599,9 +600,8 @@ class Player:
             command = self.limiter.step(_HOME, self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2)
         self._record_command(now_s, wall_s, policy)
         if self.stream is not None:
-            self.stream.aim(command, now_s)
+            command = self.stream.aim(command, now_s)
             self._stream_at_end = False
-            command = self.stream.point(now_s)
         return StepResult(command, self.state, policy=policy)
 
     def stream_command(self, now_s: float) -> np.ndarray | None:
