@@ -36,7 +36,7 @@ PERIOD_S = 1.0 / spec.ACTION_RATE_HZ
 HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD)
 NAMES = list(spec.JOINT_NAMES)
 # Between the player reading its clock for a streamed point and the middleware stamping it (a loaded machine).
-STAMP_SLACK_S = 0.002
+STAMP_SLACK_S = 0.005
 
 
 class Command(NamedTuple):
@@ -154,30 +154,31 @@ def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: 
 
 
 def check_commands(commands: list[Command], limits: player_core.JointLimits) -> int:
-    """Every command: six finite values within the position limits; between two commands published one
-    period or more (and less than 3 periods) apart, no joint faster than its velocity limit. Returns how
+    """Every command: six finite values within the position limits; between two commands published two
+    periods or more (and less than 3 periods) apart, no joint faster than its velocity limit. Returns how
     many such windows were checked.
 
     The player streams points on the straight path between its 60 Hz commands (stream_commands), each
-    segment within the velocity limits, so the check holds over any window; one of at least a period keeps
-    the slack for the time between the player reading its clock and the publish stamp (STAMP_SLACK_S) small.
+    segment within the velocity limits, so the check holds over any window. The publish stamp comes a little
+    after the player reads its clock for a point, by a delay that varies on a loaded machine (measured over
+    2 ms in CI), so the check allows STAMP_SLACK_S and judges the longest window under 3 periods, where that
+    slack is small against the window (a tenth or so): a point a period ahead of the limit still fails it.
     More than 3 periods without a command (stale joint states, a stalled process) end the stream: the next
     command then starts from the measured joints, which can be anywhere, so windows never span such a gap.
     Publish times, not arrival times, since on a loaded machine commands published apart can arrive together.
     (The acceleration limit on the 60 Hz commands is the limiter's, tested in test_player_core.py.)"""
     windows = 0
-    run_start = 0      # the first command after the last gap of 3 periods or more
-    i = 0              # the window's first command
+    i = 0              # the window's first command: the earliest within 3 periods, after the last gap
     for k, command in enumerate(commands):
         q = np.asarray(command.q)
         assert q.shape == (6,) and np.isfinite(q).all(), command.q
         assert (q >= limits.lower_rad - 1e-9).all() and (q <= limits.upper_rad + 1e-9).all(), command.q
         if k > 0 and command.published_s - commands[k - 1].published_s >= 3 * PERIOD_S:
-            run_start = i = k
-        while i + 1 < k and command.published_s - commands[i + 1].published_s >= PERIOD_S:
+            i = k
+        while command.published_s - commands[i].published_s >= 3 * PERIOD_S:
             i += 1
         elapsed_s = command.published_s - commands[i].published_s
-        if i >= run_start and PERIOD_S <= elapsed_s < 3 * PERIOD_S:
+        if elapsed_s >= 2 * PERIOD_S:
             move = np.abs(q - np.asarray(commands[i].q))
             assert (move <= limits.velocity_rad_s * (elapsed_s + STAMP_SLACK_S) + 1e-9).all(), (elapsed_s, move)
             windows += 1
@@ -190,10 +191,15 @@ def test_the_command_check_judges_windows_by_publish_time():
     the two arrive together."""
     limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
                                                   player_core.PlayerConfig().acceleration_limit_rad_s2)
-    too_fast = HOME + 1.5 * limits.velocity_rad_s * PERIOD_S
+    too_fast = HOME + 1.5 * limits.velocity_rad_s * 2 * PERIOD_S
     with pytest.raises(AssertionError):
-        check_commands([Command(0.0, 0.0, list(HOME)), Command(0.5, PERIOD_S, list(too_fast))], limits)
+        check_commands([Command(0.0, 0.0, list(HOME)), Command(0.5, 2 * PERIOD_S, list(too_fast))], limits)
     assert check_commands([Command(0.0, 0.0, list(HOME)), Command(0.001, 4 * PERIOD_S, list(too_fast))], limits) == 0
+    # A point a period ahead of the limit, with steps within it around it, fails a longer window.
+    ahead = [Command(0.0, t * PERIOD_S, list(HOME + limits.velocity_rad_s * (t + (t >= 1)) * PERIOD_S))
+             for t in range(3)]
+    with pytest.raises(AssertionError):
+        check_commands(ahead, limits)
 
 
 def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
