@@ -2,10 +2,11 @@
 """The shipped actor through the player's logic on a cell, without ROS: which part of a cell decides a sim2sim figure.
 
     tools/offline_rallies.py --engine pybullet --actuator ideal --joint-drive motor|pd --first-seed 1000 --balls 10
-                             [--actor PATH.pt|PATH.onnx] [--no-stream]
+                             [--actor PATH.pt|PATH.onnx] [--no-stream] [--no-predict] [--realistic-sensing]
 
 The player (stylepong_player.player_core.Player, the node's logic: the limiter, phase-locked steps) drives a
-cell stepped here at 1 ms: perfect sensing, the camera at 125 Hz, joint states at 500 Hz, no ROS timing. Balls
+cell stepped here at 1 ms: the camera at 125 Hz, joint states at 500 Hz, no ROS timing; perfect sensing, or
+with --realistic-sensing the ball camera of config/realistic_sensing.yaml (latency, noise, lost frames). Balls
 and goals are rally_eval's for the seed. Prints each ball's verdict (and, on the PyBullet cell, which robot link
 touched the ball or the table), then the success count. Swapping one part of the cell at a time (engine, joint
 drive, actuator) tells which one a through-ROS figure depends on. Needs `source ros2_ws/install/setup.bash`.
@@ -16,12 +17,17 @@ import argparse
 import pathlib
 import sys
 
+import numpy as np
+import yaml
+
 from stylepong_description import robot_model
 from stylepong_player import player_core
-from stylepong_sim import referee, ur_servoj
+from stylepong_sim import referee, sensing, ur_servoj
 from stylepong_sim.rally_eval import balls_for_seed, goals_for_seed
 
-ACTOR = pathlib.Path(__file__).resolve().parent.parent / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'
+REALISTIC_SENSING = ROOT / 'ros2_ws/src/stylepong_sim/config/realistic_sensing.yaml'
 CAMERA_PERIOD_STEPS = 8        # 125 Hz
 JOINT_STATE_PERIOD_STEPS = 2   # 500 Hz
 SETTLE_STEPS = 300
@@ -37,6 +43,16 @@ def make_cell(engine: str, actuator: str, joint_drive: str):
     return Cell(actuator=actuator, servoj=servoj)
 
 
+def ball_camera(realistic: bool, rally: int) -> sensing.BallCamera:
+    """A perfect camera, or the one sim2sim runs with (its noise, latency and lost frames), for one rally."""
+    if not realistic:
+        return sensing.BallCamera(sensing.SensingConfig(), np.random.default_rng(rally))
+    params = yaml.safe_load(REALISTIC_SENSING.read_text())['ur5_sim']['ros__parameters']
+    config = sensing.SensingConfig(**{name: params[name] for name in (
+        'ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s', 'ball_dropout_probability')})
+    return sensing.BallCamera(config, np.random.default_rng([params['sensing_seed'], rally]))
+
+
 def touching_links(cell, event_type: int) -> list[str]:
     """The PyBullet cell's robot links in contact with the ball (or with the table and net)."""
     p = getattr(cell, '_p', None)
@@ -50,7 +66,7 @@ def touching_links(cell, event_type: int) -> list[str]:
     return sorted({p.getJointInfo(cell._robot, link)[12].decode() for link in links})
 
 
-def play(cell, player, position, velocity, goal) -> tuple[str, list[str]]:
+def play(cell, player, camera, position, velocity, goal) -> tuple[str, list[str]]:
     """One rally: the arm at home and ready, the ball launched, the player stepped as the node steps it."""
     names = list(robot_model.JOINT_NAMES)
 
@@ -63,8 +79,10 @@ def play(cell, player, position, velocity, goal) -> tuple[str, list[str]]:
                 if point is not None:
                     cell.set_joint_targets(point)
         if ball and step % CAMERA_PERIOD_STEPS == 0 and cell.ball_in_play:
-            player.on_ball('world', now_s, cell.ball_position_m, cell.ball_velocity_m_s, now_s)
-            due = player.ball_step_due(now_s)
+            camera.observe(now_s, cell.ball_position_m, cell.ball_velocity_m_s)
+        for seen in camera.delivered(now_s):
+            if player.on_ball('world', seen.stamp_s, seen.position_m, seen.velocity_m_s, now_s) is None:
+                due = player.ball_step_due(now_s)
         if due or player.timer_step_due(now_s) or player.fallback_step_due(now_s):
             result = player.step(now_s)
             if result.command is not None:
@@ -101,7 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--balls', type=int, default=10)
     parser.add_argument('--no-stream', action='store_true', help="the player's stream_commands false")
+    parser.add_argument('--no-predict', action='store_true', help="the player's predict_ball false")
     parser.add_argument('--actor', type=pathlib.Path, default=ACTOR, help='default: the shipped style actor')
+    parser.add_argument('--realistic-sensing', action='store_true',
+                        help="the ball camera of sim2sim's realistic_sensing.yaml")
     args = parser.parse_args(argv)
     actor = player_core.load_actor(args.actor, 'onnx')
     cell = make_cell(args.engine, args.actuator, args.joint_drive)
@@ -110,14 +131,19 @@ def main(argv: list[str] | None = None) -> int:
         positions, velocities = balls_for_seed(seed, args.balls, 'all')
         goals = goals_for_seed(seed, args.balls)
         for i in range(args.balls):
-            player = player_core.Player(player_core.PlayerConfig(stream_commands=not args.no_stream), actor)
+            config = player_core.PlayerConfig(stream_commands=not args.no_stream, predict_ball=not args.no_predict)
+            player = player_core.Player(config, actor)
             player.set_enabled(True)
-            reason, links = play(cell, player, positions[i], velocities[i], goals[i])
+            camera = ball_camera(args.realistic_sensing, total)
+            reason, links = play(cell, player, camera, positions[i], velocities[i], goals[i])
             successes += reason == referee.REASON_RETURNED
             total += 1
             print(f'seed {seed} ball {i}: {reason}{" " + ",".join(links) if links else ""}', flush=True)
     stream = 'one command per period' if args.no_stream else 'streamed commands'
-    print(f'{args.engine} {args.actuator} joint_drive {args.joint_drive}, {stream}: {successes}/{total} returned')
+    seen = 'realistic sensing' if args.realistic_sensing else 'perfect sensing'
+    ball = 'the ball as measured' if args.no_predict else 'the ball carried forward'
+    print(f'{args.engine} {args.actuator} joint_drive {args.joint_drive}, {stream}, {seen}, {ball}: '
+          f'{successes}/{total} returned')
     return 0
 
 

@@ -55,6 +55,7 @@ from stylepong_player.actor_contract import (
     parse_onnx_metadata,
     read_sidecar,
 )
+from stylepong_player.ball_prediction import predict_ball
 
 FRAME_WORLD = 'world'
 # A ball message may drive a step when its stamp is this fraction of a period short of a full period
@@ -381,6 +382,7 @@ class PlayerConfig:
     max_ball_age_s: float = 0.2
     max_ball_speed_m_s: float = 30.0
     stream_commands: bool = True
+    predict_ball: bool = True
 
     @property
     def period_s(self) -> float:
@@ -593,7 +595,7 @@ class Player:
             self._step_ball_stamp_s = -math.inf
         policy = self.state == State.PLAYING
         if policy:
-            command = self._policy_command()
+            command = self._policy_command(now_s)
             self._step_ball_stamp_s = self._ball.stamp_s
             self._last_step_s = now_s
         else:
@@ -613,10 +615,13 @@ class Player:
         self._stream_at_end = self.stream.arrived(now_s)
         return self.stream.point(now_s)
 
-    def _policy_command(self) -> np.ndarray:
+    def _policy_command(self, now_s: float) -> np.ndarray:
         ball = self._ball
-        obs = build_observation(self._q, self._qd, ball.position_m, ball.velocity_m_s, self.goal_xy_m,
-                                self.last_action)
+        position_m, velocity_m_s = ball.position_m, ball.velocity_m_s
+        if self.config.predict_ball:
+            # The ball as it is now, not as the tracker saw it (ball_prediction says why).
+            position_m, velocity_m_s = predict_ball(position_m, velocity_m_s, now_s - ball.stamp_s)
+        obs = build_observation(self._q, self._qd, position_m, velocity_m_s, self.goal_xy_m, self.last_action)
         started = self._perf_counter()
         raw = np.asarray(self.actor(obs), dtype=np.float32).reshape(-1)
         self.inference.add(self._perf_counter() - started)

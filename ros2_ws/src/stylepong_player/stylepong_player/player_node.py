@@ -76,6 +76,8 @@ PARAMETERS = (
     Param('max_ball_speed_m_s', _D.max_ball_speed_m_s, 'faster ball messages are rejected', low=1.0, high=100.0),
     Param('stream_commands', _D.stream_commands, 'publish on every joint state the point on the straight path to '
           'the latest command (reached one period after its step); false: one command per 60 Hz period'),
+    Param('predict_ball', _D.predict_ball, "carry the ball forward from its message's stamp to the step "
+          "(flight and table bounce) before the actor sees it; false: the ball as the message says"),
     Param('status_rate_hz', 2.0, '/player/status rate', low=0.1, high=50.0),
 )
 
@@ -93,7 +95,8 @@ class PlayerNode(Node):
                 home_speed_rad_s=value['home_speed_rad_s'], home_acceleration_rad_s2=value['home_acceleration_rad_s2'],
                 home_tolerance_rad=value['home_tolerance_rad'], joint_timeout_periods=value['joint_timeout_periods'],
                 ball_timeout_s=value['ball_timeout_s'], max_ball_age_s=value['max_ball_age_s'],
-                max_ball_speed_m_s=value['max_ball_speed_m_s'], stream_commands=value['stream_commands'])
+                max_ball_speed_m_s=value['max_ball_speed_m_s'], stream_commands=value['stream_commands'],
+                predict_ball=value['predict_ball'])
             config.validate()
         except ValueError as error:
             raise ParameterError(str(error)) from error

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from stylepong_player import player_core, spec
+from stylepong_player.ball_prediction import predict_ball
 
 PERIOD_S = 1.0 / spec.ACTION_RATE_HZ
 HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD)
@@ -126,6 +127,24 @@ def test_playing_starts_with_a_zero_last_action_and_feeds_back_the_clipped_actio
     first, second = actor.observations[0][0], actor.observations[1][0]
     np.testing.assert_array_equal(first[-6:], np.zeros(6))
     assert np.abs(second[-6:]).max() <= 1.0 and np.abs(second[-6:]).max() == 1.0
+
+
+@pytest.mark.parametrize('predict', [True, False])
+def test_the_actor_sees_the_ball_carried_forward_to_the_step(predict):
+    """A ball message stamped 30 ms before the step: with predict_ball the actor sees the ball where it is at
+    the step, else where the message says it was."""
+    actor = WildActor()
+    core = make_core(actor, predict_ball=predict)
+    core.set_enabled(True)
+    t = 2.0
+    core.on_joint_state(NAMES, HOME, np.zeros(6), t)
+    assert core.on_ball('world', t - 0.03, BALL_P, BALL_V, t) is None
+    core.step(t)
+    position, velocity = predict_ball(BALL_P, BALL_V, 0.03) if predict else (BALL_P, BALL_V)
+    expected = player_core.build_observation(HOME, np.zeros(6), np.asarray(position), np.asarray(velocity),
+                                             core.goal_xy_m, np.zeros(6))
+    np.testing.assert_allclose(actor.observations[0], expected, atol=1e-6)
+    assert not np.allclose(predict_ball(BALL_P, BALL_V, 0.03)[0], BALL_P, atol=0.05)   # the two differ
 
 
 def test_every_command_is_within_the_limits_for_adversarial_inputs():

@@ -13,22 +13,30 @@ from typing import Any
 
 import numpy as np
 
-# Shared with the robot side (the player), so defined there: the home pose, the policy's rate, the table's
-# size and the cell's extent.
+# Shared with the robot side (the player), so defined there: the home pose, the policy's rate, the table,
+# the cell's extent, the ball's flight (gravity, drag) and its nominal bounce on the table.
 from stylepong_description.robot_cell import (  # noqa: F401  (world_spec's names for them)
+    AIR_DENSITY_KG_M3,
+    BALL_AREA_M2,
+    BALL_MASS_KG,
+    BALL_RADIUS_M,
     CELL_HALF_EXTENT_M,
+    DRAG_COEFFICIENT,
+    DRAG_K_PER_M,
+    GRAVITY_M_S2,
     HALF_LENGTH_M,
     HALF_WIDTH_M,
     HOME_JOINT_POSITIONS_RAD,
     POLICY_RATE_HZ,
+    TABLE_CONTACT_HEIGHT_M,
+    TABLE_HEIGHT_M,
     TABLE_LENGTH_M,
+    TABLE_RESTITUTION,
+    TABLE_TANGENTIAL_FACTOR,
     TABLE_WIDTH_M,
 )
 
-GRAVITY_M_S2 = 9.81
-
 # --- Table and net (ITTF) -------------------------------------------------------------------------
-TABLE_HEIGHT_M = 0.76          # playing surface above the floor
 TABLE_THICKNESS_M = 0.03
 NET_HEIGHT_M = 0.1525          # above the playing surface
 NET_LENGTH_M = 1.83            # 15.25 cm overhang on each side
@@ -38,23 +46,13 @@ NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M     # the net's top edge above 
 NET_BOX_LOW_M = (-NET_THICKNESS_M / 2, -NET_LENGTH_M / 2, TABLE_HEIGHT_M)
 NET_BOX_HIGH_M = (NET_THICKNESS_M / 2, NET_LENGTH_M / 2, NET_TOP_HEIGHT_M)
 
-# --- Ball -----------------------------------------------------------------------------------------
-BALL_MASS_KG = 0.0027
-BALL_RADIUS_M = 0.020
-AIR_DENSITY_KG_M3 = 1.18       # randomised 1.18-1.20
-DRAG_COEFFICIENT = 0.47
-BALL_AREA_M2 = math.pi * BALL_RADIUS_M ** 2
-# a_drag = -DRAG_K |v| v, with DRAG_K = rho C_D A / (2 m) (about 0.129 1/m; Koc's fitted 0.1414).
-DRAG_K_PER_M = 0.5 * AIR_DENSITY_KG_M3 * DRAG_COEFFICIENT * BALL_AREA_M2 / BALL_MASS_KG
-# Where the ball's centre is when it touches a surface: its bottom on the table top, its side on a
-# face of the net. Every simulator and the incoming-ball solvers test contacts against these.
-TABLE_CONTACT_HEIGHT_M = TABLE_HEIGHT_M + BALL_RADIUS_M
+# --- Ball: above, with the drag a = -DRAG_K |v| v and the table's contact height (the air density is
+# randomised 1.18-1.20). Where the ball's centre is when its side touches a face of the net; every simulator
+# and the incoming-ball solvers test contacts against these heights.
 NET_FACE_CONTACT_X_M = NET_THICKNESS_M / 2.0 + BALL_RADIUS_M
 
 # --- Contacts (restitution = normal velocity ratio; tangential factor = tangential velocity ratio) --
-TABLE_RESTITUTION = 0.89               # ITTF: 30 cm drop rebounds about 23 cm
 TABLE_RESTITUTION_RANGE = (0.86, 0.92)
-TABLE_TANGENTIAL_FACTOR = 0.70
 TABLE_TANGENTIAL_FACTOR_RANGE = (0.68, 0.73)
 PADDLE_RESTITUTION = 0.78
 PADDLE_RESTITUTION_RANGE = (0.74, 0.82)
