@@ -70,8 +70,9 @@ cell = 'ur5_sim (MuJoCo cell)' if engine == 'mujoco' else 'ur5_sim engine pybull
 drive = ('ideal actuator' if actuator == 'ideal' else
          f'ur_servoj actuator at {float(rate_hz):g} Hz, look-ahead {float(lookahead_s):g} s, gain {float(gain):g}')
 seeds = result['seeds']
-result['world'] = (f'{cell} through ROS, {drive}: player (ONNX, commands streamed, ball carried forward) + rally_eval, realistic sensing '
-                   f'(config/realistic_sensing.yaml), wall-clock paced, seeds {seeds[0]}-{seeds[-1]}')
+result['world'] = (f'{cell} through ROS, {drive}: player (ONNX, commands streamed, ball carried forward) + '
+                   f'rally_eval, realistic sensing (config/realistic_sensing.yaml), wall-clock paced, '
+                   f'seeds {seeds[0]}-{seeds[-1]}')
 result['engine'] = engine
 result['actuator'] = {'model': actuator, 'servo_rate_hz': float(rate_hz), 'lookahead_s': float(lookahead_s),
                       'gain': float(gain)}
