@@ -43,14 +43,13 @@ def make_cell(engine: str, actuator: str, joint_drive: str):
     return Cell(actuator=actuator, servoj=servoj)
 
 
-def ball_camera(realistic: bool, rally: int) -> sensing.BallCamera:
-    """A perfect camera, or the one sim2sim runs with (its noise, latency and lost frames), for one rally."""
+def camera_config(realistic: bool) -> sensing.SensingConfig:
+    """A perfect ball camera, or the one sim2sim runs with (its noise, latency, lost frames and seed)."""
     if not realistic:
-        return sensing.BallCamera(sensing.SensingConfig(), np.random.default_rng(rally))
+        return sensing.SensingConfig()
     params = yaml.safe_load(REALISTIC_SENSING.read_text())['ur5_sim']['ros__parameters']
-    config = sensing.SensingConfig(**{name: params[name] for name in (
+    return sensing.SensingConfig(seed=params['sensing_seed'], **{name: params[name] for name in (
         'ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s', 'ball_dropout_probability')})
-    return sensing.BallCamera(config, np.random.default_rng([params['sensing_seed'], rally]))
 
 
 def touching_links(cell, event_type: int) -> list[str]:
@@ -126,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     actor = player_core.load_actor(args.actor, 'onnx')
     cell = make_cell(args.engine, args.actuator, args.joint_drive)
+    camera_settings = camera_config(args.realistic_sensing)
     successes = total = 0
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         positions, velocities = balls_for_seed(seed, args.balls, 'all')
@@ -134,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
             config = player_core.PlayerConfig(stream_commands=not args.no_stream, predict_ball=not args.no_predict)
             player = player_core.Player(config, actor)
             player.set_enabled(True)
-            camera = ball_camera(args.realistic_sensing, total)
+            camera = sensing.BallCamera(camera_settings, np.random.default_rng([camera_settings.seed, total]))
             reason, links = play(cell, player, camera, positions[i], velocities[i], goals[i])
             successes += reason == referee.REASON_RETURNED
             total += 1

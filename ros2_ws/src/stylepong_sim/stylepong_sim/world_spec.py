@@ -46,9 +46,9 @@ NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M     # the net's top edge above 
 NET_BOX_LOW_M = (-NET_THICKNESS_M / 2, -NET_LENGTH_M / 2, TABLE_HEIGHT_M)
 NET_BOX_HIGH_M = (NET_THICKNESS_M / 2, NET_LENGTH_M / 2, NET_TOP_HEIGHT_M)
 
-# --- Ball: above, with the drag a = -DRAG_K |v| v and the table's contact height (the air density is
-# randomised 1.18-1.20). Where the ball's centre is when its side touches a face of the net; every simulator
-# and the incoming-ball solvers test contacts against these heights.
+# --- Ball: its mass, size, drag (a = -DRAG_K |v| v; the air density randomised 1.18-1.20) and the table's
+# contact height are imported above. Where the ball's centre is when its side touches a face of the net;
+# every simulator and the incoming-ball solvers test contacts against these.
 NET_FACE_CONTACT_X_M = NET_THICKNESS_M / 2.0 + BALL_RADIUS_M
 
 # --- Contacts (restitution = normal velocity ratio; tangential factor = tangential velocity ratio) --
