@@ -13,7 +13,9 @@ actor's nearest set is the one with the smallest normalised distance; its margin
 next one is (the difference, and the ratio). An actor named like a set is meant to be nearest to it.
 
 A set is a folder of bags (built into a dataset with build_dataset in a temporary folder, x2/x3/x5
-included) or a dataset .npz. Writes OUT/style_confusion.md, .json and .png (the normalised matrix).
+included) or a dataset .npz. Beside the distances, how each actor's blade meets its balls and how each set's
+demonstrations meet theirs (stylepong_policy.contacts: where a stroke meets the ball sets most of its
+distance). Writes OUT/style_confusion.md, .json and .png (the normalised matrix).
 Exit status 0, 2 for invalid arguments (a missing file, an actor that does not fit, a set with no clip).
 """
 from __future__ import annotations
@@ -35,7 +37,7 @@ import numpy as np
 
 from stylepong_common import markdown
 from stylepong_common.command_line import exit_with_run, require_counts, ros2_run_line
-from stylepong_policy import evaluate
+from stylepong_policy import contacts, evaluate
 from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.strokes import DIRECTIONS, Stroke
 from stylepong_recording.bag_errors import one_line
@@ -182,6 +184,11 @@ def render_markdown(record: dict) -> str:
               *markdown.table(['Actor', 'Set'] + list(DIRECTIONS),
                                [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS]
                                 for a in actors for s in sets]), '']
+    blades = record['contacts']
+    rows = {f'`{s}` demonstrations': blades['demonstrations'][s] for s in sets}
+    rows |= {f'`{a}`': blades['actors'][a] for a in [*actors, BASELINE]}
+    lines += ['## The blade at contact', '', contacts.TABLE_NOTE, '',
+              *markdown.table(*contacts.contact_table(rows)), '']
     return '\n'.join(lines)
 
 
@@ -326,6 +333,9 @@ def run(argv: Sequence[str] | None = None) -> int:
         'sets': {name: {'path': evaluate.portable_path(path), 'clips': datasets[name].num_clips,
                         'clips_per_label': clips_per_label(datasets[name])} for name, path in set_paths.items()},
         'dtw_rad': raw, 'normalised': norm, 'verdicts': verdicts, 'dtw_call': evaluate.DTW_CALL,
+        'contacts': {'demonstrations': {name: contacts.mean_blades(contacts.demonstrated_contacts(dataset))
+                                        for name, dataset in datasets.items()},
+                     'actors': {name: contacts.mean_blades(contacts.actor_contacts(strokes[name])) for name in loaded}},
         'wall_time_s': round(time.perf_counter() - started, 1),
     }
     args.out.mkdir(parents=True, exist_ok=True)

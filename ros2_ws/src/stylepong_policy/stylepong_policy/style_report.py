@@ -1,5 +1,6 @@
 """RUN/report.md of a learned style: success, DTW to the demonstrations beside PPO's and the shipped style
-actor's, smoothness, and the new actor's stroke beside its nearest demonstration (no rclpy).
+actor's, the blade at contact, smoothness, and the new actor's stroke beside its nearest demonstration
+(no rclpy).
 
 What it reads, under RUN/EVAL_DIR (`eval_files(run_dir, actor)` gives the paths), for each of ACTORS
 ('style': the new actor, 'ppo', 'shipped': the shipped style actor):
@@ -29,11 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_common import markdown
-from stylepong_policy import style_metrics
+from stylepong_policy import contacts, style_metrics
 from stylepong_policy.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
 
 ACTORS = ('style', 'ppo', 'shipped')
 ACTOR_TITLES = {'style': 'new style actor', 'ppo': 'PPO (no style)', 'shipped': 'shipped style actor'}
+DEMONSTRATIONS = 'demonstrations'   # the key of the demonstrations' row among the actors' (blade_at_contact)
 EVAL_DIR = 'eval'
 ALL_SPEEDS_JSON = '{actor}_all.json'
 HIGH_SPEEDS_JSON = '{actor}_high.json'
@@ -348,6 +350,15 @@ def dtw_section(results: Mapping[str, ActorResults], distances, ratios, phases, 
     return [*lines, f'![DTW]({DTW_PNG})', '']
 
 
+def contact_section(blades: Mapping[str, Mapping[str, dict | None]]) -> list[str]:
+    """How each actor's blade meets its balls beside how the demonstrations meet theirs."""
+    rows = {('demonstrations' if name == DEMONSTRATIONS else ACTOR_TITLES[name]): by_direction
+            for name, by_direction in blades.items()}
+    return ['## The blade at contact', '', 'Where a stroke meets the ball sets most of its distance from the '
+            'demonstrations: every frame around the contact pays for the pose that puts the blade there. '
+            + contacts.TABLE_NOTE, '', *markdown.table(*contacts.contact_table(rows)), '']
+
+
 def smoothness_section(results: Mapping[str, ActorResults], reference: Mapping[str, dict | None]) -> list[str]:
     """Peak joint speed and acceleration and mean |jerk| of each actor's strokes, and of the demonstrations."""
     measures = ('peak_joint_speed_rad_s', 'peak_joint_acceleration_rad_s2', 'mean_abs_jerk_rad_s3')
@@ -435,6 +446,9 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])
     lines += success_section(results)
     lines += dtw_section(results, distances, ratios, phases, dataset_name, clips)
+    blades = {DEMONSTRATIONS: contacts.mean_blades(contacts.demonstrated_contacts(dataset))}
+    blades |= {name: contacts.mean_blades(contacts.actor_contacts(r.strokes)) for name, r in results.items()}
+    lines += contact_section(blades)
     lines += smoothness_section(results, reference)
     lines += strips_section(strips)
     lines += run_section(timings_s, checkpoints)
@@ -445,7 +459,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
                               'high': None if r.high_speeds is None else r.high_speeds['success_rate']}
                           for n, r in results.items()},
               'dtw_rad': distances, 'dtw_ratios': ratios,
-              'dtw_by_phase_rad': phases,
+              'dtw_by_phase_rad': phases, 'blade_at_contact': blades,
               'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
               'demonstration_smoothness': reference, 'strips': strips, 'timings_s': dict(timings_s),
               'checkpoints': checkpoints, 'notes': list(notes)}

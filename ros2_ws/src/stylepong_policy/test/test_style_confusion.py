@@ -73,6 +73,11 @@ def test_outputs_name_each_actors_nearest_set(confusion):
         assert f'| `{actor}` |' in text and f'`{v["nearest"]}`' in text
     assert (folder / 'out' / style_confusion.PNG_NAME).stat().st_size > 5_000
     assert '--set shipped=' in record['command'] and 'seed 1000 x 6 balls' in record['setting']
+    # The blade at contact: every set's demonstrations (7 originals for the shipped clips), every actor's hits.
+    blades = record['contacts']
+    assert sum(m['contacts'] for m in blades['demonstrations']['shipped'].values() if m) == 7
+    assert set(blades['actors']) == {'amp', 'ppo', style_confusion.BASELINE}
+    assert '## The blade at contact' in text and '| `shipped` demonstrations | forward |' in text
 
 
 def test_a_set_without_a_label_compares_only_the_strokes_it_has(tmp_path):

@@ -60,7 +60,7 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     assert path == run_dir / report.REPORT_MD
     text = path.read_text()
     assert 'Where the distance lies' in text and '| follow-through |' in text
-    for heading in ('## Success', '## DTW to the demonstrations', '## Smoothness',
+    for heading in ('## Success', '## DTW to the demonstrations', '## The blade at contact', '## Smoothness',
                     '## Strokes beside the demonstrations', '## The run'):
         assert heading in text
     assert '- a label note' in text and '2450' in text and '| stage 1 | 1234 | 20.6 |' in text
@@ -72,6 +72,11 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     high = json.loads(report.eval_files(run_dir, 'style').high_speeds_json.read_text())
     assert record['success']['style'] == {'all': style['success_rate'], 'high': high['success_rate']}
     assert record['success']['ppo']['high'] is None and 'not evaluated' in text
+    # The blade at contact: the demonstrations' hits and each actor's, by direction.
+    blades = record['blade_at_contact']
+    assert set(blades) == {report.DEMONSTRATIONS, *report.ACTORS}
+    hits = sum(s.hit for s in saved)
+    assert sum(m['contacts'] for m in blades['style'].values() if m) == hits
     for d in strokes.DIRECTIONS:
         expected = style['dtw'][d]['mean_rad'] / ppo['dtw'][d]['mean_rad'] if style['dtw'][d]['strokes'] else None
         assert record['dtw_ratios']['style / ppo'][d] == pytest.approx(expected)

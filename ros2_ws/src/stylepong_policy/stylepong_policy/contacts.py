@@ -1,0 +1,108 @@
+"""How the blade meets the ball: an actor's contacts beside its demonstrations' hits.
+
+A stroke's DTW distance from the demonstrations is mostly set where it meets the ball: the arm must put
+the blade at the ball, facing where the ball has to go, and every frame around the contact pays for the
+pose that takes. So a style whose demonstrations meet the ball with a blade that would not return it
+keeps a distance no training removes. This module measures the blade at each contact, for an actor's
+strokes (the frame after its first paddle contact, `Stroke.hit_frame`) and for demonstrations (which hold
+no ball: each original clip's `dataset.hit_frame`, the fastest frame of its last swing).
+
+The blade, from the paddle centre's pose in the world (batched_kinematics.forward_kinematics; the face
+normal n is its z axis, pointing from the face the ball leaves):
+  ahead_m      the paddle centre's x minus its x at the home pose (m): how far in front of home it meets
+               the ball (+: towards the net)
+  opening_deg  asin(n_z): 0 a vertical blade, + a face turned up to the sky
+  facing_deg   atan2(n_y, n_x): 0 square to the table, + turned towards the robot's left (world +y)
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from stylepong_policy.strokes import DIRECTIONS, Stroke, paddle_home_position_m
+
+
+@dataclass(frozen=True)
+class Blade:
+    """The blade at one contact."""
+    ahead_m: float
+    opening_deg: float
+    facing_deg: float
+
+
+BLADE_FIELDS = ('ahead_m', 'opening_deg', 'facing_deg')
+
+
+def blades(q_rad: np.ndarray) -> list[Blade]:
+    """The blade at each joint configuration of q_rad [K, 6] (K >= 0)."""
+    import torch
+
+    from stylepong_sim import batched_kinematics
+    q = np.asarray(q_rad, dtype=float).reshape(-1, 6)
+    if not len(q):
+        return []
+    kin = batched_kinematics.forward_kinematics(batched_kinematics.build_arm_model(dtype=torch.float64),
+                                                torch.as_tensor(q.T, dtype=torch.float64))
+    position = kin.paddle_pos_m.numpy()           # [3, K]
+    normal = kin.paddle_rot[:, 2].numpy()         # [3, K]: the face normal
+    home_x = paddle_home_position_m()[0]
+    return [Blade(ahead_m=float(position[0, k] - home_x),
+                  opening_deg=math.degrees(math.asin(max(-1.0, min(1.0, float(normal[2, k]))))),
+                  facing_deg=math.degrees(math.atan2(float(normal[1, k]), float(normal[0, k]))))
+            for k in range(q.shape[0])]
+
+
+def actor_contacts(strokes: Iterable[Stroke]) -> dict[str, list[Blade]]:
+    """The blade at each stroke's first paddle contact, by the stroke's direction (strokes that never hit
+    have none)."""
+    hitting = [s for s in strokes if s.hit and 0 <= s.hit_frame < len(s.joint_positions_rad)]
+    found = blades(np.array([s.joint_positions_rad[s.hit_frame] for s in hitting]).reshape(-1, 6))
+    by_direction: dict[str, list[Blade]] = {}
+    for stroke, blade in zip(hitting, found):
+        by_direction.setdefault(stroke.direction, []).append(blade)
+    return by_direction
+
+
+def demonstrated_contacts(dataset) -> dict[str, list[Blade]]:
+    """The blade at each original clip's hit (dataset.hit_frame), by label; speed-ups repeat their original."""
+    from stylepong_policy.dataset import hit_frame
+    originals = dataset.select(speed_factors=[1])
+    frames = [int(dataset.clip_start[c]) + hit_frame(dataset.clip(c).qd) for c in originals]
+    found = blades(dataset.q[frames].reshape(-1, 6))
+    by_label: dict[str, list[Blade]] = {}
+    for clip, blade in zip(originals, found):
+        by_label.setdefault(str(dataset.label[clip]), []).append(blade)
+    return by_label
+
+
+def mean_blades(contacts: Mapping[str, Sequence[Blade]]) -> dict[str, dict[str, float] | None]:
+    """Per direction: the mean of each blade field and the number of contacts (None: no contact)."""
+    means: dict[str, dict[str, float] | None] = {}
+    for direction in DIRECTIONS:
+        found = contacts.get(direction, [])
+        means[direction] = ({name: float(np.mean([getattr(b, name) for b in found])) for name in BLADE_FIELDS}
+                            | {'contacts': len(found)}) if found else None
+    return means
+
+
+TABLE_NOTE = ('The mean over each direction\'s contacts: an actor\'s at its strokes\' first paddle contact, a set '
+              'of demonstrations\' at each original clip\'s hit (its fastest frame; the clips hold no ball). Ahead '
+              'of home: the paddle centre\'s x beyond its home pose (towards the net); opening: the face turned up '
+              'from vertical; facing: the face turned towards the robot\'s left (world +y) from square to the table '
+              '(`stylepong_policy.contacts`).')
+
+
+def contact_table(rows: Mapping[str, Mapping[str, dict | None]]) -> tuple[list[str], list[list[str]]]:
+    """Markdown table (header, rows) of mean blades: one row per (name, direction) with contacts."""
+    header = ['strokes', 'direction', 'ahead of home (m)', 'opening (deg)', 'facing (deg)', 'contacts']
+    body = []
+    for name, by_direction in rows.items():
+        for direction in DIRECTIONS:
+            mean = by_direction.get(direction)
+            if mean is not None:
+                body.append([name, direction, f'{mean["ahead_m"]:+.2f}', f'{mean["opening_deg"]:+.0f}',
+                             f'{mean["facing_deg"]:+.0f}', str(mean['contacts'])])
+    return header, body
