@@ -381,8 +381,7 @@ class TableTennisEnv:
         the rl.env contract says (ended episodes already reset; 'time_outs', 'log', 'log_weight',
         'style_state', 'style_label' (the ball's direction), 'style_phase' (the paddle has touched the
         ball), 'style_time_s' (the style clock: _style_time_s), 'style_stroke_end' (FOLLOW_THROUGH_S
-        after the touch, as evaluate cuts strokes), 'style_contact' (the step of the touch), and
-        'style_weight' when style_weight_after_hit is not 1).
+        after the touch, as evaluate cuts strokes), and 'style_weight' when style_weight_after_hit is not 1).
         'log' holds success_rate, hit_rate, goal_rate, episode_length_s, ball/<verdict> (the share of each
         referee verdict) and reward/<term> (the episodes' sums of each reward term).
         The task's own extras, after the step and before any reset:
@@ -435,7 +434,6 @@ class TableTennisEnv:
         self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
         extras[env_contract.EXTRAS_STYLE_TIME] = self._style_time_s()
         extras[env_contract.EXTRAS_STYLE_STROKE_END] = self._steps_since_hit == self._follow_through_steps
-        extras[env_contract.EXTRAS_STYLE_CONTACT] = self._steps_since_hit == 1
         if self.cfg.style_weight_after_hit != 1.0:
             factor = self.cfg.style_weight_after_hit
             extras[env_contract.EXTRAS_STYLE_WEIGHT] = torch.where(self._style_weighted(), factor, 1.0)

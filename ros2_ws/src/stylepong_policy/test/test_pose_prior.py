@@ -97,19 +97,6 @@ def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose
     assert mixed.tolist() == pytest.approx((task + 0.5 * style + 2.0 * pose).tolist())
 
 
-def test_the_pose_at_the_contact_counts_w_contact_more(forward_only):
-    cfg = AMPConfig(sequence_length=2, frame_features='q', w_style=0.0, w_pose=1.0, w_contact=10.0)
-    reference = ReferenceMotion.from_dataset(forward_only, 2, features='q')
-    prior = MotionPrior(cfg, reference, 12, num_envs=2, device='cpu',
-                        pose_prior=PosePrior.from_dataset(forward_only, (), 0.3))
-    pose = torch.tensor([0.5, 0.5])
-    contact = torch.tensor([True, False])
-    mixed = prior.mix(torch.zeros(2), torch.zeros(2), pose=pose, contact=contact)
-    assert mixed.tolist() == pytest.approx([0.5 + 10.0 * 0.5, 0.5])
-    with pytest.raises(ValueError, match='w_pose'):
-        AMPConfig(w_pose=0.0, w_contact=1.0).validate()
-
-
 def test_stroke_prior_rewards_each_stroke_once_by_its_dtw_to_the_nearest_clip_of_its_label():
     from stylepong_policy.rl.stroke_prior import StrokePrior
     from stylepong_policy.style_metrics import dtw_distance_rad

@@ -371,7 +371,7 @@ def test_each_step_s_phase_turns_at_the_paddle_s_first_touch_of_its_ball():
 def test_the_style_clock_counts_down_to_the_ball_and_up_from_the_touch_and_the_stroke_ends_once():
     """'style_time_s' (rl.env): before the touch, minus the time the ball needs at its speed along x to
     reach the paddle's home plane; from the touch, the time since it. 'style_stroke_end': once, 0.3 s
-    after the touch, as evaluate cuts strokes. 'style_contact': once, in the step of the touch."""
+    after the touch, as evaluate cuts strokes."""
     env = _env(2, randomize=False)
     env.reset()
     _, _, _, _, extras = env.step(torch.zeros(2, 6))
@@ -379,15 +379,12 @@ def test_the_style_clock_counts_down_to_the_ball_and_up_from_the_touch_and_the_s
     expected = -(w.ball_pos_m[0] - env._plane_x_m) / (-w.ball_vel_m_s[0])
     assert torch.allclose(extras['style_time_s'], expected)
     assert bool((extras['style_time_s'] < 0).all()) and not bool(extras['style_stroke_end'].any())
-    assert not bool(extras['style_contact'].any())
     _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
-    clock, ends, contacts = [], [], []
+    clock, ends = [], []
     for _ in range(19):
         _, _, _, dones, extras = env.step(torch.zeros(2, 6))
         clock.append(float(extras['style_time_s'][0]))
         ends.append(bool(extras['style_stroke_end'][0]))
-        contacts.append(bool(extras['style_contact'][0]))
         assert not dones[0]
     assert clock[:3] == pytest.approx([1 / 60, 2 / 60, 3 / 60])
     assert ends == [False] * 17 + [True, False]                  # the 18th step after the touch: 0.3 s
-    assert contacts == [True] + [False] * 18

@@ -357,16 +357,12 @@ class MotionPrior:
                                          next_first_frames[:, self.q_columns], labels if self.num_labels else None)
 
     def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
-            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None,
-            contact: torch.Tensor | None = None) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style + w_pose r_pose + w_contact r_pose [contact] + w_stroke r_stroke,
-        the motion terms times motion_scale and the env's per-step factor [N] when it gives one; contact [N]
-        bool marks the steps of the paddle's touch."""
+            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke, the motion terms times
+        motion_scale and the env's per-step factor [N] when it gives one."""
         motion = self.cfg.w_style * style
         if pose is not None:
             motion = motion + self.cfg.w_pose * pose
-            if contact is not None and self.cfg.w_contact:
-                motion = motion + self.cfg.w_contact * pose * contact.to(pose.dtype)
         if stroke is not None:
             motion = motion + self.cfg.w_stroke * stroke
         if style_factor is not None:

@@ -111,9 +111,6 @@ class AMPConfig:
     # The stroke prior (rl.stroke_prior): w_stroke exp(-DTW(stroke, nearest clip) / (sigma frames)), once a stroke.
     w_stroke: float = non_negative(0.0)
     stroke_sigma_rad: float = positive(0.4)
-    # The contact: the pose prior's reward in the step of the paddle's touch (rl.env 'style_contact') is
-    # weighted w_pose + w_contact: where the stroke meets the ball sets most of its distance.
-    w_contact: float = non_negative(0.0)
     # Held style (rl.success_hold): the motion terms scaled down while training success is below the skill's
     # own (its warm-up iterations') less hold_success_margin, and back up as it recovers.
     hold_success: bool = False
@@ -130,8 +127,6 @@ class AMPConfig:
         for name in ('condition_on_label', 'condition_on_phase', 'hold_success'):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
-        if self.w_contact > 0.0 and not self.w_pose > 0.0:
-            raise ValueError('amp.w_contact weights the pose prior at the contact: it needs amp.w_pose > 0')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):
             raise ValueError(f'amp.speed_factors must be null or a list of factors >= 1, got {self.speed_factors}')
 

@@ -33,9 +33,7 @@ and may hold
                  (amp.w_pose, rl.pose_prior) needs it;
   'style_stroke_end' [N] bool: the step that ends the stroke each episode's style is judged on (the
                  episode's end ends it too, if nothing did before), before any reset; the stroke prior
-                 (amp.w_stroke, rl.stroke_prior) needs it;
-  'style_contact' [N] bool: the step in which that event happened (the task: the paddle's first touch),
-                 before any reset; amp.w_contact needs it.
+                 (amp.w_stroke, rl.stroke_prior) needs it.
 An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
 `evaluate`); the runner reads only these.
 
@@ -57,7 +55,6 @@ EXTRAS_STYLE_LABEL = 'style_label'
 EXTRAS_STYLE_PHASE = 'style_phase'
 EXTRAS_STYLE_TIME = 'style_time_s'
 EXTRAS_STYLE_STROKE_END = 'style_stroke_end'
-EXTRAS_STYLE_CONTACT = 'style_contact'
 
 
 class VecEnv(Protocol):

@@ -305,14 +305,9 @@ class OnPolicyRunner:
                     pose = self.motion_prior.pose_reward(frames, extras.get(env_contract.EXTRAS_STYLE_TIME), labels)
                     stroke = self.motion_prior.stroke_reward(frames, extras.get(env_contract.EXTRAS_STYLE_STROKE_END),
                                                              dones, self.env.style_state(), labels)
-                    contact = extras.get(env_contract.EXTRAS_STYLE_CONTACT)
                     parts = {'task': rewards, 'style': style, 'pose': pose, 'stroke': stroke}
-                    if self.cfg.amp.w_contact:
-                        if contact is None:
-                            raise ValueError("amp.w_contact: the env must give each step's 'style_contact'")
-                        parts['contact'] = pose * contact.to(pose.dtype)
                     rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose,
-                                                    stroke, contact)
+                                                    stroke)
                     self._sync()
                     style_s += time.perf_counter() - t2
                 stats.record(rewards, dones, extras, parts)
