@@ -103,6 +103,11 @@ def contact_table(rows: Mapping[str, Mapping[str, dict | None]]) -> tuple[list[s
         for direction in DIRECTIONS:
             mean = by_direction.get(direction)
             if mean is not None:
-                body.append([name, direction, f'{mean["ahead_m"]:+.2f}', f'{mean["opening_deg"]:+.0f}',
-                             f'{mean["facing_deg"]:+.0f}', str(mean['contacts'])])
+                body.append([name, direction, _signed(mean['ahead_m'], 2), _signed(mean['opening_deg'], 0),
+                             _signed(mean['facing_deg'], 0), str(mean['contacts'])])
     return header, body
+
+
+def _signed(value: float, digits: int) -> str:
+    """The value with its sign, rounded; a value that rounds to zero is +0 (never -0)."""
+    return f'{round(value, digits) + 0.0:+.{digits}f}'
