@@ -1,14 +1,15 @@
 """How the blade meets the ball: an actor's contacts beside its demonstrations' hits.
 
-A stroke's DTW distance from the demonstrations is mostly set where it meets the ball: the arm must put
+Much of a stroke's DTW distance from the demonstrations is set where it meets the ball: the arm must put
 the blade at the ball, facing where the ball has to go, and every frame around the contact pays for the
-pose that takes. So a style whose demonstrations meet the ball with a blade that would not return it
-keeps a distance no training removes. This module measures the blade at each contact, for an actor's
-strokes (the frame after its first paddle contact, `Stroke.hit_frame`) and for demonstrations (which hold
-no ball: each original clip's `dataset.hit_frame`, the fastest frame of its last swing).
+pose that takes. An actor that meets the ball elsewhere, or with another blade, than the demonstrations
+keeps that distance however the rest of its stroke moves (docs/DESIGN.md, Known limits). This module
+measures the blade at each contact, for an actor's strokes (the frame after its first paddle contact,
+`Stroke.hit_frame`) and for demonstrations (which hold no ball: each original clip's `dataset.hit_frame`,
+the fastest frame of its last swing).
 
-The blade, from the paddle centre's pose in the world (batched_kinematics.forward_kinematics; the face
-normal n is its z axis, pointing from the face the ball leaves):
+The blade, from the paddle centre's pose in the world (batched_kinematics.forward_kinematics; n is the
+blade's face normal, the frame's z axis, which faces the net at the home pose):
   ahead_m      the paddle centre's x minus its x at the home pose (m): how far in front of home it meets
                the ball (+: towards the net)
   opening_deg  asin(n_z): 0 a vertical blade, + a face turned up to the sky

@@ -14,7 +14,7 @@ next one is (the difference, and the ratio). An actor named like a set is meant 
 
 A set is a folder of bags (built into a dataset with build_dataset in a temporary folder, x2/x3/x5
 included) or a dataset .npz. Beside the distances, how each actor's blade meets its balls and how each set's
-demonstrations meet theirs (stylepong_policy.contacts: where a stroke meets the ball sets most of its
+demonstrations meet theirs (stylepong_policy.contacts: where a stroke meets the ball sets much of its
 distance). Writes OUT/style_confusion.md, .json and .png (the normalised matrix).
 Exit status 0, 2 for invalid arguments (a missing file, an actor that does not fit, a set with no clip).
 """
