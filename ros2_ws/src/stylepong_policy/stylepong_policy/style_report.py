@@ -352,8 +352,8 @@ def dtw_section(results: Mapping[str, ActorResults], distances, ratios, phases, 
 
 def contact_section(blades: Mapping[str, Mapping[str, dict | None]]) -> list[str]:
     """How each actor's blade meets its balls beside how the demonstrations meet theirs."""
-    rows = {('demonstrations' if name == DEMONSTRATIONS else ACTOR_TITLES[name]): by_direction
-            for name, by_direction in blades.items()}
+    titles = {**ACTOR_TITLES, DEMONSTRATIONS: DEMONSTRATIONS}
+    rows = {titles[name]: by_direction for name, by_direction in blades.items()}
     return ['## The blade at contact', '', 'Where a stroke meets the ball sets much of its distance from the '
             'demonstrations: every frame around the contact pays for the pose that puts the blade there. '
             + contacts.TABLE_NOTE, '', *markdown.table(*contacts.contact_table(rows)), '']
