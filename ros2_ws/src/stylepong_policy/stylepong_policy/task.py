@@ -14,9 +14,6 @@ Rewards (per 60 Hz step; the paper's terms, its exponentials given the minus sig
   before the hit   bat    w_bat  exp(-d(paddle, ball) / sigma_bat)       (d over `bat_axes`: the paper
                                                                           uses y only; default y and z)
   the hit          hit    w_hit  once, when the paddle first touches the ball
-                   meet   w_meet exp(-|paddle x - home plane x| / sigma_meet), once, at the hit: the stroke
-                          meets the ball where every demonstration meets it, at the paddle's home plane
-                          (the style clock's zero; 0 by default)
                    aim    w_aim  exp(-|predicted landing - goal| / sigma_aim), once, at the hit, gated
                           softly on the drag-free flight from the ball's new state clearing the net (the
                           landing point to goal, credited to the stroke that sets it)
@@ -58,8 +55,7 @@ ILLEGAL_REASONS = (referee.REASON_ROBOT_CONTACT, referee.REASON_TABLE_CONTACT_BY
 ARM_STATE_SIZE = 2 * spec.NUM_ACTIONS
 # The slowest approach the style clock divides by: a ball this slow along x is about to be decided anyway.
 MIN_APPROACH_SPEED_M_S = 0.5
-REWARD_TERMS = ('bat', 'hit', 'meet', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action',
-                'command')
+REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc', 'dof', 'rate', 'action', 'command')
 
 
 @dataclass
@@ -104,8 +100,6 @@ class TaskConfig:
     sigma_bat_m: float = 0.3
     bat_axes: str = 'yz'                            # which of x, y, z the paddle-ball distance uses
     w_hit: float = 2.0
-    w_meet: float = 0.0
-    sigma_meet_m: float = 0.15
     w_aim: float = 3.0
     sigma_aim_m: float = 0.7
     w_goal: float = 0.5
@@ -476,10 +470,6 @@ class TableTennisEnv:
         offset = (paddle - ball)[:, self._bat_axes]
         bat = cfg.w_bat * torch.exp(-torch.linalg.vector_norm(offset, dim=1) / cfg.sigma_bat_m) * before_hit
         hit = cfg.w_hit * events.paddle_hit.float()
-        meet = torch.zeros_like(hit)
-        if cfg.w_meet:
-            ahead_m = (paddle[:, 0] - self._plane_x_m).abs()
-            meet = cfg.w_meet * torch.exp(-ahead_m / cfg.sigma_meet_m) * events.paddle_hit
         goal_point = torch.cat((self.episode.goal_xy_m, torch.full_like(ball[:, :1], self._goal_z_m)), dim=1)
         returning = w.hit & (w.open | events.decided)
         goal = (cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m)
@@ -500,7 +490,7 @@ class TableTennisEnv:
         command = torch.zeros_like(acc)
         if cfg.w_command:
             command = -cfg.w_command * w.commands_below_table_top(q_cmd).float()
-        return {'bat': bat, 'hit': hit, 'meet': meet, 'aim': aim, 'goal': goal, 'land': land,
+        return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land,
                 'success': cfg.w_success * success.float(),
                 'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
                 'action': -cfg.w_action * action.abs().amax(dim=1), 'command': command}
