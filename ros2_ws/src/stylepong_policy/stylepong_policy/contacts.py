@@ -114,8 +114,8 @@ TABLE_NOTE = ('The mean over each direction\'s contacts: an actor\'s at its stro
               'of demonstrations\' at each original clip\'s hit (its fastest frame; the clips hold no ball). Ahead '
               'of home: the paddle centre\'s x beyond its home pose (towards the net); opening: the face turned up '
               'from vertical; facing: the face turned towards the robot\'s left (world +y) from square to the table; '
-              'blade speed: the paddle centre\'s over the frame before, a set\'s at its fastest speed-up '
-              '(`stylepong_policy.contacts`).')
+              'blade speed: the paddle centre\'s, an actor\'s over the frame that ends at its contact, a set\'s '
+              'at its fastest speed-up (`stylepong_policy.contacts`).')
 
 
 def contact_table(rows: Mapping[str, Mapping[str, dict | None]]) -> tuple[list[str], list[list[str]]]:
