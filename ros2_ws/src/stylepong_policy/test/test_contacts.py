@@ -29,6 +29,11 @@ def test_the_blade_speed_is_the_paddle_centre_s_turning_about_the_base_for_the_s
     assert blade.speed_m_s == pytest.approx(2.0 * radius_m, rel=1e-3)
     with pytest.raises(ValueError, match='joint velocities'):
         contacts.blades(HOME[None], np.zeros((2, 6)))
+    # A stroke holds positions: its speed is over the frame that ends at the contact (60 Hz).
+    swung = _stroke('forward', True, HOME)
+    swung.joint_positions_rad[3, 0] -= 2.0 / 60.0
+    (found,) = contacts.actor_contacts([swung])['forward']
+    assert found.speed_m_s == pytest.approx(2.0 * radius_m, rel=1e-3)
 
 
 def test_turning_the_last_wrist_joint_turns_the_face_one_way_and_then_the_other():
