@@ -2,9 +2,8 @@
 
 Much of a stroke's DTW distance from the demonstrations is set where it meets the ball: the arm must put
 the blade at the ball, facing where the ball has to go, and every frame around the contact pays for the
-pose that takes. An actor that meets the ball elsewhere, or with another blade, than the demonstrations
-keeps that distance however the rest of its stroke moves (docs/DESIGN.md, Known limits). This module
-measures the blade at each contact, for an actor's strokes (the frame after its first paddle contact,
+pose that takes (docs/DESIGN.md, Known limits, says what moving the contact did and did not do). This
+module measures the blade at each contact, for an actor's strokes (the frame after its first paddle contact,
 `Stroke.hit_frame`) and for demonstrations (which hold no ball: each original clip's `dataset.hit_frame`,
 the fastest frame of its last swing).
 
