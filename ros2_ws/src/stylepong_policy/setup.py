@@ -1,4 +1,5 @@
 from glob import glob
+from os.path import isfile
 
 from setuptools import find_packages, setup
 
@@ -12,7 +13,8 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
-        ('share/' + PACKAGE + '/models', glob('models/*')),
+        ('share/' + PACKAGE + '/models', [f for f in glob('models/*') if isfile(f)]),
+        ('share/' + PACKAGE + '/models/skills', glob('models/skills/*.pt')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -7,16 +7,18 @@ it ends, so that `--resume` (after Ctrl-C, SIGKILL or a power cut) continues fro
   check      the demonstrations (labels, clips per label, joint names, joint limits, rate, length against
              the discriminator's window); a bad bag or folder is refused in one line, before anything else
   dataset    RUN/dataset.npz: the clips at 60 Hz and their x2/x3/x5 speed-ups (build_dataset)
-  train      RUN/train/: the style learned from the skill --from (default: the shipped style actor's
-             network, models/amp_actor_checkpoint.pt) with a fresh discriminator and the pose prior, for
-             the training share of the time budget; a checkpoint every iteration (resumable) and every
-             save_interval iterations (the candidates)
+  skill      RUN/skill/: the skill to start from, --from as given, else the skill library's (stylepong_policy.
+             skills: the shipped style actor's network and models/skills/) validated against the
+             demonstrations on seeds 900 and up and chosen as a candidate is (choose_candidate)
+  train      RUN/train/: the style learned from that skill with a fresh discriminator and the pose and
+             stroke priors, for the training share of the time budget less the skill stage's time; a
+             checkpoint every iteration (resumable) and every save_interval iterations (the candidates)
   choose     RUN/choose/: the weight averages of the run's last checkpoints (AVERAGED_SHARES of them) and
              its last checkpoint, validated on seeds 900 and up (below 1000); the one with the lowest mean
              DTW to the demonstrations among those returning MIN_SUCCESS of the balls (else the one that
              returns most)
-  export     RUN/actor.pt (+ .json sidecar), RUN/actor.onnx, and RUN/actor_checkpoint.pt (its network, a
-             skill another learn_style --from can start from)
+  export     RUN/actor.pt (+ .json sidecar), RUN/actor.onnx, and RUN/actor_checkpoint.pt (its network and
+             the demonstrations behind it: a skill another learn_style --from, or the library, can start from)
   evaluate   RUN/eval/: the new actor, PPO's and the shipped style actor on the evaluation seeds (1000 and
              up), strokes and DTW against the given demonstrations
   report     RUN/report.md and its PNGs (style_report)
@@ -37,7 +39,7 @@ from stylepong_policy.rl.config import TrainConfig, load_config
 
 PROG = 'learn_style'
 STATE_NAME = 'learn_style.json'
-STAGES = ('check', 'dataset', 'train', 'choose', 'export', 'evaluate', 'report')
+STAGES = ('check', 'dataset', 'skill', 'train', 'choose', 'export', 'evaluate', 'report')
 DEFAULT_MINUTES = 60.0
 # What is not training, within the budget: the world's compilation, choosing, exporting, evaluating and
 # the report (about 6 minutes on a 2-core CPU), with a margin for a loaded machine.
@@ -51,9 +53,10 @@ VALIDATION = dict(seeds=4, first_seed=900, balls=200)       # below world_spec.F
 EVALUATION = dict(seeds=10, first_seed=1000, balls=200)
 EVALUATION_HIGH = dict(seeds=5, first_seed=2000, balls=200)
 DATASET_NAME = 'dataset.npz'
+SKILLS_JSON = 'skills.json'
 ACTOR_NAME = 'actor.pt'
 ACTOR_CHECKPOINT_NAME = 'actor_checkpoint.pt'
-TRAIN_DIR, CHOOSE_DIR, EVAL_DIR = 'train', 'choose', 'eval'
+TRAIN_DIR, SKILL_DIR, CHOOSE_DIR, EVAL_DIR = 'train', 'skill', 'choose', 'eval'
 
 
 class StyleError(Exception):
@@ -68,6 +71,7 @@ class Paths:
     dataset: pathlib.Path
     actor: pathlib.Path
     actor_checkpoint: pathlib.Path
+    skill: pathlib.Path
     train: pathlib.Path
     choose: pathlib.Path
     eval: pathlib.Path
@@ -76,7 +80,7 @@ class Paths:
 def paths_of(run: pathlib.Path) -> Paths:
     """The files of the run in `run`."""
     return Paths(run, run / STATE_NAME, run / DATASET_NAME, run / ACTOR_NAME, run / ACTOR_CHECKPOINT_NAME,
-                 run / TRAIN_DIR, run / CHOOSE_DIR, run / EVAL_DIR)
+                 run / SKILL_DIR, run / TRAIN_DIR, run / CHOOSE_DIR, run / EVAL_DIR)
 
 
 def models_dir() -> pathlib.Path:
@@ -85,16 +89,9 @@ def models_dir() -> pathlib.Path:
     return default_config_path('amp').parent.parent / 'models'
 
 
-def shipped_skill() -> pathlib.Path:
-    """The network behind the shipped style actor: the skill a new style starts from by default."""
-    return models_dir() / 'amp_actor_checkpoint.pt'
-
-
-def skill_checkpoint(given: pathlib.Path | None) -> pathlib.Path:
-    """The training checkpoint to start from: --from as given (a checkpoint, a learn_style RUN, or an
-    exported actor with its <name>_checkpoint.pt beside it), else the shipped skill."""
-    if given is None:
-        return shipped_skill()
+def skill_checkpoint(given: pathlib.Path) -> pathlib.Path:
+    """The training checkpoint --from names: a checkpoint, a learn_style RUN, or an exported actor with its
+    <name>_checkpoint.pt beside it."""
     candidates = [given / ACTOR_CHECKPOINT_NAME] if given.is_dir() else [
         given.with_name(given.stem + '_checkpoint.pt'), given]
     for candidate in candidates:
@@ -181,6 +178,62 @@ def dataset_stage(found, paths: Paths) -> dict:
     return {'clips': int(dataset.num_clips), 'frames': int(len(dataset.q)), 'clips_per_label': found.clips_per_label()}
 
 
+def fingerprint_of(paths: Paths) -> str:
+    """The fingerprint of the run's demonstrations (skills.demonstrations_fingerprint of RUN/dataset.npz)."""
+    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.skills import demonstrations_fingerprint
+    return demonstrations_fingerprint(ReferenceDataset.load(paths.dataset))
+
+
+def skill_stage(paths: Paths, state: dict, device: str) -> dict:
+    """The skill to start from (state['skill']): --from as given, else the library's skill whose strokes
+    are nearest the demonstrations on the validation seeds, among those returning MIN_SUCCESS (skills)."""
+    import torch
+
+    from stylepong_policy import skills
+    from stylepong_policy.learn_style_progress import StageBar
+    from stylepong_policy.select_checkpoint import export_checkpoint
+    if state.get('skill'):
+        return {'chosen': state['skill'], 'given': True}
+    fingerprint = fingerprint_of(paths)
+    offered = skills.offered(skills.library(models_dir()), fingerprint)
+    paths.skill.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with StageBar('skill', len(offered), unit='skill') as bar:
+        for skill in offered:
+            checkpoint = torch.load(skill.path, map_location='cpu', weights_only=False)
+            actor = export_checkpoint(checkpoint, paths.skill / f'{skill.name}_actor.pt', onnx=False)
+            rows.append({'candidate': skill.name, 'path': str(skill.path.resolve()), **validate(actor, paths, device)})
+            bar.advance(1)
+    chosen = choose_candidate(rows)
+    (paths.skill / SKILLS_JSON).write_text(json.dumps({'validation': VALIDATION, 'min_success': MIN_SUCCESS,
+                                                         'fingerprint': fingerprint, 'skills': rows,
+                                                         'chosen': chosen['candidate']}, indent=2) + '\n')
+    state['skill'] = chosen['path']
+    say(f'starting from the skill {chosen["candidate"]}: {describe_skills(rows)}')
+    return {'chosen': chosen['candidate'], 'given': False,
+            'validation_mean_dtw_rad': {r['candidate']: r['mean_dtw_rad'] for r in rows},
+            'validation_success': {r['candidate']: r['success_rate'] for r in rows}}
+
+
+def describe_skills(rows: list[dict]) -> str:
+    """One line of the skills validated: each one's mean DTW and success."""
+    def dtw(row: dict) -> str:
+        return 'no DTW' if row['mean_dtw_rad'] is None else f'{row["mean_dtw_rad"]:.2f} rad'
+    return ', '.join(f'{r["candidate"]} {dtw(r)} at {r["success_rate"]:.3f}' for r in rows)
+
+
+def validate(actor: pathlib.Path, paths: Paths, device: str) -> dict:
+    """An exported actor on the validation seeds: its success and DTW to the run's demonstrations (the mean
+    over the labels with strokes, and per label)."""
+    from stylepong_policy.select_checkpoint import run_evaluation
+    result = run_evaluation(actor, speed='all', device=device, dtw_dataset=str(paths.dataset), **VALIDATION)
+    distances = [d['mean_rad'] for d in result['dtw'].values() if d['mean_rad'] is not None]
+    return {'success_rate': result['success_rate'],
+            'mean_dtw_rad': sum(distances) / len(distances) if distances else None,
+            'dtw_rad': {k: v['mean_rad'] for k, v in result['dtw'].items()}}
+
+
 def trained_s(train_dir: pathlib.Path) -> float:
     """The training time a stopped run has behind it (its progress log's last wall time; 0 without one)."""
     from stylepong_policy.rl.logger import CSV_NAME, read_progress
@@ -242,7 +295,7 @@ def choose_stage(paths: Paths, device: str) -> dict:
     from stylepong_policy.average_checkpoints import average_checkpoints
     from stylepong_policy.learn_style_progress import StageBar
     from stylepong_policy.rl.runner import read_checkpoint
-    from stylepong_policy.select_checkpoint import export_checkpoint, numbered_checkpoints, run_evaluation
+    from stylepong_policy.select_checkpoint import export_checkpoint, numbered_checkpoints
     paths.choose.mkdir(parents=True, exist_ok=True)
     by_iteration = dict(numbered_checkpoints(paths.train))
     rows = []
@@ -252,11 +305,7 @@ def choose_stage(paths: Paths, device: str) -> dict:
             checkpoint = average_checkpoints([read_checkpoint(by_iteration[i]) for i in iterations])
             torch.save(checkpoint, paths.choose / f'{name}.pt')
             actor = export_checkpoint(checkpoint, paths.choose / f'{name}_actor.pt', onnx=False)
-            result = run_evaluation(actor, speed='all', device=device, dtw_dataset=str(paths.dataset), **VALIDATION)
-            distances = [d['mean_rad'] for d in result['dtw'].values() if d['mean_rad'] is not None]
-            rows.append({'candidate': name, 'iterations': iterations, 'success_rate': result['success_rate'],
-                         'mean_dtw_rad': sum(distances) / len(distances) if distances else None,
-                         'dtw_rad': {k: v['mean_rad'] for k, v in result['dtw'].items()}})
+            rows.append({'candidate': name, 'iterations': iterations, **validate(actor, paths, device)})
             bar.advance(1)
     chosen = choose_candidate(rows)
     (paths.choose / 'candidates.json').write_text(json.dumps({'validation': VALIDATION, 'min_success': MIN_SUCCESS,
@@ -275,14 +324,19 @@ def choose_candidate(rows: list[dict]) -> dict:
     return min(good, key=lambda r: float('inf') if r['mean_dtw_rad'] is None else r['mean_dtw_rad'])
 
 
-def export_stage(paths: Paths, chosen: str) -> None:
-    """The chosen candidate as RUN/actor.pt, .json, .onnx, and its network as RUN/actor_checkpoint.pt."""
+def export_stage(paths: Paths, state: dict) -> None:
+    """The chosen candidate as RUN/actor.pt, .json, .onnx, and its network as RUN/actor_checkpoint.pt with
+    the demonstrations behind it (its skill's and these: skills.LINEAGE_KEY)."""
     import torch
 
+    from stylepong_policy import skills
     from stylepong_policy.select_checkpoint import export_checkpoint
+    chosen = state['stages']['choose']['chosen']
     checkpoint = torch.load(paths.choose / f'{chosen}.pt', map_location='cpu', weights_only=False)
     export_checkpoint(checkpoint, paths.actor, onnx=True, extra={'learn_style': {'candidate': chosen}})
-    slim = {**checkpoint, 'optimizer': None, 'motion_prior': None}
+    start = torch.load(state['skill'], map_location='cpu', weights_only=False)
+    lineage = skills.lineage_after(start, fingerprint_of(paths))
+    slim = {**checkpoint, 'optimizer': None, 'motion_prior': None, skills.LINEAGE_KEY: lineage}
     torch.save(slim, paths.actor_checkpoint)
 
 
@@ -329,6 +383,10 @@ def report_stage(paths: Paths, state: dict) -> pathlib.Path:
     notes = [f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',
              f'Recipe: {portable_path(state.get("config", "?"))}, from the skill '
              f'{portable_path(state.get("skill", "?"))}; command: `{state.get("command")}`.']
+    if (paths.skill / SKILLS_JSON).is_file():
+        chosen = json.loads((paths.skill / SKILLS_JSON).read_text())
+        notes.append(f'The skill was chosen from the library on the validation seeds (mean DTW to these '
+                     f'demonstrations and success): {describe_skills(chosen["skills"])}.')
     if missing:
         notes.append(f'No clip labelled {", ".join(missing)}: those balls earned no style term in training and are '
                      'returned with the stroke of the skill the run started from; no DTW is measured for them.')
@@ -351,15 +409,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--device', choices=('cpu', 'cuda'), default=None, help='torch device (default: cpu)')
     parser.add_argument('--from', dest='start_from', type=pathlib.Path, metavar='ACTOR',
                         help='the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
-                             '(default: the shipped style actor)')
+                             '(default: the nearest skill of the library, validated against the demonstrations)')
     parser.add_argument('--resume', action='store_true', help='continue the run in --out from its last stage')
     return parser.parse_args(argv)
 
 
-def training_budget_s(minutes: float) -> float:
-    """The training stage's share of the budget: all but RESERVE_S (a quarter of a short budget)."""
+def training_budget_s(minutes: float, spent_s: float = 0.0) -> float:
+    """The training stage's share of the budget: all but RESERVE_S (a quarter of a short budget) and the
+    spent_s the stages before it took beyond their share of the reserve (choosing the skill)."""
     total_s = minutes * 60.0
-    return max(MIN_TRAIN_S, total_s - min(RESERVE_S, 0.25 * total_s))
+    return max(MIN_TRAIN_S, total_s - min(RESERVE_S, 0.25 * total_s) - spent_s)
 
 
 def run(args: argparse.Namespace, command: str) -> pathlib.Path:
@@ -375,19 +434,20 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
         raise StyleError(f'--minutes must be positive, got {args.minutes}')
     if state:   # a resumed run keeps what it was started with
         source, minutes = pathlib.Path(state['source']), float(state['minutes'])
-        device, skill = state['device'], pathlib.Path(state['skill'])
+        device = state['device']
     else:
         source, minutes, device = args.source, args.minutes, args.device or 'cpu'
         if not source.exists():
             raise StyleError(f'{source}: no such folder or dataset')
-        skill = skill_checkpoint(args.start_from)
+        skill = skill_checkpoint(args.start_from) if args.start_from is not None else None
     require_device(device)
     cfg, config_path = recipe(device)
     started = time.perf_counter()
     found = check_stage(source, cfg)   # again on resume: it is quick, and the bags may have changed
     if 'check' not in state.get('stages', {}):
         args.out.mkdir(parents=True, exist_ok=True)
-        state.update(source=str(source.resolve()), minutes=minutes, device=device, skill=str(skill.resolve()),
+        state.update(source=str(source.resolve()), minutes=minutes, device=device,
+                     skill=str(skill.resolve()) if skill is not None else None,
                      command=command, config=str(config_path))
         stage_done(paths, state, 'check', time.perf_counter() - started, summary=found.describe())
     say(f'demonstrations: {found.describe()}')
@@ -396,22 +456,26 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
             continue
         started = time.perf_counter()
         say(f'stage {STAGES.index(stage) + 1}/{len(STAGES)}: {stage}')
-        facts = run_stage(stage, paths, state, found, cfg, config_path, skill, minutes, device)
+        facts = run_stage(stage, paths, state, found, cfg, config_path, minutes, device)
         stage_done(paths, state, stage, time.perf_counter() - started, **(facts or {}))
     return paths.run / 'report.md'
 
 
 def run_stage(stage: str, paths: Paths, state: dict, found, cfg: TrainConfig, config_path: pathlib.Path,
-              skill: pathlib.Path, minutes: float, device: str) -> dict | None:
+              minutes: float, device: str) -> dict | None:
     """Run one stage after the check; returns the facts its record keeps."""
     if stage == 'dataset':
         return dataset_stage(found, paths)
+    if stage == 'skill':
+        return skill_stage(paths, state, device)
     if stage == 'train':
-        return train_stage(cfg, config_path, paths, skill, training_budget_s(minutes), state['command'])
+        spent_s = state['stages']['skill']['wall_time_s']
+        return train_stage(cfg, config_path, paths, pathlib.Path(state['skill']), training_budget_s(minutes, spent_s),
+                           state['command'])
     if stage == 'choose':
         return choose_stage(paths, device)
     if stage == 'export':
-        export_stage(paths, state['stages']['choose']['chosen'])
+        export_stage(paths, state)
         return None
     if stage == 'evaluate':
         return evaluate_stage(paths, device)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_policy import learn_style, style_report
+from stylepong_policy import learn_style, skills, style_report
 from stylepong_policy.rl.export import load_actor, read_sidecar
 
 BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
@@ -39,7 +39,7 @@ def run(tmp_path_factory):
     """A whole learn_style run on the shipped clips: 3 s of training, a few balls per evaluation."""
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(learn_style, 'recipe', tiny_recipe)
-        patch.setattr(learn_style, 'training_budget_s', lambda minutes: 3.0)
+        patch.setattr(learn_style, 'training_budget_s', lambda minutes, spent_s=0.0: 3.0)
         patch.setattr(learn_style, 'VALIDATION', dict(seeds=1, first_seed=900, balls=6))
         patch.setattr(learn_style, 'EVALUATION', dict(seeds=1, first_seed=1000, balls=6))
         patch.setattr(learn_style, 'EVALUATION_HIGH', dict(seeds=1, first_seed=2000, balls=6))
@@ -71,6 +71,21 @@ def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
     assert list(state['stages']) == list(learn_style.STAGES)
     assert state['stages']['choose']['chosen'] in json.loads((run / 'choose' / 'candidates.json').read_text())[
         'chosen']
+
+
+@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
+def test_the_start_is_the_librarys_nearest_skill_and_the_new_network_records_these_demonstrations(run):
+    state = json.loads((run / learn_style.STATE_NAME).read_text())
+    record = json.loads((run / learn_style.SKILL_DIR / learn_style.SKILLS_JSON).read_text())
+    offered = skills.offered(skills.library(learn_style.models_dir()), record['fingerprint'])
+    assert [row['candidate'] for row in record['skills']] == [skill.name for skill in offered]
+    chosen = learn_style.choose_candidate(record['skills'])
+    assert record['chosen'] == state['stages']['skill']['chosen'] == chosen['candidate']
+    assert state['skill'] == chosen['path']
+    checkpoint = torch.load(run / learn_style.ACTOR_CHECKPOINT_NAME, map_location='cpu', weights_only=False)
+    start = torch.load(state['skill'], map_location='cpu', weights_only=False)
+    assert skills.lineage_of(checkpoint) == (*skills.lineage_of(start), record['fingerprint'])
+    assert 'chosen from the library' in (run / style_report.REPORT_MD).read_text()
 
 
 @pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
@@ -138,6 +153,7 @@ def test_the_choice_is_the_most_stylish_candidate_that_returns_enough_balls():
 
 def test_training_gets_all_but_the_reserve():
     assert REAL_BUDGET(60.0) == 60.0 * 60.0 - learn_style.RESERVE_S
+    assert REAL_BUDGET(60.0, spent_s=90.0) == 60.0 * 60.0 - learn_style.RESERVE_S - 90.0
     assert REAL_BUDGET(4.0) == pytest.approx(180.0)
     assert REAL_BUDGET(0.1) == learn_style.MIN_TRAIN_S
 
@@ -156,3 +172,9 @@ def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clo
         assert bar.bar.n == 830.0
         bar.iteration({'iteration': 4, 'wall_time_s': 4000.0, 'iteration_time_s': 2.0})
         assert bar.bar.n == 3060.0                    # never past the budget
+
+
+def test_a_skill_given_with_from_is_the_start_without_validating_the_library(tmp_path):
+    paths = learn_style.paths_of(tmp_path / 'run')
+    assert learn_style.skill_stage(paths, {'skill': '/given.pt'}, 'cpu') == {'chosen': '/given.pt', 'given': True}
+    assert not paths.skill.exists()
