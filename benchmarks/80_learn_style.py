@@ -71,7 +71,8 @@ def main() -> int:
     print(f'\nTraining: {train["iterations"]} iterations, {train["samples"]} samples in '
           f'{train["training_time_s"]:.0f} s of training, **{train["samples_per_s"]:.0f} samples/s** (the '
           'world, PPO, the discriminator and the pose and stroke priors). With the default --minutes 60 the '
-          'training stage gets 51 minutes; the stages after it take about what they take here.')
+          'training stage gets 51 minutes less the skill stage\'s (the library validated against the clips); '
+          'the stages after it take about what they take here.')
     if GPU_LOG.is_file():
         print('\n' + gpu_paragraph(GPU_LOG))
     return 0

@@ -416,7 +416,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def training_budget_s(minutes: float, spent_s: float = 0.0) -> float:
     """The training stage's share of the budget: all but RESERVE_S (a quarter of a short budget) and the
-    spent_s the stages before it took beyond their share of the reserve (choosing the skill)."""
+    spent_s that choosing the skill took."""
     total_s = minutes * 60.0
     return max(MIN_TRAIN_S, total_s - min(RESERVE_S, 0.25 * total_s) - spent_s)
 
