@@ -432,6 +432,7 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
         say(f'nothing to resume in {args.out}; starting a new run')
     if args.minutes <= 0:
         raise StyleError(f'--minutes must be positive, got {args.minutes}')
+    skill = None
     if state:   # a resumed run keeps what it was started with
         source, minutes = pathlib.Path(state['source']), float(state['minutes'])
         device = state['device']
