@@ -1,20 +1,15 @@
 """tools/amp_frame_features.py: its windows stay inside one episode and its two measures are right
 (no actor, no training)."""
-import importlib.util
-import pathlib
 
 import pytest
 import torch
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from tests.tool_module import load_tool
 
 
 @pytest.fixture(scope='module')
 def tool():
-    spec = importlib.util.spec_from_file_location('amp_frame_features', ROOT / 'tools' / 'amp_frame_features.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool('amp_frame_features')
 
 
 def test_windows_never_cross_an_episode_end(tool):

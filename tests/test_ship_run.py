@@ -1,18 +1,10 @@
 """tools/ship_run.py: what it copies into models/ and the summary it writes (no training, no evaluation)."""
-import importlib.util
 import json
 import pathlib
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-
-
-def _ship_run_module():
-    spec = importlib.util.spec_from_file_location('ship_run', ROOT / 'tools' / 'ship_run.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tests.tool_module import load_tool
 
 
 @pytest.fixture
@@ -32,7 +24,7 @@ def run_dir(tmp_path) -> pathlib.Path:
 def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
-    written = _ship_run_module().ship(run_dir, 'ppo', models)
+    written = load_tool('ship_run').ship(run_dir, 'ppo', models)
     assert {p.name for p in written} == {
         'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv',
         'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
@@ -52,5 +44,5 @@ def test_ship_refuses_a_run_without_a_selected_actor(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
     with pytest.raises(FileNotFoundError, match='ppo_actor.onnx'):
-        _ship_run_module().ship(run_dir, 'ppo', models)
+        load_tool('ship_run').ship(run_dir, 'ppo', models)
     assert not any(models.iterdir())

@@ -1,6 +1,5 @@
 """tools/ship_skill.py: a learn_style run's network into the skill library, with the demonstrations behind it
 (through the runs it started from) and how its config differed from the recipe (no training)."""
-import importlib.util
 import json
 import pathlib
 
@@ -12,15 +11,7 @@ import yaml
 from stylepong_policy import learn_style, skills
 from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
 from stylepong_policy.train import default_config_path
-
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-
-
-def _ship_skill_module():
-    spec = importlib.util.spec_from_file_location('ship_skill', ROOT / 'tools' / 'ship_skill.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tests.tool_module import load_tool
 
 
 def fake_run(run: pathlib.Path, start: pathlib.Path, swing_rad: float, config: dict) -> pathlib.Path:
@@ -52,7 +43,7 @@ def test_a_skill_carries_its_starts_demonstrations_and_its_differences_from_the_
     changed = {**recipe, 'amp': {**recipe['amp'], 'hold_success_margin': 0.05, 'dataset': 'elsewhere.npz'}}
     second = fake_run(tmp_path / 'second', first / learn_style.ACTOR_CHECKPOINT_NAME, 0.5, changed)
     models = tmp_path / 'models'
-    written = _ship_skill_module().ship_skill(second, 'second', models)
+    written = load_tool('ship_skill').ship_skill(second, 'second', models)
     assert [p.name for p in written] == ['second.pt', 'second.json']
     fingerprints = [learn_style.fingerprint_of(learn_style.paths_of(run)) for run in (first, second)]
     library = skills.library(models)
@@ -66,5 +57,5 @@ def test_an_unfinished_run_is_refused_in_one_line(tmp_path, capsys):
     run = tmp_path / 'run'
     run.mkdir()
     learn_style.write_state(learn_style.paths_of(run), {'stages': {'train': {}}})
-    assert _ship_skill_module().main(['--run', str(run), '--name', 'x', '--models-dir', str(tmp_path)]) == 2
+    assert load_tool('ship_skill').main(['--run', str(run), '--name', 'x', '--models-dir', str(tmp_path)]) == 2
     assert capsys.readouterr().err.count('\n') == 1

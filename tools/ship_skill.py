@@ -19,7 +19,6 @@ import pathlib
 import sys
 
 import torch
-import yaml
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 # Values every learn_style run sets for itself: not a difference of recipe.
@@ -35,8 +34,10 @@ def flat(tree: dict, prefix: str = '') -> dict:
 
 
 def recipe_differences(run_config: pathlib.Path, recipe: pathlib.Path) -> dict:
-    """{key: [the run's value, the recipe's]} for every config value the run did not share with the recipe."""
-    ran, written = flat(yaml.safe_load(run_config.read_text())), flat(yaml.safe_load(recipe.read_text()))
+    """{key: [the run's value, the recipe's]} for every config value the run did not share with the recipe
+    (both read as training reads them, defaults filled in)."""
+    from stylepong_policy.rl.config import config_to_dict, load_config
+    ran, written = (flat(config_to_dict(load_config(path))) for path in (run_config, recipe))
     return {key: [ran.get(key), written.get(key)] for key in sorted(set(ran) | set(written))
             if key not in RUN_OWN_KEYS and ran.get(key) != written.get(key)}
 
