@@ -256,6 +256,83 @@ def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resum
     assert again.motion_scale == 0.0 and resumed.success_hold.floor == pytest.approx(0.97)
 
 
+class TouchTask(TOY.ReachTask):
+    """The toy task with a touch: 'style_phase' is 1 from an episode's third step on; its target is out of
+    reach, so that every episode ends at its step limit (as a terminal, so no value is bootstrapped)."""
+    def _reset_envs(self, idx):
+        super()._reset_envs(idx)
+        self.target[idx] = self.position[idx] + 10.0
+
+    def step(self, actions):
+        obs, critic_obs, rewards, dones, extras = super().step(actions)
+        extras['style_phase'] = ((self.steps >= 3) | dones).long()   # an ended episode's steps are reset
+        extras['time_outs'] = torch.zeros_like(dones)
+        return obs, critic_obs, rewards, dones, extras
+
+
+def test_a_free_follow_through_leaves_the_motion_after_the_touch_unheld_in_a_value_stream_that_ends_at_it(tmp_path):
+    """amp.free_follow_through: with the motion terms held at 0 a style-only reward still pays the steps that
+    began after the touch, in the second value stream alone, and that stream ends at the step that touches."""
+    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+                            'ppo': {'num_steps_per_env': 12}, 'runner': {'seed': 0, 'save_interval': 1000},
+                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
+                                    'w_style': 1.0, 'replay_size': 1000, 'free_follow_through': True}})
+    seed_everything(0)
+    env = TouchTask(num_envs=4, seed=0, episode_steps=6)
+    reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
+    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    runner = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
+    prior.motion_scale = 0.0
+    runner.learn(1, progress_bar=False)
+    storage = runner.storage
+    assert runner.actor_critic.value_streams == 2 and storage.values.shape == (12, 4, 2)
+    assert float(storage.rewards[..., 0].abs().max()) == 0.0            # held at 0: nothing before the touch
+    # Episodes of 6 steps from a common start: steps 4-6 of each began after the touch (step 3 touches).
+    step_in_episode = torch.arange(12) % 6
+    after = (step_in_episode >= 3)[:, None].expand(12, 4)
+    assert bool((storage.rewards[..., 1][after] > 0).all()) and float(storage.rewards[..., 1][~after].abs().max()) == 0
+    touches = (step_in_episode == 2)[:, None].expand(12, 4)
+    ends = (step_in_episode == 5)[:, None].expand(12, 4)
+    assert bool((storage.dones[..., 1] == (touches | ends).float()).all())
+    assert bool((storage.dones[..., 0] == ends.float()).all())
+
+
+def test_a_free_follow_through_run_starts_from_a_skill_with_one_value_stream(tmp_path):
+    """A skill saved with one value stream starts a free follow-through run: the same actor, and a critic
+    whose streams sum to the skill's value."""
+    small = {'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]}, 'ppo': {'num_steps_per_env': 4},
+             'runner': {'seed': 0, 'save_interval': 1000}}
+    seed_everything(0)
+    env = TouchTask(num_envs=4, seed=0, episode_steps=6)
+    skill = OnPolicyRunner(env, config_from_dict(small), tmp_path / 'skill', tensorboard=False)
+    skill.learn(1, progress_bar=False)
+    cfg = config_from_dict({**small, 'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64,
+                                             'replay_size': 1000, 'free_follow_through': True}})
+    reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
+    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    run = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
+    run.start_from(tmp_path / 'skill')
+    obs, critic_obs = torch.randn(4, env.num_obs), torch.randn(4, env.num_critic_obs)
+    with torch.no_grad():
+        torch.testing.assert_close(run.actor_critic.act_deterministic(obs), skill.actor_critic.act_deterministic(obs))
+        norm = skill.actor_critic.critic_obs_normalizer(critic_obs)
+        torch.testing.assert_close(run.actor_critic.value(norm).sum(-1), skill.actor_critic.value(norm))
+    run.learn(1, progress_bar=False)
+
+
+def test_a_free_follow_through_needs_the_env_s_phase(tmp_path):
+    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+                            'ppo': {'num_steps_per_env': 4}, 'runner': {'seed': 0, 'save_interval': 1000},
+                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64,
+                                    'replay_size': 1000, 'free_follow_through': True}})
+    env = TOY.ReachTask(num_envs=4, seed=0, episode_steps=6)
+    reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
+    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
+    runner = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
+    with pytest.raises(ValueError, match='free_follow_through.*style_phase'):
+        runner.learn(1, progress_bar=False)
+
+
 def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_path):
     """AMP alone (no task reward) on the toy task, the reference a steady motion at 0.06 per step along
     +x: the style reward per step rises and the policy ends up moving like the clip."""

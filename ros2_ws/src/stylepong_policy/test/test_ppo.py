@@ -8,7 +8,7 @@ import torch
 from torch.distributions import Normal, kl_divergence
 
 from stylepong_policy.rl.config import TrainConfig, config_from_dict, load_config, save_config
-from stylepong_policy.rl.networks import ActorCritic
+from stylepong_policy.rl.networks import ActorCritic, fit_value_streams
 from stylepong_policy.rl.normalizer import RunningNormalizer
 from stylepong_policy.rl.ppo import PPO, gaussian_kl
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
@@ -80,6 +80,52 @@ def test_gae_with_lambda_zero_is_one_step_td_error():
     storage.compute_returns(last, gamma=gamma, lam=0.0, normalize_advantages=False)
     expected = torch.tensor([[1.0 + gamma * 0.4 - 0.2, 0.0 - 0.3], [0.5 + gamma * 1.0 - 0.4, 2.0 - gamma * 1.0 - 0.6]])
     torch.testing.assert_close(storage.advantages, expected)
+
+
+def test_value_streams_each_estimate_their_own_advantage_with_their_own_ends_and_the_policy_follows_the_sum():
+    """Two streams on one environment: the second ends after step 0 where the episode goes on, so its reward
+    at step 1 does not reach step 0; the first bootstraps through. The advantage is the streams' sum."""
+    gamma = 0.9
+    storage = RolloutStorage(2, 1, 1, 1, 1, 'cpu', value_streams=2)
+    rewards = torch.tensor([[[1.0, 0.0]], [[0.0, 5.0]]])
+    dones = torch.tensor([[[0.0, 1.0]], [[0.0, 0.0]]])
+    values = torch.tensor([[[0.5, 0.0]], [[0.2, 3.0]]])
+    zeros = torch.zeros(1, 1)
+    for t in range(2):
+        storage.add(zeros, zeros, zeros, rewards[t], dones[t], values[t], torch.zeros(1), zeros, zeros + 1)
+    storage.compute_returns(torch.tensor([[1.0, 2.0]]), gamma=gamma, lam=1.0, normalize_advantages=False)
+    expected = torch.tensor([[[1.0 + gamma * 0.0 + gamma ** 2 * 1.0, 0.0]], [[gamma * 1.0, 5.0 + gamma * 2.0]]])
+    torch.testing.assert_close(storage.returns, expected)
+    torch.testing.assert_close(storage.advantages, (expected - values).sum(-1))
+    mb = next(storage.minibatches(1, 1))
+    assert mb.returns.shape == (2, 2) and mb.advantages.shape == (2,)
+
+
+def test_an_episode_end_ends_every_value_stream():
+    storage = RolloutStorage(1, 3, 1, 1, 1, 'cpu', value_streams=2)
+    zeros = torch.zeros(3, 1)
+    storage.add(zeros, zeros, zeros, torch.zeros(3, 2), torch.tensor([0.0, 1.0, 0.0]), torch.zeros(3, 2),
+                torch.zeros(3), zeros, zeros + 1)
+    assert storage.dones[0].tolist() == [[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]]
+
+
+@pytest.mark.parametrize('streams', [(1, 2), (2, 1), (2, 3)])
+def test_a_critic_fitted_to_another_number_of_value_streams_keeps_the_summed_value(streams):
+    old, new = streams
+    torch.manual_seed(0)
+    source = ActorCritic(3, 4, 2, [16, 8], [16, 8], value_streams=old)
+    with torch.no_grad():
+        for parameter in source.critic.parameters():
+            parameter.normal_()
+    target = ActorCritic(3, 4, 2, [16, 8], [16, 8], value_streams=new)
+    target.load_state_dict(fit_value_streams(source.state_dict(), source.architecture(), new))
+    obs = torch.randn(5, 4)
+    total = source.value(obs) if old == 1 else source.value(obs).sum(-1)
+    fitted = target.value(obs)
+    assert fitted.shape == ((5,) if new == 1 else (5, new))
+    torch.testing.assert_close(fitted if new == 1 else fitted.sum(-1), total)
+    torch.testing.assert_close(target.actor(obs[:, :3]), source.actor(obs[:, :3]))
+    assert ('value_streams' in target.architecture()) == (new > 1)
 
 
 def test_minibatches_cover_every_sample_once_per_epoch():

@@ -357,17 +357,29 @@ class MotionPrior:
                                          next_first_frames[:, self.q_columns], labels if self.num_labels else None)
 
     def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
-            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None) -> torch.Tensor:
-        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke, the motion terms times
-        motion_scale and the env's per-step factor [N] when it gives one."""
-        motion = self.cfg.w_style * style
+            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None,
+            after_touch: torch.Tensor | None = None) -> torch.Tensor:
+        """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke [N], the motion terms times
+        motion_scale and the env's per-step factor [N] when it gives one.
+
+        With after_touch [N] bool (amp.free_follow_through: the step began after the paddle's touch), two
+        value streams [N, 2]: the task with the held motion terms of the steps before the touch and the
+        stroke term, then the per-step motion terms of the steps after the touch at their full weight. Those
+        steps cannot change the return any more (the ball is on its way), so nothing there needs holding;
+        their own stream ends at the touch (the runner), so that the steps before it are not drawn to trade
+        the return for a follow-through. The stroke term judges the whole stroke and stays with the held."""
+        per_step = self.cfg.w_style * style
         if pose is not None:
-            motion = motion + self.cfg.w_pose * pose
-        if stroke is not None:
-            motion = motion + self.cfg.w_stroke * stroke
+            per_step = per_step + self.cfg.w_pose * pose
+        stroke_term = torch.zeros_like(per_step) if stroke is None else self.cfg.w_stroke * stroke
         if style_factor is not None:
-            motion = style_factor * motion
-        return self.cfg.w_task * task_reward + self.motion_scale * motion
+            per_step, stroke_term = style_factor * per_step, style_factor * stroke_term
+        task = self.cfg.w_task * task_reward
+        if after_touch is None:
+            return task + self.motion_scale * (per_step + stroke_term)
+        after = after_touch.to(per_step.dtype)
+        held = task + self.motion_scale * ((1.0 - after) * per_step + stroke_term)
+        return torch.stack((held, after * per_step), dim=-1)
 
     # --- training ----------------------------------------------------------------------------------
     def update(self) -> dict[str, float]:

@@ -117,6 +117,9 @@ class AMPConfig:
     hold_success_margin: float = non_negative(0.03)
     hold_success_gain: float = positive(0.5)
     hold_success_smoothing: float = within(0.1, 0.01, 1.0)
+    # A free follow-through: the per-step motion terms after the paddle's touch ('style_phase') are not held,
+    # and a value stream of their own keeps them from flowing back to the steps before the touch.
+    free_follow_through: bool = False
 
     def validate(self) -> None:
         check_ranges(self, prefix='amp.')
@@ -124,7 +127,7 @@ class AMPConfig:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
-        for name in ('condition_on_label', 'condition_on_phase', 'hold_success'):
+        for name in ('condition_on_label', 'condition_on_phase', 'hold_success', 'free_follow_through'):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):

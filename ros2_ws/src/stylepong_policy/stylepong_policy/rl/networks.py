@@ -3,6 +3,8 @@
 Asymmetric actor-critic: the actor sees only what the robot can sense (the spec module's observation),
 the critic also sees privileged simulator state (true ball state, physics parameters, delays). Each has
 its own running observation normaliser, kept inside the module so checkpoints and exports carry it.
+The critic may estimate several value streams, one per part of the reward (rl.storage says how they are
+used); `fit_value_streams` carries a critic over from a network with another number of them.
 """
 from __future__ import annotations
 
@@ -47,17 +49,20 @@ class ActorCritic(nn.Module):
     def __init__(self, num_obs: int, num_critic_obs: int, num_actions: int,
                  actor_hidden_dims: Sequence[int], critic_hidden_dims: Sequence[int],   # rl.config.PolicyConfig
                  activation: str = 'elu', init_noise_std: float = 1.0, min_std: float = 1e-3,
-                 normalize_observations: bool = True):
+                 normalize_observations: bool = True, value_streams: int = 1):
         super().__init__()
         if init_noise_std <= 0.0:
             raise ValueError(f'init_noise_std must be positive, got {init_noise_std}')
+        if value_streams < 1:
+            raise ValueError(f'value_streams must be at least 1, got {value_streams}')
+        self.value_streams = int(value_streams)
         self.num_obs, self.num_critic_obs, self.num_actions = int(num_obs), int(num_critic_obs), int(num_actions)
         self.actor_hidden_dims = [int(h) for h in actor_hidden_dims]
         self.critic_hidden_dims = [int(h) for h in critic_hidden_dims]
         self.activation = activation
         self.min_std = float(min_std)
         self.actor = make_mlp(num_obs, self.actor_hidden_dims, num_actions, activation, output_gain=0.01)
-        self.critic = make_mlp(num_critic_obs, self.critic_hidden_dims, 1, activation, output_gain=1.0)
+        self.critic = make_mlp(num_critic_obs, self.critic_hidden_dims, self.value_streams, activation, output_gain=1.0)
         # std itself (not log std) is the parameter, as in rsl_rl; clamped below at min_std when used.
         self.std = nn.Parameter(torch.full((num_actions,), float(init_noise_std)))
         # An optional ceiling on the std (runner: a skill's own, `policy.keep_skill_std`); not a parameter.
@@ -85,7 +90,9 @@ class ActorCritic(nn.Module):
         return Normal(mean, self.action_std().expand_as(mean), validate_args=False)
 
     def value(self, norm_critic_obs: torch.Tensor) -> torch.Tensor:
-        return self.critic(norm_critic_obs).squeeze(-1)
+        """[B] values, or [B, K] with K value streams."""
+        values = self.critic(norm_critic_obs)
+        return values.squeeze(-1) if self.value_streams == 1 else values
 
     def act_deterministic(self, obs: torch.Tensor) -> torch.Tensor:
         """The mean action for raw (unnormalised) observations: what the exported actor computes."""
@@ -93,7 +100,29 @@ class ActorCritic(nn.Module):
         return self.actor(norm_obs)
 
     def architecture(self) -> dict:
-        """Everything needed to rebuild this module (stored in checkpoints and the export sidecar)."""
+        """Everything needed to rebuild this module (stored in checkpoints and the export sidecar); the value
+        streams only where there are several, so that the networks saved before streams existed still fit."""
+        streams = {'value_streams': self.value_streams} if self.value_streams > 1 else {}
         return {'num_obs': self.num_obs, 'num_critic_obs': self.num_critic_obs, 'num_actions': self.num_actions,
                 'actor_hidden_dims': self.actor_hidden_dims, 'critic_hidden_dims': self.critic_hidden_dims,
-                'activation': self.activation, 'normalize_observations': self.normalize_observations}
+                'activation': self.activation, 'normalize_observations': self.normalize_observations, **streams}
+
+
+def fit_value_streams(state: dict[str, torch.Tensor], architecture: dict,
+                      value_streams: int) -> dict[str, torch.Tensor]:
+    """An ActorCritic state of `architecture` with its critic's output layer made value_streams wide, keeping
+    the summed value (what the policy follows): a wider critic gives its first stream the old value and the
+    new streams 0; a narrower one sums the streams it drops into its last."""
+    old = int(architecture.get('value_streams', 1))
+    if old == value_streams:
+        return state
+    head = len(architecture['critic_hidden_dims'])
+    weight_key, bias_key = f'critic.{2 * head}.weight', f'critic.{2 * head}.bias'
+    fitted = dict(state)
+    for key in (weight_key, bias_key):
+        rows = state[key]
+        if value_streams > old:
+            fitted[key] = torch.cat((rows, torch.zeros((value_streams - old, *rows.shape[1:]), dtype=rows.dtype)))
+        else:
+            fitted[key] = torch.cat((rows[:value_streams - 1], rows[value_streams - 1:].sum(0, keepdim=True)))
+    return fitted

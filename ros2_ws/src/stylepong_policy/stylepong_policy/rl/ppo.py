@@ -109,9 +109,11 @@ class PPO:
 
             if cfg.use_clipped_value_loss:
                 values_clipped = mb.old_values + (values - mb.old_values).clamp(-cfg.clip_param, cfg.clip_param)
-                value_loss = torch.max((values - mb.returns).square(), (values_clipped - mb.returns).square()).mean()
+                value_error = torch.max((values - mb.returns).square(), (values_clipped - mb.returns).square())
             else:
-                value_loss = (values - mb.returns).square().mean()
+                value_error = (values - mb.returns).square()
+            # Several value streams: each sample's error summed over them, as their values sum to the return.
+            value_loss = (value_error if value_error.dim() == 1 else value_error.sum(-1)).mean()
 
             loss = cfg.value_loss_coef * value_loss
             if update_actor:

@@ -23,7 +23,7 @@ from . import env as env_contract
 from .amp import MotionPrior
 from .config import TrainConfig, config_to_dict
 from .logger import TrainingLog
-from .networks import ActorCritic
+from .networks import ActorCritic, fit_value_streams
 from .ppo import PPO
 from .storage import RolloutStorage
 from .success_hold import SuccessHold
@@ -175,13 +175,20 @@ class OnPolicyRunner:
         self.tensorboard = tensorboard
         self.motion_prior = motion_prior
         p = cfg.policy
+        amp = cfg.amp
+        # amp.free_follow_through: a second value stream for the motion terms after the touch (MotionPrior.mix).
+        self.free_follow_through = motion_prior is not None and amp is not None and amp.free_follow_through
+        streams = 2 if self.free_follow_through else 1
         self.actor_critic = ActorCritic(env.num_obs, env.num_critic_obs, env.num_actions,
                                         actor_hidden_dims=p.actor_hidden_dims, critic_hidden_dims=p.critic_hidden_dims,
                                         activation=p.activation, init_noise_std=p.init_noise_std, min_std=p.min_std,
-                                        normalize_observations=p.normalize_observations).to(self.device)
+                                        normalize_observations=p.normalize_observations,
+                                        value_streams=streams).to(self.device)
         self.alg = PPO(self.actor_critic, cfg.ppo)
         self.storage = RolloutStorage(cfg.ppo.num_steps_per_env, env.num_envs, env.num_obs, env.num_critic_obs,
-                                      env.num_actions, self.device)
+                                      env.num_actions, self.device, value_streams=streams)
+        # Whether each environment's ball has touched the paddle before the coming step (free follow-through).
+        self.touched = torch.zeros(env.num_envs, dtype=torch.bool, device=self.device)
         self.shuffle = torch.Generator()
         self.shuffle.manual_seed(cfg.runner.seed)
         self.iteration = 0
@@ -190,7 +197,6 @@ class OnPolicyRunner:
         self.sessions: list[dict[str, Any]] = []   # one entry per learn() call, over all sessions
         self.last_stats: dict[str, Any] = {}
         self.interrupted = False
-        amp = cfg.amp
         self.success_hold = (SuccessHold(cfg.runner.critic_warmup_iterations, amp.hold_success_margin,
                                          amp.hold_success_gain, amp.hold_success_smoothing)
                              if motion_prior is not None and amp is not None and amp.hold_success else None)
@@ -252,12 +258,15 @@ class OnPolicyRunner:
 
     def start_from(self, path: str | pathlib.Path) -> pathlib.Path:
         """Begin this run from another run's network (actor, critic, normalisers, action noise): a skill to
-        build on. Everything else starts afresh: iteration 0, the optimiser, the discriminator."""
+        build on. Everything else starts afresh: iteration 0, the optimiser, the discriminator. A critic of
+        another number of value streams is fitted to this run's (rl.networks.fit_value_streams)."""
         path = find_checkpoint(path)
         data = read_checkpoint(path)
-        if data['architecture'] != self.actor_critic.architecture():
+        theirs, mine = dict(data['architecture']), self.actor_critic.architecture()
+        if {k: v for k, v in theirs.items() if k != 'value_streams'} != {k: v for k, v in mine.items()
+                                                                         if k != 'value_streams'}:
             raise ValueError(f'checkpoint {path} holds a network of another shape: {data["architecture"]}')
-        self.actor_critic.load_state_dict(data['model'])
+        self.actor_critic.load_state_dict(fit_value_streams(data['model'], theirs, self.actor_critic.value_streams))
         if self.cfg.policy.keep_skill_std:
             self.actor_critic.max_std = self.actor_critic.action_std().detach().clone()
         return path
@@ -306,22 +315,41 @@ class OnPolicyRunner:
                     stroke = self.motion_prior.stroke_reward(frames, extras.get(env_contract.EXTRAS_STYLE_STROKE_END),
                                                              dones, self.env.style_state(), labels)
                     parts = {'task': rewards, 'style': style, 'pose': pose, 'stroke': stroke}
+                    after_touch, stream_dones = self._follow_through(extras, dones)
                     rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose,
-                                                    stroke)
+                                                    stroke, after_touch)
                     self._sync()
                     style_s += time.perf_counter() - t2
-                stats.record(rewards, dones, extras, parts)
+                else:
+                    stream_dones = dones
+                stats.record(rewards if rewards.dim() == 1 else rewards.sum(-1), dones, extras, parts)
                 # A time-limit end is not a real terminal: bootstrap with the value of the state it was cut at.
                 time_outs = extras.get(env_contract.EXTRAS_TIME_OUTS)
                 if time_outs is not None:
-                    rewards = rewards + gamma * step.values * time_outs.to(torch.float32)
-                self.storage.add(step.norm_obs, step.norm_critic_obs, step.actions, rewards, dones.to(torch.float32),
-                                 step.values, step.log_probs, step.mean, step.std)
+                    time_outs = time_outs.to(torch.float32)
+                    rewards = rewards + gamma * step.values * (time_outs if rewards.dim() == 1 else time_outs[:, None])
+                self.storage.add(step.norm_obs, step.norm_critic_obs, step.actions, rewards,
+                                 stream_dones.to(torch.float32), step.values, step.log_probs, step.mean, step.std)
                 world_s += t2 - t1
                 policy_s += t1 - t0
             last_values = self.alg.value(critic_obs)
             self.storage.compute_returns(last_values, gamma, self.cfg.ppo.lam, self.cfg.ppo.normalize_advantages)
         return obs, critic_obs, world_s, policy_s, style_s
+
+    def _follow_through(self, extras: dict[str, Any], dones: torch.Tensor) -> tuple[torch.Tensor | None, torch.Tensor]:
+        """With a free follow-through: which steps began after the paddle's touch [N], and each value stream's
+        ends [N, 2] (the episode's, and for the follow-through's stream also the touch: the step that touches
+        does not bootstrap from it). Without: (None, dones)."""
+        if not self.free_follow_through:
+            return None, dones
+        phase = extras.get(env_contract.EXTRAS_STYLE_PHASE)
+        if phase is None:
+            raise ValueError("amp.free_follow_through: the env must give each step's 'style_phase'")
+        touched_now = phase.to(torch.bool)
+        after_touch = self.touched
+        touches = touched_now & ~after_touch
+        self.touched = touched_now & ~dones
+        return after_touch, torch.stack((dones, dones | touches), dim=-1)
 
     def learn(self, until_iteration: int, progress_bar: bool | None = None,
               session_info: dict[str, Any] | None = None, until_wall_time_s: float | None = None,
@@ -351,6 +379,7 @@ class OnPolicyRunner:
         try:
             with torch.inference_mode():
                 obs, critic_obs = self.env.reset()
+                self.touched.zero_()
                 if self.motion_prior is not None:
                     self.motion_prior.start(self.env.style_state())
             while self.iteration < until_iteration and budget_left():

@@ -1,4 +1,10 @@
-"""Rollout storage for on-policy learning: T steps x N environments, GAE returns, shuffled minibatches."""
+"""Rollout storage for on-policy learning: T steps x N environments, GAE returns, shuffled minibatches.
+
+With K value streams (rl.networks.ActorCritic's value_streams > 1) rewards, dones, values and returns
+hold one column per stream: each stream's advantage is estimated on its own, with its own episode ends
+(a stream may end where the episode goes on, so that what it earns later does not flow back to earlier
+steps), and the policy follows their sum.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,8 +20,8 @@ class Minibatch:
     critic_obs: torch.Tensor     # normalised critic observations [B, num_critic_obs]
     actions: torch.Tensor        # [B, num_actions]
     old_log_probs: torch.Tensor  # [B]
-    old_values: torch.Tensor     # [B]
-    returns: torch.Tensor        # [B]
+    old_values: torch.Tensor     # [B] (one value stream) or [B, K]
+    returns: torch.Tensor        # [B] or [B, K], as old_values
     advantages: torch.Tensor     # [B]
     old_mean: torch.Tensor       # [B, num_actions] (for the KL of the adaptive learning rate)
     old_std: torch.Tensor        # [B, num_actions]
@@ -25,9 +31,13 @@ class RolloutStorage:
     """Fixed-size buffers filled step by step during a rollout, then consumed by the PPO update."""
 
     def __init__(self, num_steps: int, num_envs: int, num_obs: int, num_critic_obs: int, num_actions: int,
-                 device: torch.device | str):
+                 device: torch.device | str, value_streams: int = 1):
+        if value_streams < 1:
+            raise ValueError(f'value_streams must be at least 1, got {value_streams}')
         self.num_steps, self.num_envs = int(num_steps), int(num_envs)
         self.device = torch.device(device)
+        self.value_streams = int(value_streams)
+        stream = () if self.value_streams == 1 else (self.value_streams,)
 
         def buffer(*shape, dtype=torch.float32):
             return torch.zeros(self.num_steps, self.num_envs, *shape, dtype=dtype, device=self.device)
@@ -35,18 +45,19 @@ class RolloutStorage:
         self.obs = buffer(num_obs)
         self.critic_obs = buffer(num_critic_obs)
         self.actions = buffer(num_actions)
-        self.rewards = buffer()
-        self.dones = buffer()
-        self.values = buffer()
+        self.rewards = buffer(*stream)
+        self.dones = buffer(*stream)
+        self.values = buffer(*stream)
         self.log_probs = buffer()
         self.mean = buffer(num_actions)
         self.std = buffer(num_actions)
-        self.returns = buffer()
-        self.advantages = buffer()
+        self.returns = buffer(*stream)
+        self.advantages = buffer()          # summed over the streams
         self.step = 0
 
     def add(self, obs, critic_obs, actions, rewards, dones, values, log_probs, mean, std) -> None:
-        """Record one environment step (rewards already include any time-out bootstrap)."""
+        """Record one environment step (rewards already include any time-out bootstrap). With several value
+        streams rewards and values are [N, K] and dones [N] (every stream ends with the episode) or [N, K]."""
         if self.step >= self.num_steps:
             raise RuntimeError('rollout storage is full; call clear() before the next rollout')
         t = self.step
@@ -54,7 +65,7 @@ class RolloutStorage:
         self.critic_obs[t].copy_(critic_obs)
         self.actions[t].copy_(actions)
         self.rewards[t].copy_(rewards)
-        self.dones[t].copy_(dones)
+        self.dones[t].copy_(dones if dones.shape == self.dones[t].shape else dones[:, None].expand_as(self.dones[t]))
         self.values[t].copy_(values)
         self.log_probs[t].copy_(log_probs)
         self.mean[t].copy_(mean)
@@ -70,7 +81,8 @@ class RolloutStorage:
 
         delta_t = r_t + gamma (1 - d_t) V_{t+1} - V_t,  A_t = delta_t + gamma lam (1 - d_t) A_{t+1},
         returns R_t = A_t + V_t. d_t marks the last step of an episode (its successor belongs to a
-        new episode), so nothing flows across episode boundaries.
+        new episode), so nothing flows across episode boundaries. Per stream with several; the policy's
+        advantage is their sum.
         """
         if self.step != self.num_steps:
             raise RuntimeError(f'rollout incomplete: {self.step} of {self.num_steps} steps recorded')
@@ -80,9 +92,9 @@ class RolloutStorage:
             not_done = 1.0 - self.dones[t]
             delta = self.rewards[t] + gamma * not_done * next_values - self.values[t]
             advantage = delta + gamma * lam * not_done * advantage
-            self.advantages[t] = advantage
+            self.returns[t] = advantage + self.values[t]
+            self.advantages[t] = advantage if self.value_streams == 1 else advantage.sum(-1)
             next_values = self.values[t]
-        self.returns.copy_(self.advantages + self.values)
         if normalize_advantages:
             self.advantages.copy_((self.advantages - self.advantages.mean()) / (self.advantages.std() + 1e-8))
 
