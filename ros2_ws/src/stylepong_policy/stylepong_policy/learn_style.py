@@ -12,7 +12,8 @@ it ends, so that `--resume` (after Ctrl-C, SIGKILL or a power cut) continues fro
              demonstrations on seeds 900 and up and chosen as a candidate is (choose_candidate)
   train      RUN/train/: the style learned from that skill with a fresh discriminator and the pose and
              stroke priors, for the training share of the time budget less the skill stage's time; a
-             checkpoint every iteration (resumable) and every save_interval iterations (the candidates)
+             checkpoint every iteration (resumable, with the recipe the run began with) and every
+             save_interval iterations (the candidates)
   choose     RUN/choose/: the weight averages of the run's last checkpoints (AVERAGED_SHARES of them) and
              its last checkpoint, validated on seeds 900 and up (below 1000); the one with the lowest mean
              DTW to the demonstrations among those returning MIN_SUCCESS of the balls (else the one that
@@ -35,7 +36,7 @@ import sys
 import time
 from dataclasses import dataclass
 
-from stylepong_policy.rl.config import TrainConfig, load_config
+from stylepong_policy.rl.config import TrainConfig, config_from_dict, load_config
 
 PROG = 'learn_style'
 STATE_NAME = 'learn_style.json'
@@ -244,11 +245,17 @@ def trained_s(train_dir: pathlib.Path) -> float:
 
 def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill: pathlib.Path,
                 budget_s: float, command: str) -> dict:
-    """Learn the style from the skill until the run's training time reaches budget_s (resumes a run)."""
+    """Learn the style from the skill until the run's training time reaches budget_s (resumes a run, with the
+    recipe it began with: a run started before the recipe changed still fits its checkpoints)."""
     from stylepong_policy import train
     from stylepong_policy.learn_style_progress import StageBar
-    cfg.amp.dataset = str(paths.dataset)
+    from stylepong_policy.rl.runner import read_checkpoint
     resume = '' if (paths.train / 'checkpoints' / 'last.pt').is_file() else None
+    if resume is not None:
+        device = cfg.runner.device
+        cfg = config_from_dict(read_checkpoint(paths.train)['config'])
+        cfg.runner.device = device
+    cfg.amp.dataset = str(paths.dataset)
     with StageBar('train', budget_s, initial=trained_s(paths.train) if resume is not None else 0.0) as bar:
         result = train.train_run(cfg, paths.train, 'amp', config_source=str(config_path), resume=resume,
                                  start_from=None if resume is not None else skill, tensorboard=False,

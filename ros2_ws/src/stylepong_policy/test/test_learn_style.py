@@ -178,3 +178,23 @@ def test_a_skill_given_with_from_is_the_start_without_validating_the_library(tmp
     paths = learn_style.paths_of(tmp_path / 'run')
     assert learn_style.skill_stage(paths, {'skill': '/given.pt'}, 'cpu') == {'chosen': '/given.pt', 'given': True}
     assert not paths.skill.exists()
+
+
+def test_a_stopped_run_resumes_with_the_recipe_it_began_with(tmp_path):
+    """A run stopped in its training and resumed after the recipe changed (here: it began without the free
+    follow-through's value stream) goes on with the checkpoint's recipe, not today's, which would not fit."""
+    torch.set_num_threads(1)
+    paths = learn_style.paths_of(tmp_path / 'run')
+    paths.run.mkdir()
+    dataset = pathlib.Path(__file__).resolve().parents[4] / 'results' / 'reference_dataset.npz'
+    paths.dataset.write_bytes(dataset.read_bytes())
+    skill = learn_style.models_dir() / skills.SHIPPED_FILE
+    before, config_path = tiny_recipe('cpu')
+    before.amp.free_follow_through = False
+    first = learn_style.train_stage(before, config_path, paths, skill, 1.0, 'learn_style first')
+    now, _ = tiny_recipe('cpu')
+    assert now.amp.free_follow_through
+    resumed = learn_style.train_stage(now, config_path, paths, skill, 2.5, 'learn_style --resume')
+    assert resumed['iterations'] > first['iterations']
+    last = torch.load(paths.train / 'checkpoints' / 'last.pt', map_location='cpu', weights_only=False)
+    assert 'value_streams' not in last['architecture'] and not last['config']['amp']['free_follow_through']
