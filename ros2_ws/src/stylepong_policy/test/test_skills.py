@@ -54,14 +54,13 @@ def test_the_library_is_the_shipped_skill_then_the_learned_ones_and_a_set_is_not
 def test_the_shipped_library_holds_networks_of_the_recipes_sizes_each_with_its_demonstrations():
     from stylepong_policy.learn_style import models_dir
     library = {s.name: s for s in skills.library(models_dir())}
-    from stylepong_policy.rl.networks import ActorCritic, fit_value_streams
+    from stylepong_policy.rl.networks import ActorCritic, fit_value_streams, network_sizes
     shipped = torch.load(library[skills.SHIPPED].path, map_location='cpu', weights_only=False)
     # A run of the recipe: its critic has a value stream for the free follow-through.
     run = ActorCritic(**shipped['architecture'], value_streams=2)
     for name, skill in library.items():
         checkpoint = torch.load(skill.path, map_location='cpu', weights_only=False)
-        sizes = {k: v for k, v in checkpoint['architecture'].items() if k != 'value_streams'}
-        assert sizes == shipped['architecture'], name
+        assert network_sizes(checkpoint['architecture']) == shipped['architecture'], name
         run.load_state_dict(fit_value_streams(checkpoint['model'], checkpoint['architecture'], 2))
         assert name == skills.SHIPPED or len(skill.learned_on) >= 1
         assert np.all([len(f) == 16 for f in skill.learned_on])

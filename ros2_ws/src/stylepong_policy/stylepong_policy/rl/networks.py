@@ -108,6 +108,12 @@ class ActorCritic(nn.Module):
                 'activation': self.activation, 'normalize_observations': self.normalize_observations, **streams}
 
 
+def network_sizes(architecture: dict) -> dict:
+    """An architecture without its value streams: what a network must share with a run to start it (the
+    critic's streams are fitted, `fit_value_streams`)."""
+    return {key: value for key, value in architecture.items() if key != 'value_streams'}
+
+
 def fit_value_streams(state: dict[str, torch.Tensor], architecture: dict,
                       value_streams: int) -> dict[str, torch.Tensor]:
     """An ActorCritic state of `architecture` with its critic's output layer made value_streams wide, keeping

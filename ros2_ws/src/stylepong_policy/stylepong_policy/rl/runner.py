@@ -23,7 +23,7 @@ from . import env as env_contract
 from .amp import MotionPrior
 from .config import TrainConfig, config_to_dict
 from .logger import TrainingLog
-from .networks import ActorCritic, fit_value_streams
+from .networks import ActorCritic, fit_value_streams, network_sizes
 from .ppo import PPO
 from .storage import RolloutStorage
 from .success_hold import SuccessHold
@@ -262,10 +262,9 @@ class OnPolicyRunner:
         another number of value streams is fitted to this run's (rl.networks.fit_value_streams)."""
         path = find_checkpoint(path)
         data = read_checkpoint(path)
-        theirs, mine = dict(data['architecture']), self.actor_critic.architecture()
-        if {k: v for k, v in theirs.items() if k != 'value_streams'} != {k: v for k, v in mine.items()
-                                                                         if k != 'value_streams'}:
-            raise ValueError(f'checkpoint {path} holds a network of another shape: {data["architecture"]}')
+        theirs = data['architecture']
+        if network_sizes(theirs) != network_sizes(self.actor_critic.architecture()):
+            raise ValueError(f'checkpoint {path} holds a network of another shape: {theirs}')
         self.actor_critic.load_state_dict(fit_value_streams(data['model'], theirs, self.actor_critic.value_streams))
         if self.cfg.policy.keep_skill_std:
             self.actor_critic.max_std = self.actor_critic.action_std().detach().clone()
