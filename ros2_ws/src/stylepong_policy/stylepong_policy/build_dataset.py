@@ -38,6 +38,9 @@ UNLABELLED = 'unlabelled'
 # Bags from elsewhere named <label>_<time> (forward_2025-11-21...): letters, '_', then a digit. rosbag2's
 # default rosbag2_<date> carries no label and does not match (the digit in 'rosbag2').
 _DIRECTORY_LABEL = re.compile(r'^([A-Za-z][A-Za-z-]*)_\d')
+# Names split into words at anything that is not a letter: 'take3_forward', 'forward-02' and 'Forward1'
+# each hold the word 'forward'.
+_NAME_WORDS = re.compile(r'[^a-z]+')
 
 
 def default_joint_names() -> tuple[str, ...]:
@@ -47,16 +50,18 @@ def default_joint_names() -> tuple[str, ...]:
 
 
 def label_from_name(name: str) -> str | None:
-    """The label a bag directory's name carries, or None.
+    """The label a bag directory's name carries, or None: the recorder's own names
+    (<label>_<YYYYmmdd>_<HHMMSS>_<ms>, any label it accepts), then a name with one stroke direction among
+    its words (direction_in_name)."""
+    return label_from_bag_dir_name(name) or direction_in_name(name)
 
-    The recorder's own names (<label>_<YYYYmmdd>_<HHMMSS>_<ms>, any label it accepts) are parsed by
-    the recorder's function; other names count when they look like <letters>_<digit>...
-    """
-    label = label_from_bag_dir_name(name)
-    if label:
-        return label
-    match = _DIRECTORY_LABEL.match(name)
-    return match.group(1) if match else None
+
+def direction_in_name(name: str) -> str | None:
+    """The stroke direction (strokes.DIRECTIONS) that is a word of the name, in any case, or None when
+    none is or several are: how other tools name a take ('forward_03', 'take3-leftward', 'Rightward2')."""
+    from stylepong_policy.strokes import DIRECTIONS
+    found = {word for word in _NAME_WORDS.split(name.lower()) if word in DIRECTIONS}
+    return found.pop() if len(found) == 1 else None
 
 
 @dataclass
@@ -78,15 +83,23 @@ class BagReport:
 
 
 def choose_label(bag: pathlib.Path, from_metadata: str | None, fallback: str | None) -> tuple[str, str]:
-    """A bag's label and where it came from: metadata, the directory name, --label, or none."""
+    """A bag's label and where it came from: metadata, the directory name, the folder holding it (one
+    folder per direction: forward/take_1/), a name like <letters>_<digit>..., --label, or none."""
     if from_metadata:
         return from_metadata, 'metadata custom_data'
-    name_label = label_from_name(bag.name if bag.is_dir() else bag.stem)
+    name = bag.name if bag.is_dir() else bag.stem
+    name_label = label_from_name(name)
     if name_label:
         return name_label, 'directory name'
+    folder_label = direction_in_name(bag.parent.name)
+    if folder_label:
+        return folder_label, 'folder name'
+    match = _DIRECTORY_LABEL.match(name)
+    if match:
+        return match.group(1), 'directory name'
     if fallback:
         return fallback, '--label'
-    return UNLABELLED, 'none in custom_data or the directory name; --label sets one'
+    return UNLABELLED, 'none in custom_data, the directory name or its folder; --label sets one'
 
 
 @dataclass(frozen=True)

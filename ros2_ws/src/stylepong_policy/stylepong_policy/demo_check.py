@@ -7,8 +7,9 @@ line per bad bag, each naming the bag and what is wrong with it:
 
   * the path does not exist, or holds no bag;
   * a bag that cannot be read (a cut or damaged storage file, no JointState topic, ...);
-  * a bag without a label (none in metadata.yaml's custom_data, none in a `<label>_<time>` directory
-    name), or with a label other than KNOWN_LABELS (the strokes the evaluation tells apart);
+  * a bag without a label (none in metadata.yaml's custom_data, none in its directory's name or in the
+    name of the folder holding it: build_dataset.choose_label), or with a label other than KNOWN_LABELS
+    (the strokes the evaluation tells apart);
   * joints that are not the UR5's (another robot's recording);
   * a clip whose positions leave the UR5's joint limits (stylepong_description's robot model);
   * joint states slower than MIN_RATE_HZ: too few samples to resample to the policy's 60 Hz;
@@ -185,8 +186,8 @@ def check_bag(bag: pathlib.Path, *, window_frames: int, speedups: Sequence[int],
         raise BagError(f'{bag}: {_read_reason(error)}') from None
     label, origin = choose_label(bag, recording.label, None)
     if label == UNLABELLED:
-        raise BagError(f'{bag}: unlabelled (no label in metadata.yaml custom_data or a <label>_<time> directory '
-                       f'name); label it {", ".join(KNOWN_LABELS)}')
+        raise BagError(f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory name or its '
+                       f'folder\'s name); label it {", ".join(KNOWN_LABELS)}')
     if label not in KNOWN_LABELS:
         raise BagError(f'{bag}: unknown label {label!r} (from its {origin}); the labels are {", ".join(KNOWN_LABELS)}')
     stamps = recording.header_stamp_ns if (recording.header_stamp_ns > 0).all() else recording.receive_time_ns

@@ -243,6 +243,8 @@ class TableTennisEnv:
         # The kinds of motion a step may ask the motion prior for (rl.env's style labels): the stroke each
         # ball needs, labelled as the demonstrations are.
         self.style_labels = strokes.DIRECTIONS
+        # The stroke's length after the touch (rl.env): the pose prior plays the clips' follow-through over it.
+        self.style_follow_through_s = strokes.FOLLOW_THROUGH_S
         paddle_home_m = strokes.paddle_home_position_m()
         self._plane_x_m, self._paddle_home_y_m = paddle_home_m[0], paddle_home_m[1]
 

@@ -165,6 +165,16 @@ def build_shipped_dataset(path: pathlib.Path) -> pathlib.Path:
     return path
 
 
+def follow_through_s(amp, env) -> float | None:
+    """The stroke's length after its touch for the pose prior (amp.pose_follows_through), or None."""
+    if not amp.pose_follows_through:
+        return None
+    length_s = getattr(env, 'style_follow_through_s', None)
+    if length_s is None:
+        raise ValueError("amp.pose_follows_through: the env must give its 'style_follow_through_s'")
+    return float(length_s)
+
+
 def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torch.device):
     """The discriminator and its reference windows for an amp config."""
     from stylepong_policy.dataset import ReferenceDataset
@@ -181,8 +191,8 @@ def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torc
           f'from clips with speed factors {cfg.amp.speed_factors or "all"}'
           + (f', conditioned on the labels {list(label_names)}' if label_names else '')
           + (', and on the phase (before / after the hit)' if cfg.amp.condition_on_phase else ''), flush=True)
-    pose_prior = (PosePrior.from_dataset(dataset, label_names, cfg.amp.pose_sigma_rad, device)
-                  if cfg.amp.w_pose > 0.0 else None)
+    pose_prior = (PosePrior.from_dataset(dataset, label_names, cfg.amp.pose_sigma_rad, device,
+                                         follow_through_s(cfg.amp, env)) if cfg.amp.w_pose > 0.0 else None)
     stroke_prior = (StrokePrior.from_dataset(dataset, label_names, cfg.amp.stroke_sigma_rad, env.num_envs)
                     if cfg.amp.w_stroke > 0.0 else None)
     return MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, device, seed=cfg.runner.seed,

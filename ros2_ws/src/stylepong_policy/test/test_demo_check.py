@@ -94,6 +94,21 @@ def test_a_ur_driver_recording_at_125_hz_passes(tmp_path):
     assert found.bags[0].rate_hz == pytest.approx(125.0, rel=0.01)
 
 
+def test_other_tools_label_a_take_by_its_name_or_its_folder(tmp_path):
+    """No custom_data label: a direction among the name's words, else the folder it sits in."""
+    folder = tmp_path / 'demos'
+    takes = {'take3-Leftward': 'leftward', 'Forward01': 'forward', 'rightward/take_7': 'rightward',
+             'forward/clip': 'forward', 'leftward/rightward_2': 'rightward'}
+    for name in takes:
+        write_driver_bag(folder / name, SWING, SWING.total_s, label=None)
+    found = check_demonstrations(folder, window_frames=WINDOW)
+    assert {bag.bag.relative_to(folder).as_posix(): bag.label for bag in found.bags} == takes
+
+    both = tmp_path / 'both' / 'forward_or_leftward'
+    write_driver_bag(both, SWING, SWING.total_s, label=None)
+    assert_one_line_naming(refusal(both.parent), both, 'unlabelled', "folder's name")
+
+
 def test_a_missing_path_and_a_folder_without_bags_are_refused(tmp_path):
     assert refusal(tmp_path / 'nowhere') == f'{tmp_path / "nowhere"}: does not exist'
     empty = tmp_path / 'empty'
@@ -217,7 +232,7 @@ def test_a_refusal_comes_fast_without_torch(tmp_path):
     done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
     elapsed_s = time.perf_counter() - started
     assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == [f'{bag}: unlabelled (no label in metadata.yaml custom_data or a '
-                                        '<label>_<time> directory name); label it forward, leftward, rightward',
+    assert done.stdout.splitlines() == [f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory '
+                                        "name or its folder's name); label it forward, leftward, rightward",
                                         'no torch']
     assert elapsed_s < 15.0

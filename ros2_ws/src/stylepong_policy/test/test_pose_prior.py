@@ -34,6 +34,25 @@ def test_reference_is_the_clip_frame_at_the_same_time_from_the_hit():
     assert prior.reward(q, time_s)[0].item() == pytest.approx(math.exp(-1.0 / 0.5))
 
 
+def test_after_the_touch_the_follow_through_ends_with_the_stroke():
+    """follow_through_s: the clip's frames after its hit are spread over the stroke's time after the touch,
+    so the stroke's last frame is paired with the clip's last, as DTW pairs them; before it, no change."""
+    prior = PosePrior([[line_clip(10, 4), line_clip(24, 4, joint=1)]], sigma_rad=0.5, rate_hz=10.0,
+                      follow_through_s=0.5)
+    time_s = torch.tensor([-0.2, 0.0, 0.25, 0.5, 3.0])
+    frames = prior._reference_frames(prior.labels[0], time_s)
+    assert frames[:, 0].tolist() == [2, 4, 6, 9, 9]          # 5 frames after the hit in 0.5 s
+    assert frames[:, 1].tolist() == [2, 4, 14, 23, 23]       # 19 frames after the hit in the same 0.5 s
+    on_own_clock = PosePrior([[line_clip(10, 4), line_clip(24, 4, joint=1)]], sigma_rad=0.5, rate_hz=10.0)
+    assert on_own_clock._reference_frames(on_own_clock.labels[0], time_s)[:, 1].tolist() == [2, 4, 6, 9, 23]
+    q = torch.zeros(1, 6)
+    q[0, 1] = 23.0                                            # the long clip's end at the stroke's end
+    assert prior.reward(q, torch.tensor([0.5])).item() == pytest.approx(1.0)
+    assert on_own_clock.reward(q, torch.tensor([0.5])).item() < 1e-6
+    with pytest.raises(ValueError, match='follow-through'):
+        PosePrior([[line_clip(4, 1)]], sigma_rad=0.3, rate_hz=60.0, follow_through_s=0.0)
+
+
 def test_the_nearest_clip_of_the_label_counts_and_other_labels_do_not():
     prior = PosePrior([[line_clip(10, 4, joint=0), line_clip(10, 4, joint=1)], [line_clip(5, 2, joint=2)]],
                       sigma_rad=1.0, rate_hz=10.0)

@@ -134,12 +134,25 @@ def _messages_by_storage(source: _Source, topic: str) -> Iterator[tuple[int, byt
         yield timestamp, (decompress(raw) if decompress else raw)
 
 
+def joint_name_prefix(names: Sequence[str], joints: Sequence[str]) -> str | None:
+    """'' when names hold every joint; else the one prefix that names them all (a UR driver started
+    with tf_prefix 'ur5_' publishes 'ur5_shoulder_pan_joint', ...); None when no prefix, or more than one,
+    does."""
+    if all(j in names for j in joints):
+        return ''
+    first = joints[0]
+    candidates = {n[:-len(first)] for n in names if n.endswith(first) and len(n) > len(first)}
+    fitting = [p for p in candidates if all(p + j in names for j in joints)]
+    return fitting[0] if len(fitting) == 1 else None
+
+
 def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_order: bool, topic: str,
               problems: list[str], notes: list[str]) -> list[tuple[np.ndarray, ...]]:
     """(stamps, receive times, positions, velocities) per block, columns in `joints` order."""
     n_joints = len(joints)
     parts = []
     unusable: dict[tuple[str, ...], int] = {}
+    prefixes: set[str] = set()
     mismatched = 0
     for block in collector.blocks:
         names = collector.cdr.name_lists[block.name_id]
@@ -150,10 +163,14 @@ def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_orde
                                f'positions in --joints order ({", ".join(joints)})')
             columns, width = np.arange(n_joints), n_joints
         else:
-            if any(j not in names for j in joints):
+            prefix = joint_name_prefix(names, joints)
+            if prefix is None:
                 unusable[names] = unusable.get(names, 0) + count
                 continue
-            columns, width = np.array([names.index(j) for j in joints]), len(names)
+            if prefix and prefix not in prefixes:
+                prefixes.add(prefix)
+                notes.append(f'{topic}: joints named with the prefix {prefix!r} (a driver\'s tf_prefix)')
+            columns, width = np.array([names.index(prefix + j) for j in joints]), len(names)
         if block.position.shape[1] != width:
             mismatched += count
             continue

@@ -155,6 +155,24 @@ def test_messages_without_the_requested_joints_are_ignored(tmp_path):
         read_joint_states(tmp_path / 'bag', joints=('elbow_joint', 'missing_joint'))
 
 
+
+def test_a_drivers_tf_prefix_on_the_joint_names_is_read_past_and_noted(tmp_path):
+    stamps = EPOCH_NS + np.arange(20) * 8_000_000
+    prefixed = ['ur5_' + j for j in reversed(URDF_JOINTS)] + ['ur5_gripper_joint']
+    messages = [(s, joint_state_cdr(STORE, s, prefixed, [*np.arange(6.0)[::-1] + i, 0.5]))
+                for i, s in enumerate(stamps)]
+    write_raw_bag(tmp_path / 'bag', {'/joint_states': messages})
+    recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
+    assert np.array_equal(recording.position_rad, np.arange(6.0) + np.arange(20)[:, None])
+    assert recording.notes == ["/joint_states: joints named with the prefix 'ur5_' (a driver's tf_prefix)"]
+
+    # Two arms in one message: no telling which is meant.
+    two_arms = [('left_' + j) for j in URDF_JOINTS] + [('right_' + j) for j in URDF_JOINTS]
+    write_raw_bag(tmp_path / 'two', {'/joint_states': [(s, joint_state_cdr(STORE, s, two_arms, np.zeros(12)))
+                                                       for s in stamps]})
+    with pytest.raises(BagError, match='no message carries all of the joints'):
+        read_joint_states(tmp_path / 'two', joints=URDF_JOINTS)
+
 def test_topic_choice(tmp_path):
     stamps = EPOCH_NS + np.arange(5) * 2_000_000
     js = [(s, joint_state_cdr(STORE, s, URDF_JOINTS, np.zeros(6))) for s in stamps]

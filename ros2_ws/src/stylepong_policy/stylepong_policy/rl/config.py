@@ -108,6 +108,9 @@ class AMPConfig:
     # The pose prior (rl.pose_prior): w_pose exp(-|q - nearest demonstrated pose of the label| / sigma) per step.
     w_pose: float = non_negative(0.0)
     pose_sigma_rad: float = positive(0.3)
+    # After the touch, each clip's follow-through to its end over the stroke's remaining time (the env's
+    # 'style_follow_through_s'), where DTW pairs the stroke's end; false: on the clips' own clock.
+    pose_follows_through: bool = False
     # The stroke prior (rl.stroke_prior): w_stroke exp(-DTW(stroke, nearest clip) / (sigma frames)), once a stroke.
     w_stroke: float = non_negative(0.0)
     stroke_sigma_rad: float = positive(0.4)
@@ -127,7 +130,8 @@ class AMPConfig:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
-        for name in ('condition_on_label', 'condition_on_phase', 'hold_success', 'free_follow_through'):
+        for name in ('condition_on_label', 'condition_on_phase', 'hold_success', 'free_follow_through',
+                     'pose_follows_through'):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):

@@ -39,6 +39,9 @@ An env may add keys of its own for its own tools (the table-tennis task adds per
 
 `style_state() -> [N, num_style_features]`: the current frame (after resets), so that a new episode's
 style history starts from its own first frame.
+
+An env whose stroke goes on a fixed time after the event gives it as `style_follow_through_s` (float);
+the pose prior's follow-through (amp.pose_follows_through) needs it.
 """
 from __future__ import annotations
 

@@ -9,6 +9,18 @@ time the ball needs to reach the paddle's home plane), positive after it (the ti
 touch). A frame before a clip's start is its first (the demonstrator's ready pose, where a person waits
 for the ball) and one after its end its last.
 
+With the stroke's length after the event (`follow_through_s`, the env's), the frames after it follow
+each clip's follow-through to its end over that time instead, at progress min(tau / follow_through_s, 1):
+
+    q_c[h_c + round(min(tau / follow_through_s, 1) * (F_c - 1 - h_c))]
+
+Why. DTW pairs the last frame of a stroke with the last frame of a clip: a stroke judged up to
+follow_through_s after its touch is measured against where the demonstration's follow-through ends. On
+the clips' own clock the nearest clip after the touch is the slowest (a dragged follow-through has
+barely begun 0.3 s after the hit), which pays a stroke for stopping at its hit, or for swinging back,
+while the measure pays for finishing the follow-through. The follow-through's path is the clip's; only
+its pace is the stroke's.
+
 Why beside the discriminator. A policy that already returns balls in one style, set to learn another,
 meets a fresh discriminator that tells its windows from the new demonstrations at once: its outputs pin at
 -1, where the least-squares style reward is flat, and the policy gets no direction to move in (a converged
@@ -62,10 +74,13 @@ class PosePrior:
     """Demonstrated clips per label, and the pose reward of arm states against them on the env's clock."""
 
     def __init__(self, clips_by_label: Sequence[Sequence[tuple[np.ndarray, int]]], sigma_rad: float,
-                 rate_hz: float, device: torch.device | str = 'cpu'):
-        """clips_by_label: for each label index, its clips as (joint positions [F, J], hit frame) (may be none)."""
+                 rate_hz: float, device: torch.device | str = 'cpu', follow_through_s: float | None = None):
+        """clips_by_label: for each label index, its clips as (joint positions [F, J], hit frame) (may be none).
+        follow_through_s: the stroke's length after the key event (None: the clips' own clock after it too)."""
         if not sigma_rad > 0.0 or not rate_hz > 0.0:
             raise ValueError(f'the pose prior needs a positive sigma and rate, got {sigma_rad} and {rate_hz}')
+        if follow_through_s is not None and not follow_through_s > 0.0:
+            raise ValueError(f'the pose prior needs a positive follow-through, got {follow_through_s}')
         clips = [c for label in clips_by_label for c in label]
         if not clips:
             raise ValueError('the pose prior has no demonstrated clip under any label')
@@ -75,13 +90,14 @@ class PosePrior:
         self.device = torch.device(device)
         self.sigma_rad = float(sigma_rad)
         self.rate_hz = float(rate_hz)
+        self.follow_through_s = None if follow_through_s is None else float(follow_through_s)
         width = joints.pop()
         self.labels = [pack_clips([(np.asarray(q, dtype=np.float32), h) for q, h in label], width, self.device)
                        for label in clips_by_label]
 
     @classmethod
     def from_dataset(cls, dataset, label_names: Sequence[str], sigma_rad: float,
-                     device: torch.device | str = 'cpu') -> 'PosePrior':
+                     device: torch.device | str = 'cpu', follow_through_s: float | None = None) -> 'PosePrior':
         """The clips of a stylepong_policy.dataset.ReferenceDataset (every speed factor), grouped by the
         labels of label_names; () : one group of every clip."""
         from stylepong_policy.dataset import hit_frame
@@ -91,7 +107,7 @@ class PosePrior:
             return [(clip.q, hit_frame(clip.qd)) for clip in clips]
 
         groups = [dataset.select(labels=[name]) for name in label_names] or [np.arange(dataset.num_clips)]
-        return cls([clips_of(chosen) for chosen in groups], sigma_rad, dataset.rate_hz, device)
+        return cls([clips_of(chosen) for chosen in groups], sigma_rad, dataset.rate_hz, device, follow_through_s)
 
     @property
     def labels_with_clips(self) -> torch.Tensor:
@@ -105,16 +121,25 @@ class PosePrior:
         n = q_rad.shape[0]
         distance = torch.full((n,), math.inf, device=self.device)
         labels = torch.zeros(n, dtype=torch.long, device=self.device) if labels is None else labels
-        offset = torch.round(time_s * self.rate_hz).long()
         for label, clips in enumerate(self.labels):
             rows = torch.nonzero(labels == label).squeeze(1)
             if not rows.numel() or not clips.count:
                 continue
-            frames = (clips.hit_frames[None, :] + offset[rows, None]).clamp(min=0)
-            frames = torch.minimum(frames, clips.lengths[None, :] - 1)                      # [n, C]
+            frames = self._reference_frames(clips, time_s[rows])                            # [n, C]
             reference = clips.q_rad[torch.arange(clips.count, device=self.device)[None, :], frames]   # [n, C, J]
             distance[rows] = torch.linalg.vector_norm(reference - q_rad[rows, None, :], dim=2).amin(dim=1)
         return distance
+
+    def _reference_frames(self, clips: LabelClips, time_s: torch.Tensor) -> torch.Tensor:
+        """[n, C] each clip's frame at the style clock time_s [n] (the module's formulas)."""
+        hits, last = clips.hit_frames[None, :], clips.lengths[None, :] - 1
+        on_clip_clock = hits + torch.round(time_s * self.rate_hz).long()[:, None]
+        frames = torch.minimum(on_clip_clock.clamp(min=0), last)
+        if self.follow_through_s is None:
+            return frames
+        progress = (time_s / self.follow_through_s).clamp(0.0, 1.0)[:, None]
+        through = hits + torch.round(progress * (last - hits).to(progress.dtype)).long()
+        return torch.where(time_s[:, None] > 0.0, through, frames)
 
     def reward(self, q_rad: torch.Tensor, time_s: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
         """[N] exp(-distance / sigma) to the label's demonstrated pose at that time (0 for a label without)."""
