@@ -29,6 +29,7 @@ from stylepong_policy.dataset import (
     make_clips,
     parse_speedups,
 )
+from stylepong_policy.strokes import DIRECTIONS
 from stylepong_recording.bag_errors import BagError, one_line
 from stylepong_recording.bag_reading import median_rate_hz, read_joint_states
 from stylepong_recording.bag_search import find_bags
@@ -59,7 +60,6 @@ def label_from_name(name: str) -> str | None:
 def direction_in_name(name: str) -> str | None:
     """The stroke direction (strokes.DIRECTIONS) that is a word of the name, in any case, or None when
     none is or several are: how other tools name a take ('forward_03', 'take3-leftward', 'Rightward2')."""
-    from stylepong_policy.strokes import DIRECTIONS
     found = {word for word in _NAME_WORDS.split(name.lower()) if word in DIRECTIONS}
     return found.pop() if len(found) == 1 else None
 
