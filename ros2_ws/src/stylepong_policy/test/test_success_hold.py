@@ -1,11 +1,13 @@
 """rl.success_hold: the motion terms' scale falls while training success is below the skill's own less the
 margin, climbs back as it recovers, weighs iterations by their episodes, and a resumed run continues
-where it was."""
+where it was, and at the recipe's gain it settles on a policy whose success answers the scale late."""
 import math
 
 import pytest
 
+from stylepong_policy.rl.config import load_config
 from stylepong_policy.rl.success_hold import SuccessHold
+from stylepong_policy.train import default_config_path
 
 
 def _hold(smoothing: float = 0.5) -> SuccessHold:
@@ -60,3 +62,28 @@ def test_a_resumed_hold_continues_as_the_first_would_have():
     resumed.load_state_dict(first.state_dict())
     rates = (0.5, 0.9, 0.95)
     assert [resumed.observe(r, 80) for r in rates] == [first.observe(r, 80) for r in rates]
+
+
+def _late_policy_scales(gain: float, delay_iterations: int) -> list[float]:
+    """The hold against a policy like the learn_style runs': after the 10 warm-up iterations (the actor still
+    the skill), training success 0.905 less 0.09 x the scale it was given delay_iterations before, reached
+    with a 10-iteration lag; 300 episodes an iteration."""
+    hold = SuccessHold(warmup_iterations=10, margin=0.03, gain=gain, smoothing=0.1)
+    given, success, scales = [1.0] * delay_iterations, 0.905, []
+    for iteration in range(1500):
+        if iteration >= 10:
+            success += (0.905 - 0.09 * given[-delay_iterations] - success) / 10.0
+        scales.append(hold.observe(success, 300))
+        given.append(scales[-1])
+    return scales[500:]
+
+
+@pytest.mark.parametrize('delay_iterations', [20, 30, 40])
+def test_at_the_recipes_gain_a_late_answering_policy_settles_where_the_gain_of_half_swung(delay_iterations):
+    gain = load_config(default_config_path('amp')).amp.hold_success_gain
+    settled = _late_policy_scales(gain, delay_iterations)
+    # Equilibrium: 0.905 - 0.09 scale = the floor 0.875, scale 1/3.
+    assert max(settled) - min(settled) < 0.05 and sum(settled) / len(settled) == pytest.approx(1 / 3, abs=0.01)
+    if delay_iterations >= 30:
+        swung = _late_policy_scales(0.5, delay_iterations)
+        assert min(swung) == 0.0 and max(swung) > 0.75

@@ -118,7 +118,7 @@ class AMPConfig:
     # own (its warm-up iterations') less hold_success_margin, and back up as it recovers.
     hold_success: bool = False
     hold_success_margin: float = non_negative(0.03)
-    hold_success_gain: float = positive(0.5)
+    hold_success_gain: float = positive(0.15)
     hold_success_smoothing: float = within(0.1, 0.01, 1.0)
     # A free follow-through: the per-step motion terms after the paddle's touch ('style_phase') are not held,
     # and a value stream of their own keeps them from flowing back to the steps before the touch.
