@@ -17,7 +17,7 @@ from stylepong_policy.rl.amp import (
     style_reward,
 )
 from stylepong_policy.rl.config import AMPConfig, config_from_dict
-from stylepong_policy.rl.runner import OnPolicyRunner, mean_action_rows, seed_everything
+from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 
 import ppo_toy_task as TOY  # beside this file: conftest.py
 
@@ -254,60 +254,6 @@ def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resum
     resumed = OnPolicyRunner(env, cfg, tmp_path / 'resumed', tensorboard=False, motion_prior=again)
     resumed.load(tmp_path / 'held.pt')
     assert again.motion_scale == 0.0 and resumed.success_hold.floor == pytest.approx(0.97)
-
-
-@pytest.mark.parametrize('share', [0.0, 0.25])
-def test_a_hold_over_mean_action_environments_reads_their_success_alone(tmp_path, share):
-    """amp.hold_success_mean_action_share: the first share of the environments act with the policy's mean
-    action, and the hold reads only their outcomes. Here those environments always succeed and the sampled
-    ones never do: read over all, the scale falls to 0; read over the mean-action ones, it stays at 1."""
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-                            'ppo': {'num_steps_per_env': 40},
-                            'runner': {'seed': 0, 'save_interval': 1000, 'critic_warmup_iterations': 2},
-                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
-                                    'w_style': 1.0, 'replay_size': 1000, 'hold_success': True,
-                                    'hold_success_mean_action_share': share,
-                                    'hold_success_gain': 100.0, 'hold_success_smoothing': 1.0}})
-
-    class SplitTask(TOY.ReachTask):
-        """Its first four environments succeed in every episode, the others in none."""
-        def step(self, actions):
-            obs, critic_obs, rewards, dones, extras = super().step(actions)
-            first_four = torch.arange(self.num_envs) < 4
-            self.calls = getattr(self, 'calls', 0) + 1
-            warm = self.calls <= 2 * 40
-            extras['outcome'] = {'done': dones, 'success': dones & (first_four | warm)}
-            if extras['log']:
-                extras['log']['success_rate'] = 1.0 if warm else float((dones & first_four).sum() / dones.sum())
-            return obs, critic_obs, rewards, dones, extras
-
-    seed_everything(0)
-    env = SplitTask(num_envs=16, seed=0, episode_steps=10)
-    reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
-    prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
-    runner = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
-    runner.learn(2, progress_bar=False)
-    held = runner.learn(4, progress_bar=False)
-    if share:
-        assert held['mean_action/success_rate'] == 1.0 and held['success_rate'] < 0.5
-        assert held['motion_scale'] == 1.0
-    else:
-        assert 'mean_action/success_rate' not in held and held['motion_scale'] == 0.0
-
-
-def test_mean_action_rows_act_with_the_mean_and_the_others_sample(tmp_path):
-    """PPO.act: the rows asked for take the distribution's mean; the others sample around it."""
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]}})
-    env = TOY.ReachTask(num_envs=64, seed=0)
-    runner = OnPolicyRunner(env, cfg, tmp_path, tensorboard=False)
-    rows = mean_action_rows(env.num_envs, 0.25, torch.device('cpu'))
-    assert int(rows.sum()) == 16 and bool(rows[:16].all())
-    assert mean_action_rows(env.num_envs, 0.0, torch.device('cpu')) is None
-    obs, critic_obs = env.reset()
-    with torch.inference_mode():
-        step = runner.alg.act(obs, critic_obs, rows)
-    assert torch.equal(step.actions[rows], step.mean[rows])
-    assert not torch.isclose(step.actions[~rows], step.mean[~rows]).all(dim=-1).any()
 
 
 class TouchTask(TOY.ReachTask):

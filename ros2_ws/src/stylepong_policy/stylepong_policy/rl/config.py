@@ -115,10 +115,8 @@ class AMPConfig:
     w_stroke: float = non_negative(0.0)
     stroke_sigma_rad: float = positive(0.4)
     # Held style (rl.success_hold): the motion terms scaled down while training success is below the skill's
-    # own (its warm-up iterations') less hold_success_margin, and back up as it recovers. With a mean-action
-    # share, that share of the environments acts with the mean action and only their success is held.
+    # own (its warm-up iterations') less hold_success_margin, and back up as it recovers.
     hold_success: bool = False
-    hold_success_mean_action_share: float = within(0.0, 0.0, 0.5)
     hold_success_margin: float = non_negative(0.03)
     hold_success_gain: float = positive(0.15)
     hold_success_smoothing: float = within(0.1, 0.01, 1.0)

@@ -33,11 +33,9 @@ and may hold
                  (amp.w_pose, rl.pose_prior) needs it;
   'style_stroke_end' [N] bool: the step that ends the stroke each episode's style is judged on (the
                  episode's end ends it too, if nothing did before), before any reset; the stroke prior
-                 (amp.w_stroke, rl.stroke_prior) needs it;
-  'outcome'      {'done' [N] bool: the episode's task was decided in this step, 'success' [N] bool: and
-                 succeeded}; the success hold over mean-action environments
-                 (amp.hold_success_mean_action_share) needs it.
-An env may add keys of its own for its own tools; the runner reads only these.
+                 (amp.w_stroke, rl.stroke_prior) needs it.
+An env may add keys of its own for its own tools (the table-tennis task adds per-ball outcomes for
+`evaluate`); the runner reads only these.
 
 `style_state() -> [N, num_style_features]`: the current frame (after resets), so that a new episode's
 style history starts from its own first frame.
@@ -60,7 +58,6 @@ EXTRAS_STYLE_LABEL = 'style_label'
 EXTRAS_STYLE_PHASE = 'style_phase'
 EXTRAS_STYLE_TIME = 'style_time_s'
 EXTRAS_STYLE_STROKE_END = 'style_stroke_end'
-EXTRAS_OUTCOME = 'outcome'
 
 
 class VecEnv(Protocol):

@@ -51,19 +51,13 @@ class PPO:
         self.learning_rate = float(cfg.learning_rate)
         self.optimizer = make_adam(actor_critic.parameters(), self.learning_rate)
 
-    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor,
-            mean_action_rows: torch.Tensor | None = None) -> PolicyStep:
-        """Sample actions for a rollout step, folding its observations into the normalisers first; the rows
-        of mean_action_rows ([N] bool) take the mean action instead, as the deployed actor does.
+    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor) -> PolicyStep:
+        """Sample actions for a rollout step, folding its observations into the normalisers first.
         Call under torch.inference_mode()."""
         ac = self.actor_critic
         norm_obs, norm_critic_obs = ac.normalize(obs, critic_obs, update=True)
         dist = ac.distribution(norm_obs)
         actions = dist.sample()
-        if mean_action_rows is not None:
-            # The surrogate's gradient in the mean vanishes at the mean: these rows teach the critic and
-            # the discriminator, not the actor's mean.
-            actions = torch.where(mean_action_rows[:, None], dist.mean, actions)
         return PolicyStep(actions=actions, log_probs=dist.log_prob(actions).sum(-1), values=ac.value(norm_critic_obs),
                           mean=dist.mean, std=dist.stddev, norm_obs=norm_obs, norm_critic_obs=norm_critic_obs)
 

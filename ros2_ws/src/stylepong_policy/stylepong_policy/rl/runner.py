@@ -113,18 +113,6 @@ def read_checkpoint(path: str | pathlib.Path) -> dict[str, Any]:
     return data
 
 
-def mean_action_rows(num_envs: int, share: float, device: torch.device) -> torch.Tensor | None:
-    """Which environments act with the mean action ([N] bool, the first share of them; None for none): the
-    success hold reads theirs, the success the deployed actor has, where the sampled actions' success drifts
-    from it as the style moves (rl.success_hold, "What is held")."""
-    count = round(num_envs * share)
-    if count == 0:
-        return None
-    rows = torch.zeros(num_envs, dtype=torch.bool, device=device)
-    rows[:count] = True
-    return rows
-
-
 class EpisodeStatistics:
     """Per-iteration tallies: returns and lengths of ended episodes, the env's episode log averaged with
     its weights, and the means of the reward's parts."""
@@ -138,24 +126,13 @@ class EpisodeStatistics:
 
     def reset_iteration(self) -> None:
         self.episodes = 0
-        self.mean_action_decided = 0
-        self.mean_action_successes = 0
         self.log_sums: dict[str, float] = {}
         self.log_weights: dict[str, int] = {}
         self.reward_sums: dict[str, torch.Tensor | float] = {}
         self.steps = 0
 
     def record(self, rewards: torch.Tensor, dones: torch.Tensor, extras: dict[str, Any],
-               reward_parts: dict[str, torch.Tensor] | None = None,
-               mean_action_rows: torch.Tensor | None = None) -> None:
-        if mean_action_rows is not None:
-            outcome = extras.get(env_contract.EXTRAS_OUTCOME)
-            if outcome is None:
-                raise ValueError("amp.hold_success_mean_action_share: the env must give each step's 'outcome'")
-            decided = outcome['done'] & mean_action_rows
-            # Summed on the device, read once per iteration (summary).
-            self.mean_action_decided = self.mean_action_decided + decided.sum()
-            self.mean_action_successes = self.mean_action_successes + (outcome['success'] & decided).sum()
+               reward_parts: dict[str, torch.Tensor] | None = None) -> None:
         self.current_return += rewards
         self.current_length += 1
         self.steps += 1
@@ -180,10 +157,6 @@ class EpisodeStatistics:
         out = {'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
                'mean_episode_length': float(np.mean(self.lengths)) if self.lengths else math.nan,
                'episodes': self.episodes}
-        decided = int(self.mean_action_decided)
-        if decided:
-            out['mean_action/episodes'] = decided
-            out['mean_action/success_rate'] = int(self.mean_action_successes) / decided
         for key, total in self.log_sums.items():
             out[key] = total / self.log_weights[key]
         for key, total in self.reward_sums.items():
@@ -227,8 +200,6 @@ class OnPolicyRunner:
         self.success_hold = (SuccessHold(cfg.runner.critic_warmup_iterations, amp.hold_success_margin,
                                          amp.hold_success_gain, amp.hold_success_smoothing)
                              if motion_prior is not None and amp is not None and amp.hold_success else None)
-        self.mean_action_rows = mean_action_rows(env.num_envs, amp.hold_success_mean_action_share
-                                                 if self.success_hold is not None else 0.0, self.device)
 
     # --- checkpoints -------------------------------------------------------------------------------
     @property
@@ -322,7 +293,7 @@ class OnPolicyRunner:
         with torch.inference_mode():
             for _ in range(self.storage.num_steps):
                 t0 = time.perf_counter()
-                step = self.alg.act(obs, critic_obs, self.mean_action_rows)
+                step = self.alg.act(obs, critic_obs)
                 self._sync()
                 t1 = time.perf_counter()
                 obs, critic_obs, rewards, dones, extras = self.env.step(step.actions)
@@ -350,8 +321,7 @@ class OnPolicyRunner:
                     style_s += time.perf_counter() - t2
                 else:
                     stream_dones = dones
-                stats.record(rewards if rewards.dim() == 1 else rewards.sum(-1), dones, extras, parts,
-                             self.mean_action_rows)
+                stats.record(rewards if rewards.dim() == 1 else rewards.sum(-1), dones, extras, parts)
                 # A time-limit end is not a real terminal: bootstrap with the value of the state it was cut at.
                 time_outs = extras.get(env_contract.EXTRAS_TIME_OUTS)
                 if time_outs is not None:
@@ -440,9 +410,8 @@ class OnPolicyRunner:
                                    'world_share': world_s / iteration_s, 'style_share': style_s / iteration_s,
                                    **stats.summary(), **losses}
                 if self.success_hold is not None:
-                    held = 'mean_action/' if self.mean_action_rows is not None else ''
-                    self.motion_prior.motion_scale = self.success_hold.observe(
-                        self.last_stats.get(f'{held}success_rate'), self.last_stats.get(f'{held}episodes'))
+                    self.motion_prior.motion_scale = self.success_hold.observe(self.last_stats.get('success_rate'),
+                                                                                self.last_stats.get('episodes'))
                     self.last_stats['motion_scale'] = self.motion_prior.motion_scale
                 log.write(self.last_stats)
                 self._save_checkpoints()

@@ -1,6 +1,6 @@
 """The motion terms' scale, lowered while the returns fall below the skill's own: style as far as returns allow.
 
-    hold = SuccessHold(warmup_iterations=10, margin=0.01, gain=0.15, smoothing=0.1)
+    hold = SuccessHold(warmup_iterations=10, margin=0.03, gain=0.15, smoothing=0.1)
     scale = hold.observe(success_rate, episodes)     # after every iteration; r = w_task r_task + scale * motion
 
 Why. Moving a skill to a new style trades returns for style along the whole run: with fixed weights the
@@ -19,13 +19,6 @@ iterations of a run end few episodes, all started together, and their rates swin
 warm-up iterations are those the runner steps the critic alone (runner.critic_warmup_iterations): the actor
 is still the skill there. Without warm-up iterations the floor is the first iteration's success.
 An iteration in which no episode ended changes nothing.
-
-What is held. The deployed actor takes the mean action; training samples around it. Held on the sampled
-actions' success, a run on `wristy` kept it at 0.83-0.85 over 1400 iterations while the mean action's fell
-from 0.93 to 0.87 on the validation seeds (0.91 to 0.87 in the training world): the style had moved where
-the noise hid its cost. So a share of the environments act with the mean action
-(amp.hold_success_mean_action_share) and the runner gives the hold their success alone; with no share it
-gives the training success over all.
 
 The gain. In the learn_style runs, training success answered the scale about 30 iterations late and fell
 about 0.09 from scale 0 to 1 (least squares on 20-iteration means of their progress.csv). An integral step
