@@ -9,7 +9,8 @@ it ends, so that `--resume` (after Ctrl-C, SIGKILL or a power cut) continues fro
   dataset    RUN/dataset.npz: the clips at 60 Hz and their x2/x3/x5 speed-ups (build_dataset)
   skill      RUN/skill/: the skill to start from, --from as given, else the skill library's (stylepong_policy.
              skills: the shipped style actor's network and models/skills/) validated against the
-             demonstrations on seeds 900 and up and chosen as a candidate is (choose_candidate)
+             demonstrations on seeds 900 and up and chosen as a candidate is (choose_candidate), with
+             room for the success hold: it must return MIN_SUCCESS plus the hold's margin (skill_bar)
   train      RUN/train/: the style learned from that skill with a fresh discriminator and the pose and
              stroke priors, for the training share of the time budget less the skill stage's time; a
              checkpoint every iteration (resumable, with the recipe the run began with) and every
@@ -186,9 +187,16 @@ def fingerprint_of(paths: Paths) -> str:
     return demonstrations_fingerprint(ReferenceDataset.load(paths.dataset))
 
 
-def skill_stage(paths: Paths, state: dict, device: str) -> dict:
+def skill_bar(cfg: TrainConfig) -> float:
+    """The validation success a library skill must return to be a start. Training lets success fall by the
+    hold's margin below the start's (rl.success_hold), and the choice keeps only candidates returning
+    MIN_SUCCESS: a start returning barely MIN_SUCCESS leaves no candidate that has moved towards the style."""
+    return MIN_SUCCESS + cfg.amp.hold_success_margin
+
+
+def skill_stage(paths: Paths, state: dict, device: str, min_success: float) -> dict:
     """The skill to start from (state['skill']): --from as given, else the library's skill whose strokes
-    are nearest the demonstrations on the validation seeds, among those returning MIN_SUCCESS (skills)."""
+    are nearest the demonstrations on the validation seeds, among those returning min_success (skills)."""
     import torch
 
     from stylepong_policy import skills
@@ -206,8 +214,8 @@ def skill_stage(paths: Paths, state: dict, device: str) -> dict:
             actor = export_checkpoint(checkpoint, paths.skill / f'{skill.name}_actor.pt', onnx=False)
             rows.append({'candidate': skill.name, 'path': str(skill.path.resolve()), **validate(actor, paths, device)})
             bar.advance(1)
-    chosen = choose_candidate(rows)
-    (paths.skill / SKILLS_JSON).write_text(json.dumps({'validation': VALIDATION, 'min_success': MIN_SUCCESS,
+    chosen = choose_candidate(rows, min_success)
+    (paths.skill / SKILLS_JSON).write_text(json.dumps({'validation': VALIDATION, 'min_success': min_success,
                                                          'fingerprint': fingerprint, 'skills': rows,
                                                          'chosen': chosen['candidate']}, indent=2) + '\n')
     state['skill'] = chosen['path']
@@ -322,10 +330,10 @@ def choose_stage(paths: Paths, device: str) -> dict:
             'validation_mean_dtw_rad': chosen['mean_dtw_rad']}
 
 
-def choose_candidate(rows: list[dict]) -> dict:
-    """The lowest mean DTW among the rows returning MIN_SUCCESS (a row without DTW counts as far); else the
+def choose_candidate(rows: list[dict], min_success: float = MIN_SUCCESS) -> dict:
+    """The lowest mean DTW among the rows returning min_success (a row without DTW counts as far); else the
     row that returns most."""
-    good = [r for r in rows if r['success_rate'] >= MIN_SUCCESS]
+    good = [r for r in rows if r['success_rate'] >= min_success]
     if not good:
         return max(rows, key=lambda r: r['success_rate'])
     return min(good, key=lambda r: float('inf') if r['mean_dtw_rad'] is None else r['mean_dtw_rad'])
@@ -475,7 +483,7 @@ def run_stage(stage: str, paths: Paths, state: dict, found, cfg: TrainConfig, co
     if stage == 'dataset':
         return dataset_stage(found, paths)
     if stage == 'skill':
-        return skill_stage(paths, state, device)
+        return skill_stage(paths, state, device, skill_bar(cfg))
     if stage == 'train':
         spent_s = state['stages']['skill']['wall_time_s']
         return train_stage(cfg, config_path, paths, pathlib.Path(state['skill']), training_budget_s(minutes, spent_s),

@@ -79,7 +79,8 @@ def test_the_start_is_the_librarys_nearest_skill_and_the_new_network_records_the
     record = json.loads((run / learn_style.SKILL_DIR / learn_style.SKILLS_JSON).read_text())
     offered = skills.offered(skills.library(learn_style.models_dir()), record['fingerprint'])
     assert [row['candidate'] for row in record['skills']] == [skill.name for skill in offered]
-    chosen = learn_style.choose_candidate(record['skills'])
+    assert record['min_success'] == learn_style.skill_bar(learn_style.recipe(None)[0])
+    chosen = learn_style.choose_candidate(record['skills'], record['min_success'])
     assert record['chosen'] == state['stages']['skill']['chosen'] == chosen['candidate']
     assert state['skill'] == chosen['path']
     checkpoint = torch.load(run / learn_style.ACTOR_CHECKPOINT_NAME, map_location='cpu', weights_only=False)
@@ -151,6 +152,16 @@ def test_the_choice_is_the_most_stylish_candidate_that_returns_enough_balls():
     assert learn_style.choose_candidate([dict(r, success_rate=0.5) for r in rows])['candidate'] == 'a'
 
 
+def test_a_start_must_leave_the_success_hold_room_above_the_choices_bar():
+    cfg = learn_style.recipe(None)[0]
+    assert cfg.amp.hold_success_margin > 0.0
+    assert learn_style.skill_bar(cfg) == pytest.approx(learn_style.MIN_SUCCESS + cfg.amp.hold_success_margin)
+    skills_validated = [{'candidate': 'near', 'success_rate': learn_style.MIN_SUCCESS + 0.006, 'mean_dtw_rad': 35.0},
+                        {'candidate': 'far', 'success_rate': learn_style.skill_bar(cfg) + 0.004, 'mean_dtw_rad': 45.0}]
+    assert learn_style.choose_candidate(skills_validated)['candidate'] == 'near'
+    assert learn_style.choose_candidate(skills_validated, learn_style.skill_bar(cfg))['candidate'] == 'far'
+
+
 def test_training_gets_all_but_the_reserve():
     assert REAL_BUDGET(60.0) == 60.0 * 60.0 - learn_style.RESERVE_S
     assert REAL_BUDGET(60.0, spent_s=90.0) == 60.0 * 60.0 - learn_style.RESERVE_S - 90.0
@@ -176,7 +187,8 @@ def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clo
 
 def test_a_skill_given_with_from_is_the_start_without_validating_the_library(tmp_path):
     paths = learn_style.paths_of(tmp_path / 'run')
-    assert learn_style.skill_stage(paths, {'skill': '/given.pt'}, 'cpu') == {'chosen': '/given.pt', 'given': True}
+    given = learn_style.skill_stage(paths, {'skill': '/given.pt'}, 'cpu', learn_style.MIN_SUCCESS)
+    assert given == {'chosen': '/given.pt', 'given': True}
     assert not paths.skill.exists()
 
 
