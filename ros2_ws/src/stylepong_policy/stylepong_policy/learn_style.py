@@ -43,9 +43,9 @@ PROG = 'learn_style'
 STATE_NAME = 'learn_style.json'
 STAGES = ('check', 'dataset', 'skill', 'train', 'choose', 'export', 'evaluate', 'report')
 DEFAULT_MINUTES = 60.0
-# What is not training, within the budget: the world's compilation, choosing, exporting, evaluating and
-# the report (about 6 minutes on a 2-core CPU), with a margin for a loaded machine.
-RESERVE_S = 9.0 * 60.0
+# What is not training, within the budget: checking, the world's compilation, choosing, exporting,
+# evaluating and the report (about 100 s on the 2-core CPU), three times that for a loaded machine.
+RESERVE_S = 5.0 * 60.0
 MIN_TRAIN_S = 60.0
 # Candidates (candidates_of): weight averages of the checkpoints in each of the last WINDOWS of SPLIT spans
 # of the run and of its last third, and the last checkpoint: 7 validations of about 20 s each here.
