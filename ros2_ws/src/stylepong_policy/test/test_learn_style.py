@@ -154,12 +154,13 @@ def test_the_choice_is_the_most_stylish_candidate_that_returns_enough_balls():
 
 def test_a_start_must_leave_the_success_hold_room_above_the_choices_bar():
     cfg = learn_style.recipe(None)[0]
+    bar = learn_style.skill_bar(cfg)
     assert cfg.amp.hold_success_margin > 0.0
-    assert learn_style.skill_bar(cfg) == pytest.approx(learn_style.MIN_SUCCESS + cfg.amp.hold_success_margin)
+    assert bar == pytest.approx(learn_style.MIN_SUCCESS + cfg.amp.hold_success_margin)
     skills_validated = [{'candidate': 'near', 'success_rate': learn_style.MIN_SUCCESS + 0.006, 'mean_dtw_rad': 35.0},
-                        {'candidate': 'far', 'success_rate': learn_style.skill_bar(cfg) + 0.004, 'mean_dtw_rad': 45.0}]
+                        {'candidate': 'far', 'success_rate': bar + 0.004, 'mean_dtw_rad': 45.0}]
     assert learn_style.choose_candidate(skills_validated)['candidate'] == 'near'
-    assert learn_style.choose_candidate(skills_validated, learn_style.skill_bar(cfg))['candidate'] == 'far'
+    assert learn_style.choose_candidate(skills_validated, bar)['candidate'] == 'far'
 
 
 def test_training_gets_all_but_the_reserve():
