@@ -32,6 +32,10 @@ setup(
             'paper_tables = stylepong_policy.paper_tables:main',
             'style_confusion = stylepong_policy.style_confusion:main',
             'learn_style = stylepong_policy.learn_style:main',
+            # The user's pipeline ends in this package (learn_style, then play the actor), so the
+            # player is offered under its name too; the one implementation stays in
+            # stylepong_player, which the robot computer installs without torch.
+            'player = stylepong_player.player_node:main',
         ],
     },
 )
