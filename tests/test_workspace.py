@@ -192,3 +192,63 @@ def test_service_list_and_call(trigger_server):
     assert 'requester: making request: std_srvs.srv.Trigger_Request()' in out
     assert "response:\nstd_srvs.srv.Trigger_Response(success=True, message='call 1')" in out
     assert len(trigger_server) == 1
+
+
+@pytest.fixture
+def listener():
+    """Subscriptions that keep what arrives on /test/enable (Bool) and /test/array (Float64MultiArray)."""
+    from std_msgs.msg import Bool, Float64MultiArray
+    received = {'/test/enable': [], '/test/array': []}
+    with spinning_node('ros2_command_test_listener') as node:
+        for topic, kind in (('/test/enable', Bool), ('/test/array', Float64MultiArray)):
+            node.create_subscription(kind, topic, lambda msg, t=topic: received[t].append((time.monotonic(), msg)),
+                                     10)
+        yield received
+
+
+def _wait_for(predicate, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return predicate()
+
+
+def test_topic_pub_once_enables_like_ros2cli(listener):
+    # The command README gives for enabling the player, on a topic of the test's own.
+    result = subprocess.run(['ros2', 'topic', 'pub', '--once', '/test/enable', 'std_msgs/msg/Bool', '{data: true}'],
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert 'publishing #1: std_msgs.msg.Bool(data=True)' in result.stdout
+    # --once waits for the subscription before publishing, so the one message is not lost.
+    assert _wait_for(lambda: listener['/test/enable'])
+    time.sleep(0.3)
+    assert [msg.data for _, msg in listener['/test/enable']] == [True]
+
+
+def test_topic_pub_times_rate_and_nested_fields(listener):
+    values = '{layout: {dim: [{label: joints, size: 3, stride: 3}], data_offset: 1}, data: [1, 2.5, -3]}'
+    result = subprocess.run(['ros2', 'topic', 'pub', '-t', '3', '-r', '20', '/test/array',
+                             'std_msgs/msg/Float64MultiArray', values], capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.count('publishing #') == 3
+    assert _wait_for(lambda: len(listener['/test/array']) >= 3)
+    arrivals = [t for t, _ in listener['/test/array']]
+    # Three messages at 20 Hz span two periods (0.1 s); a loaded machine may stretch, never shrink, them.
+    assert arrivals[-1] - arrivals[0] > 0.07
+    msg = listener['/test/array'][-1][1]
+    assert list(msg.data) == [1.0, 2.5, -3.0]          # YAML's int 1 became the double the field holds
+    assert msg.layout.data_offset == 1
+    assert [(d.label, d.size, d.stride) for d in msg.layout.dim] == [('joints', 3, 3)]
+
+
+@pytest.mark.parametrize('values, complaint', [
+    ('{dat: true}', "has no attribute 'dat'"),
+    ('{data: 3}', 'expected true or false'),
+    ('[true]', 'expected a mapping'),
+])
+def test_topic_pub_refuses_a_bad_message_before_publishing(values, complaint):
+    result = subprocess.run(['ros2', 'topic', 'pub', '--once', '/test/never', 'std_msgs/msg/Bool', values],
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode != 0
+    assert complaint in result.stderr
+    assert 'publishing' not in result.stdout
