@@ -10,8 +10,8 @@ in one child process (`python3 -m tests.test_documented_commands`), so nothing a
 """
 import argparse
 import ast
-import inspect
 import importlib
+import inspect
 import json
 import pathlib
 import re

@@ -34,8 +34,9 @@ from stylepong_recording.bag_check import (
 )
 
 RATE_HZ = 500.0
-# The recorder flushes every 0.1 s (README: "a killed recorder loses at most that much"); a message counts
-# from when it reaches the recorder, which on this machine is within DELIVERY_S of its publication.
+# The recorder flushes every 0.1 s, so a killed recorder loses at most that much (docs/DESIGN.md, "Recorder
+# flush and recovery"); a message counts from when it reaches the recorder, which on this machine is within
+# DELIVERY_S of its publication.
 FLUSH_PERIOD_S = 0.1
 DELIVERY_S = 0.02
 

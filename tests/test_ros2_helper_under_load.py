@@ -17,7 +17,7 @@ import pytest
 
 from stylepong_common.node_process import NodeProcess, wait_until
 
-# The cell's own topics (README, "The simulated cell").
+# The cell's own topics (docs/DESIGN.md, "Topics").
 CELL_TOPICS = {'/joint_states', '/force_torque_sensor_broadcaster/wrench', '/clock', '/rally/events',
                '/forward_position_controller/commands', '/sim/hand_wrench'}
 LIST_RUNS = 4     # each a fresh participant discovering the cell on busy cores
