@@ -1,9 +1,10 @@
 """Every command the documentation shows exists as shown.
 
-The `ros2 run <package> <executable> ...` commands of README.md, docs/DESIGN.md and every package's
-README must name a console script of that package's setup.py, and every flag written before
-`--ros-args` must be one that executable's argument parser accepts; every `make <target>` must be a
-target of the Makefile. A renamed flag or executable then fails here instead of in a reader's shell.
+The `ros2 run <package> <executable> ...` commands of README.md, docs/DESIGN.md, every package's
+README, tools/README.md and demonstrations/README.md must name a console script of that package's
+setup.py, and every flag written before `--ros-args` must be one that executable's argument parser
+accepts; every `make <target>` must be a target of the Makefile. A renamed flag or executable then
+fails here instead of in a reader's shell.
 
 No ROS graph and no node: each executable's parser is captured the moment its `main` asks it to parse,
 in one child process (`python3 -m tests.test_documented_commands`), so nothing after the parsing runs.
@@ -21,7 +22,8 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / 'README.md', ROOT / 'docs' / 'DESIGN.md', *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md'))]
+DOCUMENTS = [ROOT / 'README.md', ROOT / 'docs' / 'DESIGN.md', *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md')),
+             ROOT / 'tools' / 'README.md', ROOT / 'demonstrations' / 'README.md']
 
 FENCE = re.compile(r'^```[^\n]*\n(.*?)^```', re.M | re.S)
 INLINE = re.compile(r'`([^`]+)`')
