@@ -513,7 +513,7 @@ def main(argv: list[str] | None = None) -> int:
               f'{PROG} {shlex.quote(str(args.source))} --out {shlex.quote(str(args.out))} --resume', file=sys.stderr)
         return 130
     say(f'done: {args.out / ACTOR_NAME} (+ .json, .onnx); report {report}')
-    say(f'play it: ros2 run stylepong_player player --ros-args -p actor:={args.out / "actor.onnx"}')
+    say(f'play it: ros2 run stylepong_policy player --ros-args -p actor:={args.out / "actor.onnx"}')
     return 0
 
 
