@@ -177,6 +177,28 @@ def test_documented_make_target_exists(document, target):
     assert re.search(rf'^{re.escape(target)}\s*:', makefile, re.M), f'{document} shows `make {target}`'
 
 
+def heading_anchors(document: pathlib.Path) -> set[str]:
+    """The anchors GitHub gives a document's headings: lower case, punctuation dropped, spaces to '-'."""
+    prose = FENCE.sub('', document.read_text())
+    return {re.sub(r'[^\w\- ]', '', heading.strip().lower()).replace(' ', '-')
+            for heading in re.findall(r'^#+\s+(.*)$', prose, re.M)}
+
+
+LINKED_DOCUMENTS = sorted({*DOCUMENTS, ROOT / 'experiments' / 'README.md', ROOT / 'results' / 'README.md'})
+
+
+@pytest.mark.parametrize('document', LINKED_DOCUMENTS, ids=lambda d: str(d.relative_to(ROOT)))
+def test_links_to_sections_resolve(document):
+    # DESIGN's sections are linked from READMEs and named in code comments; a renamed heading must not
+    # leave a link pointing at nothing.
+    broken = []
+    for target, anchor in re.findall(r'\]\(([^)\s#]*)#([^)\s]+)\)', FENCE.sub('', document.read_text())):
+        path = (document.parent / target).resolve() if target else document
+        if not path.is_file() or anchor not in heading_anchors(path):
+            broken.append(f'{target}#{anchor}')
+    assert not broken, f'{document.relative_to(ROOT)} links to missing sections: {broken}'
+
+
 def test_a_missing_flag_is_caught():
     # The capture itself must see a parser's flags, or the flag test above would pass on anything.
     flags = capture_flags('stylepong_recording.compress_bag:main')
