@@ -80,12 +80,14 @@ export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 # ur5_sim finishes the MP4 on Ctrl-C: give it time.
 NODE_GRACE_S=15
 source tools/node_group.sh
-echo "[demo] playing $ACTOR through ROS: ur5_sim + player + rally_eval, $BALLS balls of seed 1000 (about $((BALLS * 5 / 60 + 1)) min)"
+echo "[demo] playing $ACTOR through ROS: ur5_sim + ball_estimator + player + rally_eval, $BALLS balls of seed 1000 (about $((BALLS * 5 / 60 + 1)) min)"
 # max_lag_s: when rendering or a busy machine holds the cell back, it runs slower than real time rather
 # than catching up in bursts that the player's commands could not reach in time.
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
   -p video_width:=480 -p video_height:=352 -p video_fps:=25.0
-start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
+# The cell's tracker reports positions only, as a real one does; ball_estimator gives the player the ball's state.
+start_node "$LOGS/ball_estimator.log" ros2 run stylepong_player ball_estimator --ros-args -p use_sim_time:=true
+start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 # The browser viewer on the same graph: the arm, the ball and the plots, live while the rally is played.
 start_node "$LOGS/viewer.log" ros2 run stylepong_viz viewer --web-port "${VIEWER_PORT:-9090}" --grpc-port "${VIEWER_GRPC_PORT:-9876}"
 for _ in $(seq 150); do grep -q '^viewer: open' "$LOGS/viewer.log" && break; sleep 0.1; done
@@ -113,4 +115,4 @@ echo "[demo]   rally result $DEMO_DIR/rally.json; rally video $DEMO_DIR/rally.mp
 echo "[demo] next, a style of your own: learn one from the clip just recorded (a folder of your labelled clips"
 echo "[demo]   works the same), then play it (learn_style takes about 60 min on a 2-core CPU):"
 echo "[demo]   ros2 run stylepong_policy learn_style $BAG --out runs/my_style"
-echo "[demo]   ros2 run stylepong_player player --ros-args -p actor:=runs/my_style/actor.onnx"
+echo "[demo]   ros2 run stylepong_policy player --ros-args -p actor:=runs/my_style/actor.onnx"

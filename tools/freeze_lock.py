@@ -13,7 +13,8 @@ import sys
 HEADER = """# Pinned Python environment of StylePong, as tested (Debian 12, CPython 3.11).
 # Direct needs: ROS 2 Jazzy wheels (rclpy, common interfaces, rosidl/ament build tools), colcon,
 # pin, example-robot-data, mujoco, rosbags, torch (CPU build), numpy, pytest, matplotlib, tensorboard,
-# mcap + mcap-ros2-support, imageio + imageio-ffmpeg (MP4 videos), tqdm, pyyaml.
+# mcap + mcap-ros2-support, imageio + imageio-ffmpeg (MP4 videos), tqdm, pyyaml, rerun-sdk (the browser viewer),
+# pybullet (the second cell, ur5_bullet), filterpy (the ball estimator's Kalman filter; brings scipy).
 # Regenerate after a tested change: .venv/bin/python tools/freeze_lock.py > requirements.lock
 """
 

@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
-# The sim2sim test through ROS: ur5_sim with realistic sensing + player + rally_eval, and its result.
+# The sim2sim test through ROS: ur5_sim with realistic sensing + ball_estimator + player + rally_eval, and its result.
 #
 #   tools/sim2sim.sh [--actor PATH.pt] [--seeds 10] [--first-seed 1000] [--balls 20] [--json OUT.json]
 #                    [--engine mujoco|pybullet] [--actuator ideal|ur_servoj] [--servo-rate-hz 125]
-#                    [--lookahead-s 0.03] [--gain 2000]
+#                    [--lookahead-s 0.03] [--gain 2000] [--ball-source estimator|cell]
 #
+# --ball-source estimator (the default): the cell's tracker publishes positions only
+# (config/tracker_sensing.yaml: 150 Hz, 20 ms, 3 mm, lost and false detections) and ball_estimator gives the
+# player /ball/state; cell: the path before the estimator, the cell's /ball/state with noisy velocities
+# (config/realistic_sensing.yaml), kept for comparison.
 # --engine pybullet runs the PyBullet cell (Bullet's own contacts: the paper's Table IV setting); --actuator
 # ur_servoj puts the UR controller's servoj between the player's commands and the joints (ur_servoj.py).
-# ur5_sim runs with config/realistic_sensing.yaml (camera noise, 25 ms latency, lost frames, F/T noise),
-# paced by the wall clock; the player runs the actor's ONNX export on the cell's /clock; rally_eval serves
+# ur5_sim is paced by the wall clock; the player runs the actor's ONNX export on the cell's /clock; rally_eval serves
 # the balls of `evaluate`'s seeds through /sim/launch_ball and scores each rally. The JSON has
 # `evaluate`'s fields plus `world` (the setting) and the player's timing; Table IV of `paper_tables`
 # reads results/sim2sim_*.json. Needs `source ros2_ws/install/setup.bash`.
@@ -24,6 +27,7 @@ ACTUATOR=ideal
 SERVO_RATE_HZ=125.0
 LOOKAHEAD_S=0.03
 GAIN=2000.0
+BALL_SOURCE=estimator
 COMMAND="tools/sim2sim.sh $*"
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -37,42 +41,52 @@ while [ $# -gt 0 ]; do
     --servo-rate-hz) SERVO_RATE_HZ=$2; shift 2 ;;
     --lookahead-s) LOOKAHEAD_S=$2; shift 2 ;;
     --gain) GAIN=$2; shift 2 ;;
+    --ball-source) BALL_SOURCE=$2; shift 2 ;;
     *) echo "sim2sim: unknown argument $1" >&2; exit 2 ;;
   esac
 done
 case "$ENGINE" in mujoco|pybullet) ;; *) echo "sim2sim: --engine must be mujoco or pybullet, got '$ENGINE'" >&2; exit 2 ;; esac
 case "$ACTUATOR" in ideal|ur_servoj) ;; *) echo "sim2sim: --actuator must be ideal or ur_servoj, got '$ACTUATOR'" >&2; exit 2 ;; esac
+case "$BALL_SOURCE" in
+  estimator) SENSING_FILE=tracker_sensing.yaml ;;
+  cell) SENSING_FILE=realistic_sensing.yaml ;;
+  *) echo "sim2sim: --ball-source must be estimator or cell, got '$BALL_SOURCE'" >&2; exit 2 ;;
+esac
 [ -f "${ACTOR%.pt}.onnx" ] || { echo "sim2sim: ${ACTOR%.pt}.onnx is missing (python3 -m stylepong_policy.rl.export --onnx $ACTOR)" >&2; exit 2; }
-SENSING="$(ros2 pkg prefix stylepong_sim)/share/stylepong_sim/config/realistic_sensing.yaml"
+SENSING="$(ros2 pkg prefix stylepong_sim)/share/stylepong_sim/config/$SENSING_FILE"
 LOGS=$(mktemp -d /tmp/sim2sim.XXXXXX)
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 source tools/node_group.sh
-echo "[sim2sim] $ACTOR through ROS: ur5_sim (engine $ENGINE, actuator $ACTUATOR, realistic sensing) + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
+echo "[sim2sim] $ACTOR through ROS: ur5_sim (engine $ENGINE, actuator $ACTUATOR, $SENSING_FILE) + ball source $BALL_SOURCE + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING" -p engine:="$ENGINE" \
   -p actuator:="$ACTUATOR" -p servo_rate_hz:="$SERVO_RATE_HZ" -p lookahead_s:="$LOOKAHEAD_S" -p gain:="$GAIN"
 sleep 3
 # The cell refuses a bad setting at start (one line, exit code 2): pass it on rather than wait for it.
 kill -0 "${NODE_PIDS[0]}" 2>/dev/null || { grep -v '^\[' "$LOGS/ur5_sim.log" >&2; exit 2; }
-start_node "$LOGS/player.log" ros2 run stylepong_player player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
+[ "$BALL_SOURCE" = cell ] || start_node "$LOGS/ball_estimator.log" ros2 run stylepong_player ball_estimator --ros-args -p use_sim_time:=true
+start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 mkdir -p "$(dirname "$JSON")"
 ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed "$FIRST_SEED" --seeds "$SEEDS" --speed all \
   --json "$JSON.part" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[sim2sim]   /'
 stop_nodes
-python3 - "$JSON.part" "$JSON" "$ACTOR" "$ENGINE" "$ACTUATOR" "$SERVO_RATE_HZ" "$LOOKAHEAD_S" "$GAIN" "$COMMAND" <<'PY'
+python3 - "$JSON.part" "$JSON" "$ACTOR" "$ENGINE" "$ACTUATOR" "$SERVO_RATE_HZ" "$LOOKAHEAD_S" "$GAIN" "$COMMAND" "$BALL_SOURCE" <<'PY'
 import json
 import pathlib
 import sys
 
 part, out, actor = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), sys.argv[3]
-engine, actuator, rate_hz, lookahead_s, gain, command = sys.argv[4:10]
+engine, actuator, rate_hz, lookahead_s, gain, command, ball_source = sys.argv[4:11]
 result = json.loads(part.read_text())
 cell = 'ur5_sim (MuJoCo cell)' if engine == 'mujoco' else 'ur5_sim engine pybullet (PyBullet cell, Bullet contacts)'
 drive = ('ideal actuator' if actuator == 'ideal' else
          f'ur_servoj actuator at {float(rate_hz):g} Hz, look-ahead {float(lookahead_s):g} s, gain {float(gain):g}')
 seeds = result['seeds']
+sensing = ('a 150 Hz tracker reporting positions (config/tracker_sensing.yaml) and ball_estimator'
+           if ball_source == 'estimator' else
+           "the cell's /ball/state with noisy velocities (config/realistic_sensing.yaml)")
 result['world'] = (f'{cell} through ROS, {drive}: player (ONNX, commands streamed, ball carried forward) + '
-                   f'rally_eval, realistic sensing (config/realistic_sensing.yaml), wall-clock paced, '
-                   f'seeds {seeds[0]}-{seeds[-1]}')
+                   f'rally_eval, {sensing}, wall-clock paced, seeds {seeds[0]}-{seeds[-1]}')
+result['ball_source'] = ball_source
 result['engine'] = engine
 result['actuator'] = {'model': actuator, 'servo_rate_hz': float(rate_hz), 'lookahead_s': float(lookahead_s),
                       'gain': float(gain)}

@@ -17,12 +17,13 @@ setup(
     zip_safe=True,
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
-    description='The trained actor on the robot: the observation/action contract, the exported actor checks and '
-                'the 60 Hz player node, without torch or the simulator.',
+    description='The trained actor on the robot: the observation/action contract, the exported actor checks, '
+                'the ball estimator and the 60 Hz player node, without torch or the simulator.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
             'player = stylepong_player.player_node:main',
+            'ball_estimator = stylepong_player.ball_estimator_node:main',
         ],
     },
 )

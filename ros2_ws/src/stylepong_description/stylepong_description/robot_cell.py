@@ -30,6 +30,11 @@ CELL_HALF_EXTENT_M = (5.0, 4.0)
 # The table's playing surface above the floor (ITTF).
 TABLE_HEIGHT_M = 0.76
 
+# The UR5 base stands on a pedestal behind the robot's end line, facing +x. From there the paddle
+# (tool flange to blade centre 0.175 m) reaches balls that bounce on the robot's half and rise past
+# the end line, across the table's width. Behind it a ball is out of play (the ball estimator's volume).
+ROBOT_BASE_POSITION_M = (-HALF_LENGTH_M - 0.45, 0.0, TABLE_HEIGHT_M - 0.10)
+
 # The ball (ITTF) in flight: gravity and air drag, a = -k |v| v with k = rho C_D A / (2 m).
 GRAVITY_M_S2 = 9.81
 BALL_MASS_KG = 0.0027

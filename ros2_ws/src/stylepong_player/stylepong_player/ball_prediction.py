@@ -23,7 +23,8 @@ from stylepong_description import robot_cell
 STEP_S = 0.002     # integration step; over 50 ms it errs by well under a millimetre
 
 
-def _over_table(x_m: float, y_m: float) -> bool:
+def over_table(x_m: float, y_m: float) -> bool:
+    """Whether a point's (x, y) lies over the table's top."""
     return abs(x_m) <= robot_cell.HALF_LENGTH_M and abs(y_m) <= robot_cell.HALF_WIDTH_M
 
 
@@ -41,7 +42,7 @@ def predict_ball(position_m: Sequence[float], velocity_m_s: Sequence[float],
         vy -= drag * vy * dt
         vz -= (robot_cell.GRAVITY_M_S2 + drag * vz) * dt
         x_next, y_next, z_next = x + vx * dt, y + vy * dt, z + vz * dt
-        if vz < 0.0 and z >= robot_cell.TABLE_CONTACT_HEIGHT_M > z_next and _over_table(x_next, y_next):
+        if vz < 0.0 and z >= robot_cell.TABLE_CONTACT_HEIGHT_M > z_next and over_table(x_next, y_next):
             # The bounce, at the instant of contact within the step: up from the table for the rest of it.
             before = (z - robot_cell.TABLE_CONTACT_HEIGHT_M) / (z - z_next)
             vx *= robot_cell.TABLE_TANGENTIAL_FACTOR

@@ -14,12 +14,12 @@ more than joint_timeout_periods after the previous one starts again from the mea
 one sooner continues the previous segment, so consecutive commands always keep the limits.
 
 Timing (the actor was trained with at most 1/60 s between observation and actuation and breaks when
-actuation timing drifts): while playing, a policy step runs when a ball message arrives whose stamp is
-at least (1 - PHASE_TOLERANCE) of a period after the stamp of the ball that drove the previous step, so
-the player is phase-locked to the camera (every second frame of a 120 Hz camera) and acts on each ball
-observation as soon as it arrives. If no such message comes within FALLBACK_PERIODS periods of the last
-step (lost frames, a slower camera), the step runs anyway on the latest ball (checked at every joint
-state). Ready moves, where nothing is fast, run on a plain 60 Hz timer.
+actuation timing drifts): while playing, policy steps keep a 60 Hz grid on the node's clock, anchored at
+the first one. A ball message that arrives within STEP_TOLERANCE_PERIODS of a grid point drives that step
+at once (the freshest ball: with a 120 Hz tracker every second frame, so the grid locks to its phase);
+if none has come STEP_TOLERANCE_PERIODS after it (a lost frame, a tracker whose rate is no multiple of
+60 Hz such as 150 Hz), the step runs on the latest ball, carried forward to the step (checked at every
+joint state). Ready moves, where nothing is fast, run on a plain 60 Hz timer.
 
 Every command passes CommandLimiter: within the URDF position limits less a margin, at most the velocity
 limit per period and the acceleration limit, braking early enough that the position limits hold without
@@ -58,16 +58,14 @@ from stylepong_player.actor_contract import (
 from stylepong_player.ball_prediction import predict_ball
 
 FRAME_WORLD = 'world'
-# A ball message may drive a step when its stamp is this fraction of a period short of a full period
-# after the previous step's ball: a 120 Hz camera's frames are half a period apart, so exactly every
-# second one qualifies, and jitter of a quarter period in the stamps changes nothing.
-PHASE_TOLERANCE = 0.25
-# No qualifying ball message this many periods after the last step: step on the latest ball anyway. Just
-# over one period: a late or lost camera frame costs one step on a ball one frame older (within the
-# observation delays the actor was trained with) rather than a late step; at 1.25 periods these steps
-# set the period jitter's p99 (4.2 ms against 0.5 ms, benchmarks/50_player.py, rally ends in ur5_sim).
-FALLBACK_PERIODS = 1.05
-# Steps closer together than this (in arrival time) are refused, whatever the stamps say (a burst).
+# A ball message arriving this close (in periods) to a step's grid point drives the step; none by this
+# long after it: the step runs on the latest ball. Small, so that steps stay within a few milliseconds of
+# the 60 Hz the actor was trained at whatever the tracker's rate: stepping on the first frame a quarter
+# period early ran a 150 Hz tracker's steps 13 and 20 ms apart, and stepping only a period after the last
+# step let the 20 ms gaps fall to the fallback. A ball a frame older costs nothing: it is carried forward.
+STEP_TOLERANCE_PERIODS = 0.1
+# Steps closer together than this are refused: a step that ran late (its ball was late) is not followed at
+# once by the next grid point's.
 MIN_STEP_SPACING_PERIODS = 0.5
 # Measured joints may lie a little outside the URDF limits (encoder noise, a controller's overshoot).
 JOINT_POSITION_TOLERANCE_RAD = 0.05
@@ -381,6 +379,7 @@ class PlayerConfig:
     ball_timeout_s: float = 0.05
     max_ball_age_s: float = 0.2
     max_ball_speed_m_s: float = 30.0
+    max_ball_velocity_std_m_s: float = 1.0
     stream_commands: bool = True
     predict_ball: bool = True
 
@@ -453,7 +452,7 @@ class Player:
         self._qd: np.ndarray | None = None
         self._joint_received_s = -math.inf
         self._ball: _Ball | None = None
-        self._step_ball_stamp_s = -math.inf     # stamp of the ball that drove the last policy step
+        self._grid_s = -math.inf                # the next policy step's place on the 60 Hz grid (node clock)
         self._last_step_s = -math.inf
         self._last_command_s = -math.inf
         self._last_command_wall_s = -math.inf
@@ -513,7 +512,7 @@ class Player:
         return None
 
     def on_ball(self, frame_id: str, stamp_s: float, position_m: Sequence[float], velocity_m_s: Sequence[float],
-                now_s: float) -> str | None:
+                now_s: float, velocity_covariance: Sequence[float] = (0.0,) * 9) -> str | None:
         """Accept a BallState's fields, or return why not."""
         if frame_id.lstrip('/') != FRAME_WORLD:
             return self._reject('ball_frame', f'ball state in frame {frame_id!r}, expected {FRAME_WORLD!r}')
@@ -526,6 +525,14 @@ class Player:
             return self._reject('ball_outside_cell', f'ball position {np.round(p, 2).tolist()} m is outside the cell')
         if float(np.linalg.norm(v)) > self.config.max_ball_speed_m_s:
             return self._reject('ball_speed', f'ball speed {float(np.linalg.norm(v)):.1f} m/s is implausible')
+        variances = np.asarray(velocity_covariance, dtype=float).reshape(-1)
+        if variances.shape != (9,) or not np.isfinite(variances).all():
+            return self._reject('ball_not_finite', 'ball velocity covariance is not 9 finite numbers')
+        velocity_std = float(np.sqrt(max(variances[[0, 4, 8]].max(), 0.0)))
+        if velocity_std > self.config.max_ball_velocity_std_m_s:
+            # An estimate that has not settled yet (a new ball, a bounce): the actor would swing at a guess.
+            return self._reject('ball_uncertain', f'ball velocity uncertain ({velocity_std:.2f} m/s std, accepted '
+                                                  f'up to {self.config.max_ball_velocity_std_m_s} m/s)')
         age_s = now_s - stamp_s
         if stamp_s <= 0.0 or not -self.period_s <= age_s <= self.config.max_ball_age_s:
             return self._reject('ball_stamp', f'ball stamp {stamp_s:.3f} s is {age_s:.3f} s old at {now_s:.3f} s '
@@ -560,11 +567,18 @@ class Player:
             return True            # a ball has come: start playing at once
         if now_s - self._last_step_s < MIN_STEP_SPACING_PERIODS * self.period_s:
             return False
-        return self._ball.stamp_s - self._step_ball_stamp_s >= (1.0 - PHASE_TOLERANCE) * self.period_s
+        return now_s >= self._grid_s - STEP_TOLERANCE_PERIODS * self.period_s
+
+    def _advance_step_grid(self, now_s: float) -> None:
+        """After a policy step: the next grid point, a period on; after a gap (the first step, joint states
+        that stopped) the grid starts again a period after this step."""
+        if abs(now_s - self._grid_s) > self.period_s:
+            self._grid_s = now_s
+        self._grid_s += self.period_s
 
     def fallback_step_due(self, now_s: float) -> bool:
         """While playing: no ball message qualified in time, step on the latest ball."""
-        return self.state == State.PLAYING and now_s - self._last_step_s >= FALLBACK_PERIODS * self.period_s
+        return self.state == State.PLAYING and now_s >= self._grid_s + STEP_TOLERANCE_PERIODS * self.period_s
 
     def timer_step_due(self, now_s: float) -> bool:
         """The 60 Hz timer drives ready moves (and notices a ball gone stale while playing)."""
@@ -592,11 +606,11 @@ class Player:
         elif self.state == State.READY and self.ball_fresh(now_s):
             self.state = State.PLAYING
             self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)   # as at a training episode start
-            self._step_ball_stamp_s = -math.inf
+            self._grid_s = -math.inf
         policy = self.state == State.PLAYING
         if policy:
             command = self._policy_command(now_s)
-            self._step_ball_stamp_s = self._ball.stamp_s
+            self._advance_step_grid(now_s)
             self._last_step_s = now_s
         else:
             command = self.limiter.step(_HOME, self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2)

@@ -1,7 +1,7 @@
 """`ros2 run stylepong_player player`: the trained actor at 60 Hz on a UR5 (real, or ur5_sim).
 
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
-            frame world, stamp = instant observed), /player/goal (geometry_msgs/PointStamped, frame world),
+            frame world, stamp = instant observed: the ball estimator's output, never the simulator's truth), /player/goal (geometry_msgs/PointStamped, frame world),
             /player/enable (std_msgs/Bool: true enables, false disables)
 Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order; with
             stream_commands one per joint state along the straight path to the latest 60 Hz command, else
@@ -74,6 +74,8 @@ PARAMETERS = (
     Param('max_ball_age_s', _D.max_ball_age_s, 'ball messages stamped longer ago than this are rejected',
           low=0.01, high=2.0),
     Param('max_ball_speed_m_s', _D.max_ball_speed_m_s, 'faster ball messages are rejected', low=1.0, high=100.0),
+    Param('max_ball_velocity_std_m_s', _D.max_ball_velocity_std_m_s, 'ball states whose velocity is less certain '
+          '(largest per-axis std of velocity_covariance) are rejected', low=0.01, high=100.0),
     Param('stream_commands', _D.stream_commands, 'publish on every joint state the point on the straight path to '
           'the latest command (reached one period after its step); false: one command per 60 Hz period'),
     Param('predict_ball', _D.predict_ball, "carry the ball forward from its message's stamp to the step "
@@ -95,7 +97,8 @@ class PlayerNode(Node):
                 home_speed_rad_s=value['home_speed_rad_s'], home_acceleration_rad_s2=value['home_acceleration_rad_s2'],
                 home_tolerance_rad=value['home_tolerance_rad'], joint_timeout_periods=value['joint_timeout_periods'],
                 ball_timeout_s=value['ball_timeout_s'], max_ball_age_s=value['max_ball_age_s'],
-                max_ball_speed_m_s=value['max_ball_speed_m_s'], stream_commands=value['stream_commands'],
+                max_ball_speed_m_s=value['max_ball_speed_m_s'],
+                max_ball_velocity_std_m_s=value['max_ball_velocity_std_m_s'], stream_commands=value['stream_commands'],
                 predict_ball=value['predict_ball'])
             config.validate()
         except ValueError as error:
@@ -147,7 +150,8 @@ class PlayerNode(Node):
         now_s = self._now_s()
         stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         p, v = msg.position, msg.velocity
-        problem = self.core.on_ball(msg.header.frame_id, stamp_s, (p.x, p.y, p.z), (v.x, v.y, v.z), now_s)
+        problem = self.core.on_ball(msg.header.frame_id, stamp_s, (p.x, p.y, p.z), (v.x, v.y, v.z), now_s,
+                                    msg.velocity_covariance)
         if problem:
             self._warnings.warn('ball', lambda: f'/ball/state rejected: {problem}')
         elif self.core.ball_step_due(now_s):

@@ -58,7 +58,7 @@ from stylepong_sim.referee import REASON_RETURNED
 
 HOME_TOLERANCE_RAD = 0.02
 REST_SPEED_RAD_S = 0.05
-BALL_GONE_S = 0.3                 # no /ball/state for this long (wall): the ball has left the cell
+BALL_GONE_S = 0.3                 # no /sim/ball/ground_truth for this long (wall): the ball has left the cell
 
 
 @dataclass
@@ -133,7 +133,8 @@ class RallyEvalNode(Node):
         self.last_ball_wall_s = -float('inf')
         self.create_subscription(RallyEvent, '/rally/events', self.events.append, QoSProfile(depth=100))
         self.create_subscription(String, '/player/status', self._on_status, qos)
-        self.create_subscription(BallState, '/ball/state', self._on_ball, qos)
+        # The cell's truth, not /ball/state: whether a ball is still in the cell is the referee's business.
+        self.create_subscription(BallState, '/sim/ball/ground_truth', self._on_ball, qos)
         self._joint_sub = None
         self.enable_pub = self.create_publisher(Bool, '/player/enable', qos)
         self.goal_pub = self.create_publisher(PointStamped, '/player/goal', qos)

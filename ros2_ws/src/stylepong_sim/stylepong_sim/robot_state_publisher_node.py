@@ -69,10 +69,11 @@ class RobotStateOutputs:
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
         self._tf_pub = node.create_publisher(TFMessage, '/tf', TF_QOS)
 
-    def publish_description_and_static(self, stamp) -> None:
-        """Once at start: the URDF and every fixed transform (latched for late subscribers)."""
+    def publish_description_and_static(self, stamp, extra: tuple[LinkTransform, ...] = ()) -> None:
+        """Once at start: the URDF and every fixed transform, the robot's and `extra` (a sensor's frame), in one
+        latched message (a second /tf_static message from this publisher would replace the first)."""
         self._description_pub.publish(String(data=self.urdf_xml))
-        fixed = [base_in_world()] + self.state.fixed_transforms()
+        fixed = [base_in_world()] + self.state.fixed_transforms() + list(extra)
         self._static_pub.publish(TFMessage(transforms=[_to_message(t, stamp) for t in fixed]))
 
     def publish_joint_positions(self, positions_rad, stamp) -> None:

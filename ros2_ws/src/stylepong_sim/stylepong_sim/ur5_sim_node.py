@@ -18,14 +18,23 @@ Publishes (QoS reliable, depth 10, as ros2_control's broadcasters; events depth 
                                                                       wrench the environment applies on the tool
                                                                       (paddle weight, hand, contacts) about tool0;
                                                                       ft_include_inertia adds the tool's inertia
-  /ball/state                              stylepong_msgs/BallState   ball_state_rate_hz (120), frame world,
-                                                                      stamp = instant observed; nothing at all
-                                                                      while no ball is in play
+  /ball/detection                          geometry_msgs/PointStamped ball_detection_rate_hz (150): what a
+                                                                      ball tracker reports (tracker.py): the
+                                                                      centre in frame ball_camera, stamp =
+                                                                      exposure; noise, latency, lost frames
+                                                                      and false detections are parameters
+  /sim/ball/ground_truth                   stylepong_msgs/BallState   ball_state_rate_hz (120), frame world: the
+                                                                      true state, for tests and evaluation only
+                                                                      (nothing on the robot side reads it)
+  /ball/state                              stylepong_msgs/BallState   only with publish_ball_state: the ball with
+                                                                      camera noise on position and velocity
+                                                                      (the path before the estimator, kept for
+                                                                      comparison); else ball_estimator's topic
   /rally/events                            stylepong_msgs/RallyEvent  on event, stamp = when it happened
   /clock                                   rosgraph_msgs/Clock        clock_rate_hz (1000: every physics step)
   /robot_description, /tf_static          std_msgs/String, tf2_msgs/TFMessage: once, transient local (as
                                                                       robot_state_publisher: the URDF, fixed joints,
-                                                                      world -> base_link)
+                                                                      world -> base_link; world -> ball_camera)
   /tf                                      tf2_msgs/TFMessage         tf_rate_hz (100): the six joint transforms
   /cell/markers                            visualization_msgs/MarkerArray marker_rate_hz (30), transient local:
                                                                       table, net, ball (DELETE when none), frame world
@@ -43,7 +52,8 @@ Services:
   /sim/reset         std_srvs/Trigger            robot to home at rest, ball removed (its rally ends 'aborted')
 Parameters: PARAMETERS below, all of them with their defaults in config/ur5_sim.yaml (read at start-up; a bad
 one stops the node with one line on stderr and exit code 2, stylepong_common.node_support); sensing levels for
-robustness tests: config/realistic_sensing.yaml. record_video: '' (off), a path ending in .mp4, or a folder
+robustness tests: config/tracker_sensing.yaml (a 150 Hz stereo tracker, for ball_estimator) and
+config/realistic_sensing.yaml (the older path: /ball/state with noisy velocities, publish_ball_state). record_video: '' (off), a path ending in .mp4, or a folder
 for PNG frames. real_time_factor alone can be changed at run time.
 """
 from __future__ import annotations
@@ -54,7 +64,7 @@ import time
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PointStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.node import Node
@@ -67,6 +77,7 @@ from visualization_msgs.msg import MarkerArray
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node, typed_value
 from stylepong_description import robot_model
+from stylepong_description.robot_state import LinkTransform
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import ur_servoj, world_spec
@@ -74,6 +85,7 @@ from stylepong_sim.cell_inputs import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputEr
 from stylepong_sim.cell_markers import cell_markers
 from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
 from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
+from stylepong_sim.tracker import FRAME_CAMERA, BallTracker, TrackerConfig
 
 PROGRAM = 'ur5_sim'
 MUJOCO, PYBULLET = 'mujoco', 'pybullet'
@@ -106,7 +118,22 @@ PARAMETERS = (
           'Start and reset pose, 6 joint positions (rad) in URDF order', length=robot_model.NUM_JOINTS),
     Param('joint_state_rate_hz', 500.0, '/joint_states rate', low=1.0, high=MAX_RATE_HZ),
     Param('wrench_rate_hz', 500.0, 'F/T wrench rate', low=1.0, high=MAX_RATE_HZ),
-    Param('ball_state_rate_hz', 120.0, '/ball/state rate (camera)', low=1.0, high=MAX_RATE_HZ),
+    Param('ball_state_rate_hz', 120.0, '/sim/ball/ground_truth (and /ball/state) rate', low=1.0, high=MAX_RATE_HZ),
+    Param('publish_ball_state', False, '/ball/state from the cell (noisy position and velocity, the path before '
+          'ball_estimator); false: /ball/state is left to ball_estimator'),
+    Param('ball_detection_rate_hz', TrackerConfig.rate_hz, '/ball/detection rate (tracker frames)', low=1.0,
+          high=MAX_RATE_HZ),
+    Param('ball_detection_latency_s', 0.0, 'Tracker: exposure to message', low=0.0, high=1.0),
+    Param('ball_detection_latency_jitter_s', 0.0, 'Tracker: latency varies uniformly by this much either way',
+          low=0.0, high=1.0),
+    Param('ball_detection_noise_std_m', 0.0, 'Tracker: position noise (std, per axis)', low=0.0, high=1.0),
+    Param('ball_detection_dropout_probability', 0.0, 'Tracker: probability a frame shows no ball', low=0.0,
+          high=0.99),
+    Param('ball_detection_outlier_probability', 0.0, 'Tracker: probability a frame adds a false detection',
+          low=0.0, high=0.99),
+    Param('ball_camera_xyz_m', list(TrackerConfig.camera_xyz_m), 'ball_camera frame: origin in world', length=3),
+    Param('ball_camera_rpy_rad', list(TrackerConfig.camera_rpy_rad), 'ball_camera frame: roll, pitch, yaw in world',
+          length=3),
     Param('clock_rate_hz', MAX_RATE_HZ, '/clock rate', low=1.0, high=MAX_RATE_HZ),
     Param('tf_rate_hz', 100.0, '/tf rate (the joint transforms, as robot_state_publisher)', low=1.0, high=MAX_RATE_HZ),
     Param('marker_rate_hz', 30.0, '/cell/markers rate (table, net, ball)', low=1.0, high=MAX_RATE_HZ),
@@ -163,8 +190,18 @@ class Ur5SimNode(Node):
                                     ft_torque_bias_nm=tuple(value['ft_torque_bias_nm']), seed=value['sensing_seed'])
         except ValueError as error:   # its messages name the field, and the fields are the parameters
             raise ParameterError(str(error)) from error
+        try:
+            tracker = TrackerConfig(
+                value['ball_detection_rate_hz'], value['ball_detection_latency_s'],
+                value['ball_detection_latency_jitter_s'], value['ball_detection_noise_std_m'],
+                value['ball_detection_dropout_probability'], value['ball_detection_outlier_probability'],
+                tuple(value['ball_camera_xyz_m']), tuple(value['ball_camera_rpy_rad']))
+        except ValueError as error:
+            raise ParameterError(str(error)) from error
         rng = np.random.default_rng(sensing.seed)
-        self._camera = BallCamera(sensing, rng)
+        self._camera = BallCamera(sensing, rng) if value['publish_ball_state'] else None
+        self._tracker = BallTracker(tracker, np.random.default_rng([sensing.seed, 1]))
+        self._detection_clock = SampleClock(tracker.rate_hz)
         self._ft_sensor = ForceTorqueSensor(sensing, rng)
         self._joint_clock = SampleClock(value['joint_state_rate_hz'])
         self._wrench_clock = SampleClock(value['wrench_rate_hz'])
@@ -197,12 +234,15 @@ class Ur5SimNode(Node):
         qos = QoSProfile(depth=10)
         self._joint_pub = self.create_publisher(JointState, '/joint_states', qos)
         self._wrench_pub = self.create_publisher(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', qos)
-        self._ball_pub = self.create_publisher(BallState, '/ball/state', qos)
+        self._ball_pub = self.create_publisher(BallState, '/ball/state', qos) if self._camera else None
+        self._truth_pub = self.create_publisher(BallState, '/sim/ball/ground_truth', qos)
+        self._detection_pub = self.create_publisher(PointStamped, '/ball/detection', qos)
         self._event_pub = self.create_publisher(RallyEvent, '/rally/events', QoSProfile(depth=100))
         self._clock_pub = self.create_publisher(Clock, '/clock', qos)
         # What robot_state_publisher would publish for this arm, so that RViz and Foxglove show the cell.
         self._robot_state = RobotStateOutputs(self)
-        self._robot_state.publish_description_and_static(_stamp(self._cell.time_s))
+        camera = LinkTransform(FRAME_WORLD, FRAME_CAMERA, np.array(tracker.camera_xyz_m), tracker.camera_rotation_xyzw)
+        self._robot_state.publish_description_and_static(_stamp(self._cell.time_s), extra=(camera,))
         self._marker_pub = self.create_publisher(MarkerArray, '/cell/markers', LATCHED_QOS)
         self.create_subscription(Float64MultiArray, '/forward_position_controller/commands', self._on_command, qos)
         self.create_subscription(WrenchStamped, '/sim/hand_wrench', self._on_hand_wrench, qos)
@@ -215,6 +255,14 @@ class Ur5SimNode(Node):
         self._wrench_msg.header.frame_id = robot_model.TOOL_FRAME
         self._ball_msg = BallState()
         self._ball_msg.header.frame_id = FRAME_WORLD
+        if self._camera is not None:   # the camera model's noise, as a tracker's estimate would state it
+            position_var, velocity_var = sensing.ball_position_noise_std_m ** 2, sensing.ball_velocity_noise_std_m_s ** 2
+            self._ball_msg.position_covariance = [position_var, 0.0, 0.0, 0.0, position_var, 0.0, 0.0, 0.0, position_var]
+            self._ball_msg.velocity_covariance = [velocity_var, 0.0, 0.0, 0.0, velocity_var, 0.0, 0.0, 0.0, velocity_var]
+        self._truth_msg = BallState()
+        self._truth_msg.header.frame_id = FRAME_WORLD
+        self._detection_msg = PointStamped()
+        self._detection_msg.header.frame_id = FRAME_CAMERA
         self._clock_msg = Clock()
 
         self._real_time_factor = value['real_time_factor']
@@ -294,15 +342,32 @@ class Ur5SimNode(Node):
             ball = cell.ball_position_m if cell.ball_in_play else None
             self._marker_pub.publish(cell_markers(ball, stamp or _stamp(time_s)))
         if self._ball_clock.due(time_s) and cell.ball_in_play:   # the camera's frames keep their grid
-            self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
-        for observation in self._camera.delivered(time_s):
-            msg = self._ball_msg
-            msg.header.stamp = _stamp(observation.stamp_s)
-            msg.position.x, msg.position.y, msg.position.z = observation.position_m.tolist()
-            msg.velocity.x, msg.velocity.y, msg.velocity.z = observation.velocity_m_s.tolist()
-            self._ball_pub.publish(msg)
+            stamp = stamp or _stamp(time_s)
+            self._publish_ball_state(self._truth_pub, self._truth_msg, stamp, cell.ball_position_m,
+                                     cell.ball_velocity_m_s)
+            if self._camera is not None:
+                self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
+        if self._camera is not None:
+            for observation in self._camera.delivered(time_s):
+                self._publish_ball_state(self._ball_pub, self._ball_msg, _stamp(observation.stamp_s),
+                                         observation.position_m, observation.velocity_m_s)
+        if self._detection_clock.due(time_s):   # a tracker runs whether or not a ball is in play
+            self._tracker.expose(time_s, cell.ball_position_m if cell.ball_in_play else None)
+        for detection in self._tracker.delivered(time_s):
+            msg = self._detection_msg
+            msg.header.stamp = _stamp(detection.stamp_s)
+            msg.point.x, msg.point.y, msg.point.z = detection.position_camera_m.tolist()
+            self._detection_pub.publish(msg)
         if self._video is not None and self._video.clock.due(time_s):
             self._video.capture(cell.data if self._video_view is None else self._video_view.show(cell))
+
+    @staticmethod
+    def _publish_ball_state(publisher, msg: BallState, stamp: Time, position_m: np.ndarray,
+                            velocity_m_s: np.ndarray) -> None:
+        msg.header.stamp = stamp
+        msg.position.x, msg.position.y, msg.position.z = position_m.tolist()
+        msg.velocity.x, msg.velocity.y, msg.velocity.z = velocity_m_s.tolist()
+        publisher.publish(msg)
 
     def _publish_events(self) -> None:
         for event in self._cell.pop_events():

@@ -55,7 +55,7 @@ class Ur5SimProbe:
         node.create_subscription(JointState, '/joint_states', self._on_joint_state, self.QOS)
         node.create_subscription(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', self._on_wrench, self.QOS)
         node.create_subscription(Clock, '/clock', self._on_clock, self.QOS)
-        node.create_subscription(BallState, '/ball/state', self._on_ball, self.QOS)
+        node.create_subscription(BallState, '/sim/ball/ground_truth', self._on_ball, self.QOS)
         node.create_subscription(RallyEvent, '/rally/events', self.events.append, self.QOS)
         self.command_pub = node.create_publisher(Float64MultiArray, '/forward_position_controller/commands', 10)
         self.hand_pub = node.create_publisher(WrenchStamped, '/sim/hand_wrench', 10)

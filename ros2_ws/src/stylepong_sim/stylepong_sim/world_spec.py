@@ -28,6 +28,7 @@ from stylepong_description.robot_cell import (  # noqa: F401  (world_spec's name
     HALF_WIDTH_M,
     HOME_JOINT_POSITIONS_RAD,
     POLICY_RATE_HZ,
+    ROBOT_BASE_POSITION_M,
     TABLE_CONTACT_HEIGHT_M,
     TABLE_HEIGHT_M,
     TABLE_LENGTH_M,
@@ -64,11 +65,7 @@ NET_TANGENTIAL_FACTOR = 0.5
 ROBOT_LINK_RESTITUTION = 0.6
 ROBOT_LINK_TANGENTIAL_FACTOR = 0.8
 
-# --- Robot placement ------------------------------------------------------------------------------
-# The UR5 base stands on a pedestal behind the robot's end line, facing +x. From there the paddle
-# (tool flange to blade centre 0.175 m) reaches balls that bounce on the robot's half and rise past
-# the end line, across the table's width.
-ROBOT_BASE_POSITION_M = (-HALF_LENGTH_M - 0.45, 0.0, TABLE_HEIGHT_M - 0.10)
+# --- Robot placement (the base's position: robot_cell) ------------------------------------------
 ROBOT_BASE_YAW_RAD = 0.0
 
 # The robot stands on a pedestal (floor to base). Geometry only: the arm never reaches it.
