@@ -26,8 +26,10 @@ def test_python3_is_the_project_interpreter_with_rclpy():
 def test_interfaces_have_the_documented_fields_and_constants():
     from stylepong_msgs.msg import BallState, RallyEvent
     from stylepong_msgs.srv import LaunchBall, StartClip
-    assert list(BallState.get_fields_and_field_types()) == ['header', 'position', 'velocity']
+    assert list(BallState.get_fields_and_field_types()) == ['header', 'position', 'velocity', 'position_covariance',
+                                                            'velocity_covariance']
     assert BallState.get_fields_and_field_types()['position'] == 'geometry_msgs/Point'
+    assert BallState.get_fields_and_field_types()['velocity_covariance'] == 'double[9]'
     assert list(RallyEvent.get_fields_and_field_types()) == ['header', 'ball_id', 'type', 'position', 'success',
                                                              'reason']
     names = ['LAUNCHED', 'BOUNCE_OWN_SIDE', 'PADDLE_HIT', 'BOUNCE_OPPONENT_SIDE', 'NET', 'ROBOT_CONTACT',
