@@ -54,6 +54,18 @@ def test_realistic_sensing_is_valid_and_not_perfect():
     assert any(v != 0.0 for v in realistic['ft_force_bias_n'])
 
 
+def test_tracker_sensing_is_valid_and_reports_positions_only():
+    tracker = _yaml_parameters('tracker_sensing.yaml')
+    with _node('--params-file', str(CONFIG / 'tracker_sensing.yaml')) as node:
+        for name, value in tracker.items():
+            assert node.get_parameter(name).value == pytest.approx(value), name
+        assert node._camera is None       # no /ball/state from the cell: ball_estimator's job
+    for name in ('ball_detection_latency_s', 'ball_detection_noise_std_m', 'ball_detection_dropout_probability',
+                 'ball_detection_outlier_probability'):
+        assert tracker[name] > 0.0
+    assert tracker['ball_detection_rate_hz'] == 150.0
+
+
 def test_the_table_names_every_parameter_in_the_yaml_order():
     assert [row.name for row in PARAMETERS] == list(_yaml_parameters('ur5_sim.yaml'))
 
@@ -65,6 +77,9 @@ def test_the_table_names_every_parameter_in_the_yaml_order():
                                          'home_joint_positions_rad'),
                                         (('-p', 'ft_force_bias_n:=[1.0]'), 'ft_force_bias_n'),
                                         (('-p', 'sensing_seed:=-3'), 'sensing_seed'),
+                                        (('-p', 'ball_detection_latency_jitter_s:=0.5'),
+                                         'ball_detection_latency_jitter_s'),
+                                        (('-p', 'ball_camera_xyz_m:=[0.0,1.0]'), 'ball_camera_xyz_m'),
                                         (('-p', 'video_width:=8.0'), 'video_width')])
 def test_bad_parameters_stop_the_node_with_one_line_naming_them(args, name):
     with ros_context(*args) as context, pytest.raises(ParameterError) as error:
