@@ -8,7 +8,7 @@
    the figures are the player's own (/player/status): period between policy steps and its jitter
    (|period - 1/60 s|), latency from the ball message's header stamp to publishing the command, inference
    time, and the process's CPU share (/proc).
-3. With ur5_sim in the loop (nominal sensing, real_time_factor 1, the player on /clock): rally_eval
+3. With ur5_sim and ball_estimator in the loop (nominal sensing, real_time_factor 1, the player on /clock): rally_eval
    serves RALLY_BALLS balls; the same figures, on the cell's clock (1 ms resolution).
 Prints one Markdown section for BENCHMARKS.md (`make bench`).
 """
@@ -127,6 +127,9 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_sim_'))
     sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
                  logs / 'ur5_sim.log')
+    # The cell's tracker reports positions; ball_estimator gives the player /ball/state, as on a real cell.
+    estimator = start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator', '--ros-args', '-p',
+                              'use_sim_time:=true'], env, logs / 'ball_estimator.log')
     player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
                     logs / 'player.log')
     try:
@@ -141,6 +144,7 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
         return summary['player_status'], cpu_share, summary
     finally:
         stop_group(player)
+        stop_group(estimator)
         stop_group(sim)
 
 
