@@ -92,7 +92,8 @@ def main() -> int:
     print('Physics step 1 ms (MuJoCo 4, implicitfast, UR5 collision meshes) plus the analytic ball, servo and '
           'referee in Python. "Cell alone": `stylepong_sim.cell.Cell.step` in a loop, no ROS. "Node": '
           '`ros2 run stylepong_sim ur5_sim` with a probe process subscribed to every topic '
-          '(/joint_states and the F/T wrench at 500 Hz, /clock every step, /sim/ball/ground_truth at 120 Hz, /rally/events) '
+          '(/joint_states and the F/T wrench at 500 Hz, /clock every step, /sim/ball/ground_truth at 120 Hz, '
+          '/rally/events) '
           f'and a randomized ball launched every wall second for {NODE_WINDOW_S:.0f} s. '
           'Rates are messages received by the probe per wall second; CPU is the node process\'s share of one core. '
           f'1-minute load average at the end: {load:.1f} (other work on the machine lowers these figures).\n')

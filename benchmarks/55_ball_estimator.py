@@ -76,7 +76,8 @@ def main() -> None:
              'against the true ball at its stamp, up to the first paddle contact. Errors are Euclidean.']
     for name, cell in (('MuJoCo cell', Cell()), ('PyBullet cell', BulletCell())):
         errors = estimator_errors(SEEDS, config, cell=cell)
-        header = ['| window | states | position p50 (mm) | p95 | velocity p50 (m/s) | p95 |', '|---|---|---|---|---|---|']
+        header = ['| window | states | position p50 (mm) | p95 | velocity p50 (m/s) | p95 |',
+                  '|---|---|---|---|---|---|']
         lines += ['', f'{name}, before the bounce, by the time since the ball appeared:', ''] + header
         lines += table(errors, 'since_appeared_s', APPEARED_BINS_S)
         lines += ['', f'{name}, after the bounce on the robot\'s half, by the time since it:', ''] + header

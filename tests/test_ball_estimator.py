@@ -34,8 +34,8 @@ VELOCITY_TOLERANCE_M_S = 0.3
 
 
 def _tracker_params() -> dict:
-    from ament_index_python.packages import get_package_share_directory
     import yaml
+    from ament_index_python.packages import get_package_share_directory
     path = f"{get_package_share_directory('stylepong_sim')}/config/tracker_sensing.yaml"
     with open(path) as file:
         return yaml.safe_load(file)['ur5_sim']['ros__parameters']
@@ -91,10 +91,11 @@ class FakeTracker:
     records what reaches /ball/state."""
 
     def __init__(self, config):
+        from geometry_msgs.msg import PointStamped
+        from tf2_msgs.msg import TFMessage
+
         from stylepong_description.robot_state import LinkTransform
         from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, _to_message
-        from tf2_msgs.msg import TFMessage
-        from geometry_msgs.msg import PointStamped
         self.config = config
         self.context = rclpy.Context()
         rclpy.init(context=self.context)

@@ -53,8 +53,9 @@ Services:
 Parameters: PARAMETERS below, all of them with their defaults in config/ur5_sim.yaml (read at start-up; a bad
 one stops the node with one line on stderr and exit code 2, stylepong_common.node_support); sensing levels for
 robustness tests: config/tracker_sensing.yaml (a 150 Hz stereo tracker, for ball_estimator) and
-config/realistic_sensing.yaml (the older path: /ball/state with noisy velocities, publish_ball_state). record_video: '' (off), a path ending in .mp4, or a folder
-for PNG frames. real_time_factor alone can be changed at run time.
+config/realistic_sensing.yaml (the older path: /ball/state with noisy velocities, publish_ball_state).
+record_video: '' (off), a path ending in .mp4, or a folder for PNG frames. real_time_factor alone can be
+changed at run time.
 """
 from __future__ import annotations
 
@@ -257,8 +258,8 @@ class Ur5SimNode(Node):
         self._ball_msg.header.frame_id = FRAME_WORLD
         if self._camera is not None:   # the camera model's noise, as a tracker's estimate would state it
             position_var, velocity_var = sensing.ball_position_noise_std_m ** 2, sensing.ball_velocity_noise_std_m_s ** 2
-            self._ball_msg.position_covariance = [position_var, 0.0, 0.0, 0.0, position_var, 0.0, 0.0, 0.0, position_var]
-            self._ball_msg.velocity_covariance = [velocity_var, 0.0, 0.0, 0.0, velocity_var, 0.0, 0.0, 0.0, velocity_var]
+            self._ball_msg.position_covariance = np.diag([position_var] * 3).ravel().tolist()
+            self._ball_msg.velocity_covariance = np.diag([velocity_var] * 3).ravel().tolist()
         self._truth_msg = BallState()
         self._truth_msg.header.frame_id = FRAME_WORLD
         self._detection_msg = PointStamped()
