@@ -2,7 +2,8 @@
 
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
             frame world, stamp = instant observed: ball_estimator's output, never the simulator's truth),
-            /player/goal (geometry_msgs/PointStamped, frame world), /player/enable (std_msgs/Bool: true enables, false disables)
+            /player/goal (geometry_msgs/PointStamped, frame world),
+            /player/enable (std_msgs/Bool: true enables, false disables)
 Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order; with
             stream_commands one per joint state along the straight path to the latest 60 Hz command, else
             one per step),

@@ -257,7 +257,8 @@ class Ur5SimNode(Node):
         self._ball_msg = BallState()
         self._ball_msg.header.frame_id = FRAME_WORLD
         if self._camera is not None:   # the camera model's noise, as a tracker's estimate would state it
-            position_var, velocity_var = sensing.ball_position_noise_std_m ** 2, sensing.ball_velocity_noise_std_m_s ** 2
+            position_var = sensing.ball_position_noise_std_m ** 2
+            velocity_var = sensing.ball_velocity_noise_std_m_s ** 2
             self._ball_msg.position_covariance = np.diag([position_var] * 3).ravel().tolist()
             self._ball_msg.velocity_covariance = np.diag([velocity_var] * 3).ravel().tolist()
         self._truth_msg = BallState()
