@@ -47,7 +47,7 @@ class EstimatorConfig:
     measurement_noise_std_m: float = 0.003
     acceleration_noise_std_m_s2: float = 0.5    # the simulated balls do not spin (config/ball_estimator.yaml)
     initial_velocity_std_m_s: float = 8.0       # a new ball may come at any speed the launcher has
-    bounce_velocity_std_m_s: float = 0.5        # the bounce model's error per axis (spin, the table's spot)
+    bounce_velocity_std_m_s: float = 0.2        # the bounce model's error per axis (spin, the table's spot)
     gate_sigma: float = 4.0
     confirm_detections: int = 4
     track_timeout_s: float = 0.1

@@ -84,7 +84,8 @@ class BallEstimatorNode(Node):
         self._state_pub = self.create_publisher(BallState, '/ball/state', qos)
         self._status_pub = self.create_publisher(String, '/ball_estimator/status', qos)
         self.create_subscription(TFMessage, '/tf_static', self._on_tf_static, TF_STATIC_QOS)
-        self.create_subscription(PointStamped, '/ball/detection', self._on_detection, QoSProfile(depth=50))
+        # A short queue: if this node falls behind, old frames are dropped rather than estimated late.
+        self.create_subscription(PointStamped, '/ball/detection', self._on_detection, QoSProfile(depth=10))
         self.create_timer(STATUS_PERIOD_S, self._publish_status)
         self.get_logger().info('ball estimator: /ball/detection -> /ball/state')
 
