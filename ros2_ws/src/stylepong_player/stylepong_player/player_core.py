@@ -376,7 +376,9 @@ class PlayerConfig:
     home_acceleration_rad_s2: float = 4.0
     home_tolerance_rad: float = 0.01
     joint_timeout_periods: float = 3.0
-    ball_timeout_s: float = 0.05
+    # Six periods, the estimator's own track timeout: a few lost frames, a moment of a busy computer or the four
+    # frames the estimator takes to follow the paddle's hit must not end a stroke (the ball is carried forward).
+    ball_timeout_s: float = 0.1
     max_ball_age_s: float = 0.2
     max_ball_speed_m_s: float = 30.0
     max_ball_velocity_std_m_s: float = 1.0
