@@ -128,8 +128,7 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
     sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
                  logs / 'ur5_sim.log')
     # The cell's tracker reports positions; ball_estimator gives the player /ball/state, as on a real cell.
-    estimator = start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator', '--ros-args', '-p',
-                              'use_sim_time:=true'], env, logs / 'ball_estimator.log')
+    estimator = start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator'], env, logs / 'ball_estimator.log')
     player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
                     logs / 'player.log')
     try:

@@ -61,8 +61,8 @@ def graph_run(what: str, viewer_options: list[str] | None) -> dict:
             _wait_for(logs / 'node.log', 'running', node)
         else:
             # ball_estimator turns the cell's tracker detections into the player's /ball/state.
-            processes.append(start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator', '--ros-args', '-p',
-                                           'use_sim_time:=true'], env, logs / 'ball_estimator.log'))
+            processes.append(start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator'], env,
+                                          logs / 'ball_estimator.log'))
             node = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p',
                                  'use_sim_time:=true'], env, logs / 'node.log')
             processes.append(node)

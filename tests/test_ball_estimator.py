@@ -47,7 +47,7 @@ def test_the_estimate_50_ms_after_the_bounce_is_within_0_3_m_s_for_95_percent_of
     params = dict(_tracker_params(), real_time_factor=2.0, home_joint_positions_rad=list(PARKED), sensing_seed=7,
                   ball_state_rate_hz=1000.0)
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params=params).start()
-    estimator = NodeProcess('stylepong_player', 'ball_estimator', params={'use_sim_time': True}).start()
+    estimator = NodeProcess('stylepong_player', 'ball_estimator').start()
     probe = Ur5SimProbe()
     estimates = []
 

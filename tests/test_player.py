@@ -287,7 +287,7 @@ def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
 def test_player_and_rally_eval_return_balls_in_ur5_sim(ros_env, tmp_path):
     out = tmp_path / 'rally.json'
     with NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim, \
-            NodeProcess('stylepong_player', 'ball_estimator', params={'use_sim_time': True}), \
+            NodeProcess('stylepong_player', 'ball_estimator'), \
             NodeProcess('stylepong_policy', 'player', params={'use_sim_time': True}) as player:
         result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '2', '--first-seed', '900',
                                  '--json', str(out)], capture_output=True, text=True, timeout=50)

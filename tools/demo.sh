@@ -85,8 +85,9 @@ echo "[demo] playing $ACTOR through ROS: ur5_sim + ball_estimator + player + ral
 # than catching up in bursts that the player's commands could not reach in time.
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
   -p video_width:=480 -p video_height:=352 -p video_fps:=25.0
-# The cell's tracker reports positions only, as a real one does; ball_estimator gives the player the ball's state.
-start_node "$LOGS/ball_estimator.log" ros2 run stylepong_player ball_estimator --ros-args -p use_sim_time:=true
+# The cell's tracker reports positions only, as a real one does; ball_estimator gives the player the ball's state
+# (it runs on the detections' stamps, so it needs no /clock).
+start_node "$LOGS/ball_estimator.log" ros2 run stylepong_player ball_estimator
 start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 # The browser viewer on the same graph: the arm, the ball and the plots, live while the rally is played.
 start_node "$LOGS/viewer.log" ros2 run stylepong_viz viewer --web-port "${VIEWER_PORT:-9090}" --grpc-port "${VIEWER_GRPC_PORT:-9876}"

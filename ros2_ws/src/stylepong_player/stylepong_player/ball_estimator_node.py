@@ -9,6 +9,8 @@ Publishes   /ball/state (stylepong_msgs/BallState, frame world, stamp = the dete
             /ball_estimator/status (std_msgs/String, JSON, 1 Hz: published, tentative and rejected counts by
             kind, tracks started)
 Parameters  config/ball_estimator.yaml (read at start-up; a bad one: one line on stderr, exit code 2).
+Clock       none: the filter runs on the detections' stamps, so start it without use_sim_time (a simulated
+            cell's 1 kHz /clock would cost it most of its CPU).
 The filter, its gate and its track rules are in ball_estimator.py; detections it refuses are counted and
 named in a throttled warning, and never reach /ball/state.
 """
