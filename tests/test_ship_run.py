@@ -1,10 +1,11 @@
-"""tools/ship_run.py: what it copies into models/ and the summary it writes (no training, no evaluation)."""
+"""ship_run (stylepong_policy.shipping.ship_run): what it copies into models/ and the summary it writes
+(no training, no evaluation)."""
 import json
 import pathlib
 
 import pytest
 
-from tests.tool_module import load_tool
+from stylepong_policy.shipping import ship_run
 
 
 @pytest.fixture
@@ -24,7 +25,7 @@ def run_dir(tmp_path) -> pathlib.Path:
 def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
-    written = load_tool('ship_run').ship(run_dir, 'ppo', models)
+    written = ship_run.ship(run_dir, 'ppo', models)
     assert {p.name for p in written} == {
         'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv',
         'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
@@ -44,5 +45,5 @@ def test_ship_refuses_a_run_without_a_selected_actor(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
     with pytest.raises(FileNotFoundError, match='ppo_actor.onnx'):
-        load_tool('ship_run').ship(run_dir, 'ppo', models)
+        ship_run.ship(run_dir, 'ppo', models)
     assert not any(models.iterdir())

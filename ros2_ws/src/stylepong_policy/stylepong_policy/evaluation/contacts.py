@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_description.robot_cell import POLICY_RATE_HZ
-from stylepong_policy.strokes import DIRECTIONS, Stroke, paddle_home_position_m
+from stylepong_policy.evaluation.strokes import DIRECTIONS, Stroke, paddle_home_position_m
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ def actor_contacts(strokes: Iterable[Stroke]) -> dict[str, list[Blade]]:
 def demonstrated_contacts(dataset) -> dict[str, list[Blade]]:
     """The blade at each original clip's hit (dataset.hit_frame), by label; speed-ups repeat their original
     and move it faster: the speed is the original's at the dataset's fastest speed-up."""
-    from stylepong_policy.dataset import hit_frame
+    from stylepong_policy.training.dataset import hit_frame
     originals = dataset.select(speed_factors=[1])
     frames = [int(dataset.clip_start[c]) + hit_frame(dataset.clip(c).qd) for c in originals]
     fastest = float(np.max(dataset.speed_factor)) if len(dataset.speed_factor) else 1.0
@@ -114,7 +114,7 @@ TABLE_NOTE = ('The mean over each direction\'s contacts: an actor\'s at its stro
               'of home: the paddle centre\'s x beyond its home pose (towards the net); opening: the face turned up '
               'from vertical; facing: the face turned towards the robot\'s left (world +y) from square to the table; '
               'blade speed: the paddle centre\'s, an actor\'s over the frame that ends at its contact, a set\'s '
-              'at its fastest speed-up (`stylepong_policy.contacts`).')
+              'at its fastest speed-up (`stylepong_policy.evaluation.contacts`).')
 
 
 def contact_table(rows: Mapping[str, Mapping[str, dict | None]]) -> tuple[list[str], list[list[str]]]:

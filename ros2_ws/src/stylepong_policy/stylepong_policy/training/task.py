@@ -45,7 +45,7 @@ from dataclasses import asdict, dataclass, field, fields
 import torch
 
 from stylepong_player import spec
-from stylepong_policy import strokes
+from stylepong_policy.evaluation import strokes
 from stylepong_policy.rl import env as env_contract
 from stylepong_sim import batched_launcher, batched_world, referee, world_spec
 

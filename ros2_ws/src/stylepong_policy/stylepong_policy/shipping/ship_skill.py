@@ -1,12 +1,11 @@
-#!/usr/bin/env python3
 """Put a learn_style run's network into the skill library that learn_style starts new styles from.
 
-    python3 tools/ship_skill.py --run runs/style_compact --name compact [--models-dir MODELS]
+    ros2 run stylepong_policy ship_skill --run runs/style_compact --name compact [--models-dir MODELS]
 
 MODELS defaults to ros2_ws/src/stylepong_policy/models.
 
 Writes <models>/skills/<name>.pt, the run's actor_checkpoint.pt with the demonstrations behind it
-(stylepong_policy.skills.LINEAGE_KEY; a run from before learn_style recorded them gets them from its
+(stylepong_policy.training.skills.LINEAGE_KEY; a run from before learn_style recorded them gets them from its
 dataset and the runs its starts came from), and <name>.json, its record: the lineage, the command, the skill
 it started from, its train/choose/evaluate facts (learn_style.json), and every value of the run's config
 that differs from config/amp.yaml. Needs the workspace built (make setup). Nothing is typed by hand.
@@ -20,7 +19,8 @@ import sys
 
 import torch
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from stylepong_policy.paths import MODELS
+
 # Values every learn_style run sets for itself: not a difference of recipe.
 RUN_OWN_KEYS = ('amp.dataset', 'runner.progress_bar', 'runner.device')
 
@@ -45,7 +45,7 @@ def recipe_differences(run_config: pathlib.Path, recipe: pathlib.Path) -> dict:
 def run_lineage(run: pathlib.Path) -> list[str]:
     """The demonstrations behind a learn_style run's network: as it records them, else its own and, through
     the run directories its starts came from, its starts' (runs from before learn_style recorded them)."""
-    from stylepong_policy import learn_style, skills
+    from stylepong_policy.training import learn_style, skills
     paths = learn_style.paths_of(run)
     recorded = skills.lineage_of(torch.load(paths.actor_checkpoint, map_location='cpu', weights_only=False))
     if recorded:
@@ -58,9 +58,9 @@ def run_lineage(run: pathlib.Path) -> list[str]:
 
 def ship_skill(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Path]:
     """Copy the run's network and its record into models/skills; returns the files written."""
-    from stylepong_policy import learn_style, skills
-    from stylepong_policy.evaluate import portable_path
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.evaluation.evaluate import portable_path
+    from stylepong_policy.training import learn_style, skills
+    from stylepong_policy.training.train import default_config_path
     paths = learn_style.paths_of(run)
     state = learn_style.read_state(paths)
     if 'export' not in state.get('stages', {}):
@@ -84,10 +84,11 @@ def ship_skill(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathl
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: ship the run's network; exit code 2 with one line when the run is not a finished one."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser = argparse.ArgumentParser(prog='ship_skill', description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path, help='a finished learn_style run directory')
     parser.add_argument('--name', required=True, help='the skill\'s name in the library (a file stem)')
-    parser.add_argument('--models-dir', type=pathlib.Path, default=ROOT / 'ros2_ws/src/stylepong_policy/models')
+    parser.add_argument('--models-dir', type=pathlib.Path, default=MODELS,
+                        help='the models folder of the checkout (default: %(default)s)')
     args = parser.parse_args(argv)
     try:
         for path in ship_skill(args.run, args.name, args.models_dir):

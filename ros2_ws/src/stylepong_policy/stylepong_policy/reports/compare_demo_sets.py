@@ -1,9 +1,8 @@
-#!/usr/bin/env python3
 """How demonstration sets differ: per set its clips' lengths and peak joint speed, and the mean DTW
 between every two sets' clips of the same label.
 
     ros2 run stylepong_policy build_dataset demonstrations/long -o /tmp/long.npz     (once per set)
-    python3 tools/compare_demo_sets.py /tmp/shipped.npz /tmp/long.npz /tmp/compact.npz
+    ros2 run stylepong_policy compare_demo_sets /tmp/shipped.npz /tmp/long.npz /tmp/compact.npz
 
 Reads the datasets' original clips (speed factor 1, 60 Hz). Peak joint speed is style_metrics.smoothness's
 (finite differences of the 60 Hz positions); DTW is style_metrics.dtw_distance_rad (summed Euclidean cost
@@ -19,8 +18,8 @@ import sys
 
 import numpy as np
 
-from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.style_metrics import dtw_distance_rad, smoothness
+from stylepong_policy.evaluation.style_metrics import dtw_distance_rad, smoothness
+from stylepong_policy.training.dataset import ReferenceDataset
 
 LABELS = ('forward', 'leftward', 'rightward')
 
@@ -39,7 +38,7 @@ def mean_dtw_rad(a: list[np.ndarray], b: list[np.ndarray], same_set: bool) -> fl
 
 def main(argv: list[str] | None = None) -> int:
     """Print the two tables (markdown) for the datasets given; 2 when one cannot be read."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog='compare_demo_sets', description=__doc__.splitlines()[0])
     parser.add_argument('datasets', nargs='+', type=pathlib.Path, help='build_dataset .npz files, one per set')
     args = parser.parse_args(argv)
     sets = {}

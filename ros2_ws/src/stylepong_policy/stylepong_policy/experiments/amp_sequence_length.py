@@ -1,8 +1,7 @@
-#!/usr/bin/env python3
 """The experiment behind config/amp.yaml's sequence_length: how well a discriminator of each window
 length L tells the demonstrations from two kinds of wrong motion.
 
-    python3 tools/amp_sequence_length.py [--out results/amp_sequence_length.md] [--lengths 2,3,4,6,8]
+    ros2 run stylepong_policy amp_sequence_length [--out results/amp_sequence_length.md] [--lengths 2,3,4,6,8]
 
 For each L, a fresh discriminator (config/amp.yaml's network, normaliser, weight decay, gradient
 penalty; batch 512) trains for --steps LSGAN steps on reference windows of the dataset built from
@@ -26,8 +25,7 @@ import numpy as np
 import torch
 
 from stylepong_common.command_line import write_lines
-
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from stylepong_policy import paths
 
 
 def shuffled(reference, count: int) -> torch.Tensor:
@@ -50,7 +48,7 @@ def balanced_accuracy(dataset, length: int, negative: str, steps: int, seed: int
     """Train a discriminator on windows of `length` against one kind of negative; its balanced accuracy."""
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     from stylepong_policy.rl.config import load_config
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.training.train import default_config_path
 
     torch.manual_seed(seed)
     cfg = load_config(default_config_path('amp')).amp
@@ -68,17 +66,17 @@ def balanced_accuracy(dataset, length: int, negative: str, steps: int, seed: int
     return 0.5 * float((d_reference > 0).float().mean() + (d_negative < 0).float().mean())
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     """Measure the accuracy per window length and write the results page."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--out', type=pathlib.Path, default=ROOT / 'results' / 'amp_sequence_length.md')
+    parser = argparse.ArgumentParser(prog='amp_sequence_length', description=__doc__.split('\n\n')[0])
+    parser.add_argument('--out', type=pathlib.Path, default=paths.RESULTS / 'amp_sequence_length.md')
     parser.add_argument('--lengths', default='2,3,4,6,8')
     parser.add_argument('--steps', type=int, default=300)
     parser.add_argument('--seeds', type=int, default=3)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     torch.set_num_threads(2)
-    from stylepong_policy.dataset import ReferenceDataset
-    from stylepong_policy.train import build_shipped_dataset
+    from stylepong_policy.training.dataset import ReferenceDataset
+    from stylepong_policy.training.train import build_shipped_dataset
     with tempfile.TemporaryDirectory() as tmp:
         dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     lengths = [int(x) for x in args.lengths.split(',')]
@@ -91,7 +89,7 @@ def main() -> int:
         rows.append((length, row))
         print(f'L={length}: {row}', file=sys.stderr, flush=True)
     lines = ['# Discriminator window length', '',
-             f'Written by `python3 tools/amp_sequence_length.py` (see its docstring): balanced accuracy of a '
+             f'Written by `ros2 run stylepong_policy amp_sequence_length` (see its docstring): balanced accuracy of a '
              f'discriminator trained {args.steps} LSGAN steps on windows of L arm states of the dataset built '
              f'from `ros2_ws/bags`, against shuffled or half-speed windows; mean +- std over {args.seeds} seeds, '
              f'fresh samples, CPU. 0.5 is chance.', '',

@@ -87,7 +87,7 @@ def paths_of(run: pathlib.Path) -> Paths:
 
 def models_dir() -> pathlib.Path:
     """The shipped models (installed share directory, else beside the sources)."""
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.training.train import default_config_path
     return default_config_path('amp').parent.parent / 'models'
 
 
@@ -146,7 +146,7 @@ def say(text: str) -> None:
 # --- stages ---------------------------------------------------------------------------------------
 def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
     """The one recipe (config/amp.yaml) and its path, on `device` (None: the config's)."""
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.training.train import default_config_path
     path = default_config_path('amp')
     cfg = load_config(path)
     if device is not None:
@@ -157,7 +157,7 @@ def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
 
 def require_device(device: str) -> None:
     """StyleError, before anything is written, for a device this machine cannot train on (cuda without CUDA)."""
-    from stylepong_policy.train import resolve_device
+    from stylepong_policy.training.train import resolve_device
     try:
         resolve_device(device)
     except ValueError as err:
@@ -166,7 +166,7 @@ def require_device(device: str) -> None:
 
 def check_stage(source: pathlib.Path, cfg: TrainConfig):
     """The checked demonstrations (demo_check.DemonstrationSet); StyleError with one line per bad bag."""
-    from stylepong_policy import demo_check
+    from stylepong_policy.training import demo_check
     try:
         return demo_check.check_demonstrations(source, window_frames=cfg.amp.sequence_length)
     except demo_check.DemonstrationError as err:
@@ -182,8 +182,8 @@ def dataset_stage(found, paths: Paths) -> dict:
 
 def fingerprint_of(paths: Paths) -> str:
     """The fingerprint of the run's demonstrations (skills.demonstrations_fingerprint of RUN/dataset.npz)."""
-    from stylepong_policy.dataset import ReferenceDataset
-    from stylepong_policy.skills import demonstrations_fingerprint
+    from stylepong_policy.training.dataset import ReferenceDataset
+    from stylepong_policy.training.skills import demonstrations_fingerprint
     return demonstrations_fingerprint(ReferenceDataset.load(paths.dataset))
 
 
@@ -199,9 +199,9 @@ def skill_stage(paths: Paths, state: dict, device: str, min_success: float) -> d
     are nearest the demonstrations on the validation seeds, among those returning min_success (skills)."""
     import torch
 
-    from stylepong_policy import skills
-    from stylepong_policy.learn_style_progress import StageBar
-    from stylepong_policy.select_checkpoint import export_checkpoint
+    from stylepong_policy.training import skills
+    from stylepong_policy.training.learn_style_progress import StageBar
+    from stylepong_policy.training.select_checkpoint import export_checkpoint
     if state.get('skill'):
         return {'chosen': state['skill'], 'given': True}
     fingerprint = fingerprint_of(paths)
@@ -235,7 +235,7 @@ def describe_skills(rows: list[dict]) -> str:
 def validate(actor: pathlib.Path, paths: Paths, device: str) -> dict:
     """An exported actor on the validation seeds: its success and DTW to the run's demonstrations (the mean
     over the labels with strokes, and per label)."""
-    from stylepong_policy.select_checkpoint import run_evaluation
+    from stylepong_policy.training.select_checkpoint import run_evaluation
     result = run_evaluation(actor, speed='all', device=device, dtw_dataset=str(paths.dataset), **VALIDATION)
     distances = [d['mean_rad'] for d in result['dtw'].values() if d['mean_rad'] is not None]
     return {'success_rate': result['success_rate'],
@@ -255,9 +255,9 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
                 budget_s: float, command: str) -> dict:
     """Learn the style from the skill until the run's training time reaches budget_s (resumes a run, with the
     recipe it began with: a run started before the recipe changed still fits its checkpoints)."""
-    from stylepong_policy import train
-    from stylepong_policy.learn_style_progress import StageBar
     from stylepong_policy.rl.runner import read_checkpoint
+    from stylepong_policy.training import train
+    from stylepong_policy.training.learn_style_progress import StageBar
     resume = '' if (paths.train / 'checkpoints' / 'last.pt').is_file() else None
     if resume is not None:
         device = cfg.runner.device
@@ -288,7 +288,7 @@ def candidates_of(run_dir: pathlib.Path) -> list[tuple[str, list[int]]]:
     each of the run's last WINDOWS windows (the run split in SPLIT equal spans), of its last third, and
     its last checkpoint alone. Along a run the style comes closer and returns may fall; the choice among
     these is where the run stands on both (choose_candidate)."""
-    from stylepong_policy.select_checkpoint import numbered_checkpoints
+    from stylepong_policy.training.select_checkpoint import numbered_checkpoints
     iterations = [i for i, _ in numbered_checkpoints(run_dir)]
     if not iterations:
         raise StyleError(f'{run_dir} has no numbered checkpoint to choose from; give more --minutes')
@@ -307,10 +307,10 @@ def choose_stage(paths: Paths, device: str) -> dict:
     """Validate each candidate (candidates_of) and keep the choice (choose_candidate)."""
     import torch
 
-    from stylepong_policy.average_checkpoints import average_checkpoints
-    from stylepong_policy.learn_style_progress import StageBar
     from stylepong_policy.rl.runner import read_checkpoint
-    from stylepong_policy.select_checkpoint import export_checkpoint, numbered_checkpoints
+    from stylepong_policy.training.average_checkpoints import average_checkpoints
+    from stylepong_policy.training.learn_style_progress import StageBar
+    from stylepong_policy.training.select_checkpoint import export_checkpoint, numbered_checkpoints
     paths.choose.mkdir(parents=True, exist_ok=True)
     by_iteration = dict(numbered_checkpoints(paths.train))
     rows = []
@@ -344,8 +344,8 @@ def export_stage(paths: Paths, state: dict) -> None:
     the demonstrations behind it (its skill's and these: skills.LINEAGE_KEY)."""
     import torch
 
-    from stylepong_policy import skills
-    from stylepong_policy.select_checkpoint import export_checkpoint
+    from stylepong_policy.training import skills
+    from stylepong_policy.training.select_checkpoint import export_checkpoint
     chosen = state['stages']['choose']['chosen']
     checkpoint = torch.load(paths.choose / f'{chosen}.pt', map_location='cpu', weights_only=False)
     export_checkpoint(checkpoint, paths.actor, onnx=True, extra={'learn_style': {'candidate': chosen}})
@@ -357,8 +357,8 @@ def export_stage(paths: Paths, state: dict) -> None:
 
 def evaluate_stage(paths: Paths, device: str) -> dict:
     """The new actor, PPO's and the shipped style actor on the evaluation seeds, against the demonstrations."""
-    from stylepong_policy import style_report
-    from stylepong_policy.learn_style_progress import StageBar
+    from stylepong_policy.reports import style_report
+    from stylepong_policy.training.learn_style_progress import StageBar
     paths.eval.mkdir(parents=True, exist_ok=True)
     actors = {'style': paths.actor, 'ppo': models_dir() / 'ppo_actor.pt', 'shipped': models_dir() / 'amp_actor.pt'}
     jobs = [(name, actor, 'all', EVALUATION) for name, actor in actors.items()]
@@ -379,7 +379,7 @@ def evaluate_stage(paths: Paths, device: str) -> dict:
 def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device: str, dataset: pathlib.Path,
                           strokes_path: pathlib.Path | None) -> dict:
     """evaluate's summary of an actor with DTW against `dataset`, its strokes saved when a path is given."""
-    from stylepong_policy import evaluate
+    from stylepong_policy.evaluation import evaluate
     from stylepong_policy.rl.export import load_actor
     loaded = load_actor(actor)
     evaluation = evaluate.evaluate_actor(loaded, speed=speed, device=device, **setting)
@@ -391,8 +391,8 @@ def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device
 
 def report_stage(paths: Paths, state: dict) -> pathlib.Path:
     """RUN/report.md and its figures."""
-    from stylepong_policy import style_report
-    from stylepong_policy.evaluate import portable_path
+    from stylepong_policy.evaluation.evaluate import portable_path
+    from stylepong_policy.reports import style_report
     stages = state.get('stages', {})
     missing = [label for label, count in stages.get('dataset', {}).get('clips_per_label', {}).items() if not count]
     notes = [f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',

@@ -10,7 +10,7 @@ import pathlib
 
 import numpy as np
 
-from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.training.dataset import ReferenceDataset
 
 MAX_ROWS = 40   # beyond this a figure is unreadable; the title says how many were left out
 

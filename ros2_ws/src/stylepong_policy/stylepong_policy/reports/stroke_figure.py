@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_policy import strokes, style_metrics
+from stylepong_policy.evaluation import strokes, style_metrics
 
 FRAMES_PER_ROW = 7
 SWING_LEAD_S = 0.45           # the back-swing starts about this long before a 5 m/s ball is met

@@ -54,11 +54,11 @@ from dataclasses import dataclass
 import torch
 
 from stylepong_common.command_line import require_counts
+from stylepong_policy.evaluation.strokes import DIRECTIONS
 from stylepong_policy.rl.config import config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
 from stylepong_policy.rl.networks import ActorCritic
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
-from stylepong_policy.strokes import DIRECTIONS
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
 CSV_NAME = 'validation.csv'
@@ -152,7 +152,7 @@ def export_checkpoint(checkpoint: dict, path: pathlib.Path, onnx: bool, extra: d
 def run_evaluation(actor: pathlib.Path, *, seeds: int, first_seed: int, balls: int, speed: str,
                    device: str, dtw_dataset: str | None = None) -> dict:
     """evaluate's result dict for an exported actor (success_rate, hit_rate, per_seed, ..., dtw with a dataset)."""
-    from stylepong_policy import evaluate
+    from stylepong_policy.evaluation import evaluate
     return evaluate.run_evaluation(actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed,
                                    device=device, dtw_dataset=dtw_dataset)
 

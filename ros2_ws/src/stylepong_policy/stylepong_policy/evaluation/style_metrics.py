@@ -129,7 +129,7 @@ def cost_breakdown(stroke_rad: np.ndarray, clip_rad: np.ndarray, path: Sequence[
 
 
 def reference_clips(dataset, label: str, speed_factors: Sequence[int] | None = None) -> list[tuple[int, np.ndarray]]:
-    """(index, joint positions) of every clip of a stylepong_policy.dataset.ReferenceDataset with this label
+    """(index, joint positions) of every clip of a stylepong_policy.training.dataset.ReferenceDataset with this label
     and one of these speed factors (None: any)."""
     return [(int(c), dataset.clip(int(c)).q) for c in dataset.select(labels=[label], speed_factors=speed_factors)]
 

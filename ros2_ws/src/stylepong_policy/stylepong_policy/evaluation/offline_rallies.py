@@ -1,8 +1,7 @@
-#!/usr/bin/env python3
 """The shipped actor through the player's logic on a cell, without ROS: which part of a cell decides a sim2sim figure.
 
-    tools/offline_rallies.py --engine pybullet --actuator ideal --joint-drive motor|pd --first-seed 1000 --balls 10
-                             [--actor PATH.pt|PATH.onnx] [--no-stream] [--no-predict] [--realistic-sensing]
+    ros2 run stylepong_policy offline_rallies --engine pybullet --actuator ideal --joint-drive motor|pd
+        --first-seed 1000 --balls 10 [--actor PATH.pt|PATH.onnx] [--no-stream] [--no-predict] [--realistic-sensing]
 
 The player (stylepong_player.player_core.Player, the node's logic: the limiter, phase-locked steps) drives a
 cell stepped here at 1 ms: the camera at 125 Hz, joint states at 500 Hz, no ROS timing; perfect sensing, or
@@ -22,12 +21,12 @@ import yaml
 
 from stylepong_description import robot_model
 from stylepong_player import player_core
+from stylepong_policy import paths
 from stylepong_sim import referee, sensing, ur_servoj
 from stylepong_sim.rally_eval import balls_for_seed, goals_for_seed
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'
-REALISTIC_SENSING = ROOT / 'ros2_ws/src/stylepong_sim/config/realistic_sensing.yaml'
+ACTOR = paths.MODELS / 'amp_actor.pt'
+REALISTIC_SENSING = paths.REPOSITORY / 'ros2_ws/src/stylepong_sim/config/realistic_sensing.yaml'
 CAMERA_PERIOD_STEPS = 8        # 125 Hz
 JOINT_STATE_PERIOD_STEPS = 2   # 500 Hz
 SETTLE_STEPS = 300

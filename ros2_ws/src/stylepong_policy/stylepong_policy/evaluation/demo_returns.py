@@ -1,14 +1,13 @@
-#!/usr/bin/env python3
 """Would the demonstrated strokes return a ball? Every clip of the reference dataset, and for contrast
 strokes of a trained actor that did return their balls, replayed against incoming balls.
 
-    python3 tools/demo_returns.py [--dataset results/reference_dataset.npz] [--out results/demo_returns.md]
+    ros2 run stylepong_policy demo_returns [--dataset results/reference_dataset.npz] [--out results/demo_returns.md]
                                   [--actor ros2_ws/src/stylepong_policy/models/amp_actor.pt]
 
 Each sequence of joint positions is played as the joint targets of the nominal batched world against
 --balls balls of validation seed --seed (all speeds), each ball at every start time that puts the
 sequence's fastest frame 20-65 policy periods (0.33-1.08 s) after the launch, where the balls arrive
-(stylepong_policy.demo_replay). The actor's strokes are its first --actor-strokes returned strokes on the
+(stylepong_policy.evaluation.demo_replay). The actor's strokes are its first --actor-strokes returned strokes on the
 same seed, from the launch to 0.3 s after the hit (`evaluate`'s strokes). Written as Markdown by this
 script; nothing in it is typed by hand.
 """
@@ -21,7 +20,8 @@ import pathlib
 import sys
 import time
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from stylepong_policy import paths
+
 HIT_STEPS = range(20, 66)
 
 
@@ -34,7 +34,7 @@ def verdict_text(verdicts: dict[str, int]) -> str:
 
 def replayed(sequences: list[tuple[str, object]], balls: int, seed: int, speed_range) -> list[tuple[str, int, object]]:
     """(name, frames, ReplayOutcome) of each named joint-position sequence."""
-    from stylepong_policy import demo_replay
+    from stylepong_policy.evaluation import demo_replay
     return [(name, len(q), demo_replay.replay_clip(q, balls, list(HIT_STEPS), seed, speed_range))
             for name, q in sequences]
 
@@ -62,27 +62,27 @@ def total_line(label: str, rows: list[tuple[str, int, object]]) -> str:
 def repo_path(path: pathlib.Path) -> pathlib.Path:
     """The path relative to the repository when inside it (never an absolute path in the output)."""
     resolved = path.resolve()
-    return resolved.relative_to(ROOT) if resolved.is_relative_to(ROOT) else path
+    return resolved.relative_to(paths.REPOSITORY) if resolved.is_relative_to(paths.REPOSITORY) else path
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     """Replay every clip and the actor's strokes, write the Markdown."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--dataset', type=pathlib.Path, default=ROOT / 'results' / 'reference_dataset.npz')
+    parser = argparse.ArgumentParser(prog='demo_returns', description=__doc__.split('\n\n')[0])
+    parser.add_argument('--dataset', type=pathlib.Path, default=paths.RESULTS / 'reference_dataset.npz')
     parser.add_argument('--actor', type=pathlib.Path,
-                        default=ROOT / 'ros2_ws' / 'src' / 'stylepong_policy' / 'models' / 'amp_actor.pt')
+                        default=paths.MODELS / 'amp_actor.pt')
     parser.add_argument('--actor-strokes', type=int, default=10)
     parser.add_argument('--balls', type=int, default=100)
     parser.add_argument('--seed', type=int, default=900)
-    parser.add_argument('--out', type=pathlib.Path, default=ROOT / 'results' / 'demo_returns.md')
-    args = parser.parse_args()
+    parser.add_argument('--out', type=pathlib.Path, default=paths.RESULTS / 'demo_returns.md')
+    args = parser.parse_args(argv)
     if args.seed >= 1000:
         parser.error('an analysis runs on validation seeds (below 1000)')
 
     import torch
 
-    from stylepong_policy import evaluate
-    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.evaluation import evaluate
+    from stylepong_policy.training.dataset import ReferenceDataset
     from stylepong_sim import world_spec
 
     torch.set_num_threads(1)
@@ -98,7 +98,7 @@ def main() -> int:
 
     actor_name, dataset_name = repo_path(args.actor), repo_path(args.dataset)
     lines = ['# Would the demonstrated strokes return a ball?', '',
-             f'Written by `python3 tools/demo_returns.py --dataset {dataset_name} --actor {actor_name} '
+             f'Written by `ros2 run stylepong_policy demo_returns --dataset {dataset_name} --actor {actor_name} '
              f'--balls {args.balls} --seed {args.seed} --actor-strokes {args.actor_strokes}` '
              f'in {time.perf_counter() - started:.0f} s ({os.cpu_count()} CPU cores, 1 torch thread).', '',
              'Setting: nominal batched world (no randomisation, no sensing noise). Each sequence of joint positions '
@@ -106,7 +106,8 @@ def main() -> int:
              f'{args.balls} balls of validation seed {args.seed} (all speeds), each ball at {len(HIT_STEPS)} start '
              f"times that put the sequence's fastest frame {HIT_STEPS.start}-{HIT_STEPS.stop - 1} policy "
              'periods after the launch; a ball counts as hit or returned when one start time or more does '
-             "so (`stylepong_policy.demo_replay`). The verdicts are the referee's, over every (ball, start) pair "
+             "so (`stylepong_policy.evaluation.demo_replay`). The verdicts are the referee's, over every "
+             "(ball, start) pair "
              "whose paddle touched the ball (`own_side`: struck down onto the robot's own half).", '',
              '## Summary', '',
              total_line(f'The {dataset.num_clips} demonstration clips of `{dataset_name}`', demo_rows),

@@ -1,8 +1,7 @@
-#!/usr/bin/env python3
 """The experiment behind the amp section's frame_features: what a discriminator that sees joint positions
 and velocities (q_qdot) or positions only (q) makes of a trained actor's motion.
 
-    python3 tools/amp_frame_features.py [--actor ros2_ws/src/stylepong_policy/models/amp_actor.pt]
+    ros2 run stylepong_policy amp_frame_features [--actor ros2_ws/src/stylepong_policy/models/amp_actor.pt]
                                         [--out results/amp_frame_features.md] [--lengths 4,8]
 
 The actor (deterministic) plays --envs balls of validation seed --seed in the nominal batched world for
@@ -30,15 +29,15 @@ import tempfile
 import torch
 
 from stylepong_common.command_line import write_lines
+from stylepong_policy import paths
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
 FEATURES = ('q_qdot', 'q')
 
 
 def actor_windows(actor_path: pathlib.Path, envs: int, steps: int, seed: int, length: int) -> torch.Tensor:
     """Windows [W, L, 12] of (q, qdot) of the actor's episodes in the nominal world; none crosses two."""
-    from stylepong_policy import task
     from stylepong_policy.rl.export import load_actor
+    from stylepong_policy.training import task
     actor = load_actor(actor_path)
     env = task.make_env(task.TaskConfig(num_envs=envs, randomize=False), 'cpu', seed)
     obs, _ = env.reset()
@@ -85,7 +84,7 @@ def measure(dataset, windows: torch.Tensor, length: int, features: str, train_st
     """Train a fresh discriminator on these actor windows against the demonstrations; score held-out ones."""
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion, feature_columns, style_reward
     from stylepong_policy.rl.config import load_config
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.training.train import default_config_path
 
     torch.manual_seed(seed)
     cfg = load_config(default_config_path('amp')).amp
@@ -113,23 +112,23 @@ def measure(dataset, windows: torch.Tensor, length: int, features: str, train_st
             'windows': int(windows.shape[0])}
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     """Measure each window length and feature set and write the results page."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser = argparse.ArgumentParser(prog='amp_frame_features', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', type=pathlib.Path,
-                        default=ROOT / 'ros2_ws' / 'src' / 'stylepong_policy' / 'models' / 'amp_actor.pt')
-    parser.add_argument('--out', type=pathlib.Path, default=ROOT / 'results' / 'amp_frame_features.md')
+                        default=paths.MODELS / 'amp_actor.pt')
+    parser.add_argument('--out', type=pathlib.Path, default=paths.RESULTS / 'amp_frame_features.md')
     parser.add_argument('--lengths', default='4,8')
     parser.add_argument('--envs', type=int, default=512)
     parser.add_argument('--steps', type=int, default=130, help='policy steps per environment (60 Hz)')
     parser.add_argument('--seed', type=int, default=900, help='validation seed of the balls (< 1000)')
     parser.add_argument('--train-steps', type=int, default=400)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.seed >= 1000:
         parser.error('--seed must be a validation seed below 1000')
     torch.set_num_threads(2)
-    from stylepong_policy.dataset import ReferenceDataset
-    from stylepong_policy.train import build_shipped_dataset
+    from stylepong_policy.training.dataset import ReferenceDataset
+    from stylepong_policy.training.train import build_shipped_dataset
     with tempfile.TemporaryDirectory() as tmp:
         dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     rows = []
@@ -140,11 +139,11 @@ def main() -> int:
             rows.append((length, features, row))
             print(f'L={length} {features}: {row}', file=sys.stderr, flush=True)
     try:
-        actor = args.actor.resolve().relative_to(ROOT).as_posix()
+        actor = args.actor.resolve().relative_to(paths.REPOSITORY).as_posix()
     except ValueError:
         actor = args.actor.name
     lines = ['# Discriminator inputs: joint positions and velocities, or positions only', '',
-             f'Written by `python3 tools/amp_frame_features.py` (see its docstring). Actor `{actor}`, '
+             f'Written by `ros2 run stylepong_policy amp_frame_features` (see its docstring). Actor `{actor}`, '
              f'deterministic, {args.envs} balls of validation seed {args.seed}, {args.steps} policy steps each, '
              f'nominal batched world; a fresh discriminator per row, {args.train_steps} LSGAN steps against the '
              'demonstration windows (dataset built from `ros2_ws/bags`, all speed factors), scored on held-out '

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from typing import NoReturn
 
 from stylepong_common.command_line import exit_with_run
-from stylepong_policy.dataset import (
+from stylepong_policy.evaluation.strokes import DIRECTIONS
+from stylepong_policy.training.dataset import (
     DEFAULT_RATE_HZ,
     DEFAULT_SPEEDUPS,
     Clip,
@@ -29,7 +30,6 @@ from stylepong_policy.dataset import (
     make_clips,
     parse_speedups,
 )
-from stylepong_policy.strokes import DIRECTIONS
 from stylepong_recording.bag_errors import BagError, one_line
 from stylepong_recording.bag_reading import median_rate_hz, read_joint_states
 from stylepong_recording.bag_search import find_bags
@@ -288,7 +288,7 @@ def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
           f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}')
     if settings.plot is not None:
         try:
-            from stylepong_policy.dataset_plot import plot_dataset
+            from stylepong_policy.reports.dataset_plot import plot_dataset
             plot_dataset(dataset, settings.plot)
             print(f'wrote {settings.plot}')
         except Exception as error:   # noqa: BLE001  the dataset is written; a failed figure is only reported

@@ -7,14 +7,14 @@
 
 Evaluates the three shipped actors (models/ppo_actor.pt, amp_noaug_actor.pt, amp_actor.pt; --actors
 replaces any of them, e.g. to let the PPO actor stand in while the others are trained) with
-stylepong_policy.evaluate in one process and writes to --out:
+stylepong_policy.evaluation.evaluate in one process and writes to --out:
   README.md            Tables I-III of "Stylized Table Tennis Robots Skill Learning with Incomplete Human
                        Demonstrations" with the paper's figures beside ours, smoothness and per-direction
                        results, Table IV (sim2sim) from the sim2sim_*.json files found in --out, Fig. 2
   paper_tables.json    every figure in it, machine-readable (paths as given, never absolute)
   table1_success.png, table2_dtw.png, table3_speed.png, smoothness.png, strokes.png (Fig. 2)
   reference_dataset.npz  the DTW references, when built here from --bags
-  strokes_<actor>_<band>.npz  with --save-strokes: every stroke (stylepong_policy.strokes layout)
+  strokes_<actor>_<band>.npz  with --save-strokes: every stroke (stylepong_policy.evaluation.strokes layout)
 Setting (each table states it too): the batched world, nominal (no randomisation, no sensing noise),
 deterministic actors; Tables I, II: seeds first-seed.. x balls, all speeds 4.0-6.6 m/s; Table III:
 seeds band-first-seed.. x balls in the low (4.0-4.8) and high (5.8-6.6 m/s) bands.
@@ -40,12 +40,12 @@ import torch
 from stylepong_common import markdown
 from stylepong_common.command_line import require_counts
 from stylepong_player.spec import ACTION_RATE_HZ
-from stylepong_policy import evaluate, style_metrics
-from stylepong_policy import paper_charts as charts
-from stylepong_policy import paper_figures as paper
+from stylepong_policy.evaluation import evaluate, style_metrics
+from stylepong_policy.evaluation.strokes import DIRECTIONS, FOLLOW_THROUGH_S, save_strokes
+from stylepong_policy.reports import paper_charts as charts
+from stylepong_policy.reports import paper_figures as paper
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
-from stylepong_policy.strokes import DIRECTIONS, FOLLOW_THROUGH_S, save_strokes
-from stylepong_policy.train import actor_name
+from stylepong_policy.training.train import actor_name
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED, SPEED_RANGES_M_S
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')
@@ -137,7 +137,7 @@ def load_actors(paths: dict[str, pathlib.Path]) -> dict[str, LoadedActor]:
 
 def build_reference(bags: pathlib.Path, out_path: pathlib.Path) -> pathlib.Path:
     """The DTW references: build_dataset's clips (x1, x2, x3, x5) of the demonstration bags."""
-    from stylepong_policy import build_dataset
+    from stylepong_policy.training import build_dataset
 
     report = io.StringIO()
     with contextlib.redirect_stdout(report):
@@ -348,7 +348,8 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
             'Per stroke, the mean over the strokes of all three directions (rad): each frame pair on the optimal '
             'warping path adds its Euclidean distance |d|, shared among the joints as d_k^2 / |d| and given to the '
             f'phase of its stroke frame: waiting until {style_metrics.SWING_S} s before the paddle\'s hit, the swing '
-            'from there to the hit, the follow-through after it (`stylepong_policy.style_metrics.cost_breakdown`). '
+            'from there to the hit, the follow-through after it '
+            '(`stylepong_policy.evaluation.style_metrics.cost_breakdown`). '
             'The joints add up to the DTW column, and so do the phases.', '',
             'By how far to the side of the paddle\'s home the ball arrives (|arrival y - home y|; the demonstrated '
             'hits lie within 0.18 m of it): mean DTW distance (rad) and strokes.', '',
@@ -455,7 +456,7 @@ def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol
             f'A ball\'s direction is where it crosses the paddle\'s home plane x = {rule["plane_x_m"]} m after its '
             f'bounce, relative to the paddle\'s home y = {rule["paddle_home_y_m"]} m (world +y is the robot\'s left): '
             f'leftward above +{rule["leftward_above_m"]} m, rightward below {rule["rightward_below_m"]} m, forward '
-            'between (halfway between the demonstrations\' hitting points; stylepong_policy.strokes).', '']
+            'between (halfway between the demonstrations\' hitting points; stylepong_policy.evaluation.strokes).', '']
 
 
 def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
@@ -613,7 +614,7 @@ def main(argv: list[str] | None = None) -> int:
                         band_first_seed=args.band_first_seed, device=args.device)
     out = args.out
     if not args.no_figure:
-        from stylepong_policy.stroke_figure import CAMERAS
+        from stylepong_policy.reports.stroke_figure import CAMERAS
         if args.camera not in CAMERAS:
             print(f'paper_tables: unknown camera {args.camera!r}; choose one of {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
@@ -658,7 +659,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _figure(out: pathlib.Path, evaluations, dataset, args: argparse.Namespace, protocol: Protocol) -> dict | None:
-    from stylepong_policy.stroke_figure import stroke_figure
+    from stylepong_policy.reports.stroke_figure import stroke_figure
     return stroke_figure(out / 'strokes.png', evaluations[('ppo', 'all')].strokes, evaluations[('amp', 'all')].strokes,
                          dataset, ACTION_RATE_HZ, direction=args.figure_direction, camera=args.camera,
                          setting=protocol.setting('all') + '.')

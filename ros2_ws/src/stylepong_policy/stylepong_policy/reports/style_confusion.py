@@ -14,7 +14,7 @@ next one is (the difference, and the ratio). An actor named like a set is meant 
 
 A set is a folder of bags (built into a dataset with build_dataset in a temporary folder, x2/x3/x5
 included) or a dataset .npz. Beside the distances, how each actor's blade meets its balls and how each set's
-demonstrations meet theirs (stylepong_policy.contacts: where a stroke meets the ball sets much of its
+demonstrations meet theirs (stylepong_policy.evaluation.contacts: where a stroke meets the ball sets much of its
 distance). Writes OUT/style_confusion.md, .json and .png (the normalised matrix).
 Exit status 0, 2 for invalid arguments (a missing file, an actor that does not fit, a set with no clip).
 """
@@ -37,9 +37,9 @@ import numpy as np
 
 from stylepong_common import markdown
 from stylepong_common.command_line import exit_with_run, require_counts, ros2_run_line
-from stylepong_policy import contacts, evaluate
-from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.strokes import DIRECTIONS, Stroke
+from stylepong_policy.evaluation import contacts, evaluate
+from stylepong_policy.evaluation.strokes import DIRECTIONS, Stroke
+from stylepong_policy.training.dataset import ReferenceDataset
 from stylepong_recording.bag_errors import one_line
 
 BASELINE = 'baseline'
@@ -116,7 +116,7 @@ def parse_named(text: str) -> tuple[str, pathlib.Path]:
 
 def load_set(name: str, path: pathlib.Path, folder: pathlib.Path) -> ReferenceDataset:
     """A set's dataset: a .npz as it is, or bags built by build_dataset into `folder` (ValueError: why not)."""
-    from stylepong_policy import build_dataset
+    from stylepong_policy.training import build_dataset
 
     if not path.exists():
         raise ValueError(f'set {name}: {path} does not exist')

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_common import markdown
-from stylepong_policy import contacts, style_metrics
-from stylepong_policy.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
+from stylepong_policy.evaluation import contacts, style_metrics
+from stylepong_policy.evaluation.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
 
 ACTORS = ('style', 'ppo', 'shipped')
 ACTOR_TITLES = {'style': 'new style actor', 'ppo': 'PPO (no style)', 'shipped': 'shipped style actor'}
@@ -221,7 +221,7 @@ def joints_chart(path: pathlib.Path, stroke: Stroke, clip_q_rad: np.ndarray, rat
                  title: str) -> pathlib.Path:
     """Each joint's angle over the stroke and over the demonstration clip, their hits at time 0."""
     from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_policy.dataset import hit_frame
+    from stylepong_policy.training.dataset import hit_frame
 
     plt = _pyplot()
     figure, axes = plt.subplots(2, 3, figsize=(12, 5.5), sharex=True)
@@ -253,7 +253,7 @@ def strip_for_direction(run_dir: pathlib.Path, results: Mapping[str, ActorResult
                         rate_hz: float, render: bool) -> dict | None:
     """PPO's and the new actor's strokes on one ball of `direction` and the demonstration nearest the new
     actor's: a strip of frames (when `render`) and a joint-angle chart. None when no ball came from there."""
-    from stylepong_policy import stroke_figure as fig
+    from stylepong_policy.reports import stroke_figure as fig
 
     key = fig.choose_ball(results['ppo'].strokes, results['style'].strokes, direction)
     if key is None:
@@ -415,7 +415,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     the directions that get a strip and joint chart (None: every demonstrated one; each takes a few
     seconds to draw); render_strips=False draws the joint charts alone. Returns the
     report's path; ValueError naming a missing or DTW-less evaluation file."""
-    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.training.dataset import ReferenceDataset
 
     run_dir = pathlib.Path(run_dir)
     results = {name: load_actor_results(run_dir, name, high_required=name == 'style') for name in ACTORS}
@@ -429,7 +429,7 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     reference = demonstration_smoothness(dataset)
     setting = setting_text(results['style'].all_speeds)
 
-    from stylepong_policy import paper_charts
+    from stylepong_policy.reports import paper_charts
     success_chart(run_dir / SUCCESS_PNG, results)
     dtw_chart(run_dir / DTW_PNG, distances, ratios, setting)
     paper_charts.smoothness_chart(run_dir / SMOOTHNESS_PNG, {ACTOR_TITLES[n]: r.all_speeds['smoothness']
@@ -440,7 +440,8 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
 
     dataset_name = pathlib.Path(dataset_path).name
     lines = ['# A learned style: report', '',
-             f'Generated {datetime.date.today().isoformat()} by stylepong_policy.style_report from `{EVAL_DIR}/`.',
+             f'Generated {datetime.date.today().isoformat()} by stylepong_policy.reports.style_report '
+             f'from `{EVAL_DIR}/`.',
              'The new style actor beside PPO (no style term) and the shipped style actor, on the same balls'
              + ('.' if _same_balls(results) else ' (NOT the same balls: the evaluations used different seeds).'), '']
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])

@@ -1,6 +1,6 @@
-"""Play a recorded demonstration onto the arm, through the player's command limits (`tools/replay_clip`).
+"""Play a recorded demonstration onto the arm, through the player's command limits (`replay_clip`).
 
-    tools/replay_clip ros2_ws/bags/forward_20261123_042746_884 [--speedup 2] [--use-sim-time]
+    ros2 run stylepong_policy replay_clip ros2_ws/bags/forward_20261123_042746_884 [--speedup 2] [--use-sim-time]
 
 The bag's joint states (any rosbag2 bag build_dataset reads) are resampled to the player's 60 Hz grid,
 optionally sped up (the paper's x2/x3/x5 clips), and published on /forward_position_controller/commands:
@@ -33,7 +33,7 @@ ARRIVED_RAD = 1e-6
 
 def load_clip(bag: pathlib.Path, speedup: float, rate_hz: float = spec.ACTION_RATE_HZ) -> np.ndarray:
     """Joint positions [T, 6] (URDF order) of the bag on a rate_hz grid, time compressed by `speedup`."""
-    from stylepong_policy.dataset import choose_times_ns, drop_repeated, grid_times_s, interpolate_columns
+    from stylepong_policy.training.dataset import choose_times_ns, drop_repeated, grid_times_s, interpolate_columns
     from stylepong_recording.bag_reading import read_joint_states
     recording = read_joint_states(bag, joints=spec.JOINT_NAMES)
     times_ns, _, _ = choose_times_ns(recording.header_stamp_ns, recording.receive_time_ns)

@@ -34,8 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stylepong_policy.build_dataset import UNLABELLED, choose_label, default_joint_names
-from stylepong_policy.dataset import (
+from stylepong_policy.evaluation.strokes import DIRECTIONS
+from stylepong_policy.training.build_dataset import UNLABELLED, choose_label, default_joint_names
+from stylepong_policy.training.dataset import (
     DEFAULT_RATE_HZ,
     DEFAULT_SPEEDUPS,
     Clip,
@@ -45,7 +46,6 @@ from stylepong_policy.dataset import (
     assemble_dataset,
     make_clips,
 )
-from stylepong_policy.strokes import DIRECTIONS
 from stylepong_recording.bag_errors import BagError, one_line
 from stylepong_recording.bag_reading import median_rate_hz, read_joint_states
 from stylepong_recording.bag_search import find_bags

@@ -13,9 +13,9 @@ The balls a seed serves do not depend on the actor, so two actors meet the same 
 
 Every ball is labelled forward, leftward or rightward by where it reaches the robot, and its stroke
 (joint positions at 60 Hz from the launch to 0.3 s after the paddle's first contact) is kept:
-stylepong_policy.strokes says how, and what --save-strokes writes. With --dtw DATASET.npz (from
+stylepong_policy.evaluation.strokes says how, and what --save-strokes writes. With --dtw DATASET.npz (from
 build_dataset) each direction's strokes are compared with the reference clips of that label by DTW;
-stylepong_policy.style_metrics gives the convention and the smoothness measures reported beside it.
+stylepong_policy.evaluation.style_metrics gives the convention and the smoothness measures reported beside it.
 
 Printed and written as JSON: success_rate (mean over seeds), success_rate_std, per_seed,
 mean_successes_per_seed, hit_rate, failures (verdict -> count), commanded_into_table (the share of balls
@@ -43,9 +43,8 @@ import torch
 from stylepong_common.command_line import print_and_write_json, require_counts, ros2_run_line
 from stylepong_player import spec
 from stylepong_player.spec import ACTION_RATE_HZ
-from stylepong_policy import style_metrics
-from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
-from stylepong_policy.strokes import (
+from stylepong_policy.evaluation import style_metrics
+from stylepong_policy.evaluation.strokes import (
     DIRECTIONS,
     LEFTWARD_ABOVE_M,
     NO_FRAME,
@@ -57,6 +56,7 @@ from stylepong_policy.strokes import (
     save_strokes,
     stroke_end_frame,
 )
+from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_sim.referee import REASON_RETURNED
 from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 
@@ -141,7 +141,7 @@ def portable_path(path: str | os.PathLike) -> str:
 def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.device | str, *, speed: str = 'all',
                   randomize: bool = False, drive: Drive = Drive()) -> SeedResult:
     """Play each of `balls` environments' first ball to its verdict and keep its stroke."""
-    from stylepong_policy import task
+    from stylepong_policy.training import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S
 
     started = time.perf_counter()
@@ -319,7 +319,7 @@ def dtw_by_lateral_offset(strokes: Sequence[Stroke], matches: Sequence[style_met
 def load_reference(path: str | os.PathLike):
     """A reference dataset for DTW, checked to hold joint positions in the URDF order the strokes use."""
     from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.training.dataset import ReferenceDataset
 
     dataset = ReferenceDataset.load(path)
     if tuple(dataset.joint_names) != tuple(JOINT_NAMES):

@@ -14,7 +14,7 @@ over the parameters and the buffers (the observation normalisers' running mean a
 numbered checkpoint RUN_DIR/checkpoints/model_<i>.pt with N <= i <= M (M: the last).
 
 AVERAGED_RUN_DIR is written as a run of its own, so that select_checkpoint validates it and
-tools/ship_run.py ships it like any run:
+`ship_run` ships it like any run:
   checkpoints/model_<M>.pt  the averaged network with the last checkpoint's records (iteration, samples,
                             wall time: the average needs the whole run), no optimiser or discriminator
                             state (it is not a point training passed through), and the averaged
@@ -35,8 +35,8 @@ from torch.optim.swa_utils import AveragedModel
 
 from stylepong_policy.rl.logger import CSV_NAME
 from stylepong_policy.rl.runner import CHECKPOINT_DIR, read_checkpoint
-from stylepong_policy.select_checkpoint import AVERAGED_KEY, actor_critic_of, numbered_checkpoints
-from stylepong_policy.train import CONFIG_NAME, CURVE_NAME, SUMMARY_NAME
+from stylepong_policy.training.select_checkpoint import AVERAGED_KEY, actor_critic_of, numbered_checkpoints
+from stylepong_policy.training.train import CONFIG_NAME, CURVE_NAME, SUMMARY_NAME
 
 # What the averaged run directory takes over unchanged from the run (when the run has it).
 COPIED = (CONFIG_NAME, CSV_NAME, CURVE_NAME)

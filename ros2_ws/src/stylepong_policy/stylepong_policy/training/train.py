@@ -28,6 +28,7 @@ import time
 
 import torch
 
+from stylepong_policy import paths
 from stylepong_policy.rl.config import (
     METHODS,
     ORIGINAL_CLIPS_ONLY,
@@ -66,12 +67,12 @@ def default_config_path(method: str = 'ppo') -> pathlib.Path:
             return path
     except (ImportError, LookupError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH
         pass
-    return pathlib.Path(__file__).resolve().parent.parent / 'config' / name
+    return paths.CONFIG / name
 
 
 def shipped_bags_dir() -> pathlib.Path:
     """ros2_ws/bags of the workspace these sources live in (the shipped teaching clips)."""
-    return pathlib.Path(__file__).resolve().parents[3] / 'bags'
+    return paths.SHIPPED_BAGS
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -158,7 +159,7 @@ def reference_dataset_path(cfg: AMPConfig, run_dir: pathlib.Path) -> pathlib.Pat
 
 def build_shipped_dataset(path: pathlib.Path) -> pathlib.Path:
     """build_dataset over the shipped clips (ros2_ws/bags) into `path`; FileNotFoundError if it fails."""
-    from stylepong_policy import build_dataset
+    from stylepong_policy.training import build_dataset
     bags = shipped_bags_dir()
     if build_dataset.build([bags], path) != 0 or not path.is_file():
         raise FileNotFoundError(f'could not build a reference dataset from {bags}; pass --dataset')
@@ -177,10 +178,10 @@ def follow_through_s(amp, env) -> float | None:
 
 def make_motion_prior(cfg: TrainConfig, env, run_dir: pathlib.Path, device: torch.device):
     """The discriminator and its reference windows for an amp config."""
-    from stylepong_policy.dataset import ReferenceDataset
     from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
     from stylepong_policy.rl.pose_prior import PosePrior
     from stylepong_policy.rl.stroke_prior import StrokePrior
+    from stylepong_policy.training.dataset import ReferenceDataset
     path = reference_dataset_path(cfg.amp, run_dir)
     dataset = ReferenceDataset.load(path)
     label_names = tuple(getattr(env, 'style_labels', ())) if cfg.amp.condition_on_label else ()
@@ -261,7 +262,7 @@ def train_run(cfg: TrainConfig, run_dir: pathlib.Path, method: str, *, config_so
         torch.set_num_threads(cfg.runner.num_threads)
     seed_everything(cfg.runner.seed)
 
-    from stylepong_policy import task  # the batched world: imported late so config errors come fast
+    from stylepong_policy.training import task  # the batched world: imported late so config errors come fast
     try:
         task_cfg = task.TaskConfig(**cfg.task)
     except TypeError as err:

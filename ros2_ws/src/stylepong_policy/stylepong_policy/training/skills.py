@@ -38,7 +38,7 @@ class Skill:
 
 
 def demonstrations_fingerprint(dataset) -> str:
-    """A short hash of a stylepong_policy.dataset.ReferenceDataset's original clips (labels and positions),
+    """A short hash of a stylepong_policy.training.dataset.ReferenceDataset's original clips (labels and positions),
     in the dataset's order: the same demonstrations give the same fingerprint whatever their speed-ups."""
     digest = hashlib.sha256()
     for clip in dataset.select(speed_factors=[1]):
