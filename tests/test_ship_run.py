@@ -47,3 +47,24 @@ def test_ship_refuses_a_run_without_a_selected_actor(run_dir, tmp_path):
     with pytest.raises(FileNotFoundError, match='ppo_actor.onnx'):
         ship_run.ship(run_dir, 'ppo', models)
     assert not any(models.iterdir())
+
+
+def test_evaluations_call_run_evaluation_and_record_the_command_that_repeats_them(tmp_path, monkeypatch):
+    """evaluate_shipped evaluates in this process (no `ros2 run`): one run_evaluation per protocol entry,
+    its summary written with the actor as the record names it and the `evaluate` command line."""
+    from stylepong_policy.evaluation import evaluate
+    calls = []
+
+    def fake_run_evaluation(actor, **arguments):
+        calls.append((pathlib.Path(actor), arguments))
+        return {'success_rate': 0.5, 'actor': str(actor)}
+
+    monkeypatch.setattr(evaluate, 'run_evaluation', fake_run_evaluation)
+    written = ship_run.evaluate_shipped('ppo', tmp_path)
+    assert [p.name for p in written] == ['ppo_eval_all.json', 'ppo_eval_high.json']
+    assert calls == [(tmp_path / 'ppo_actor.pt', arguments) for arguments in ship_run.EVALUATIONS.values()]
+    record = json.loads((tmp_path / 'ppo_eval_high.json').read_text())
+    # Outside the repository only the file name is kept: no folder of this machine in a shipped record.
+    assert record['actor'] == 'ppo_actor.pt'
+    assert record['command'] == ('ros2 run stylepong_policy evaluate --actor ppo_actor.pt --seeds 10 --first-seed 2000 '
+                                 '--balls 200 --speed high --json ppo_eval_high.json')

@@ -56,10 +56,10 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
 
 
 def in_repository(path: pathlib.Path) -> str:
-    """A path as the shipped records write it: relative to the repository when inside it, so that the
-    record reads the same from any working directory and on any machine."""
+    """A path as the shipped records write it: relative to the repository when inside it, else its file name
+    alone (as evaluate's portable_path does), so that a record never carries this machine's folders."""
     resolved = path.resolve()
-    return (resolved.relative_to(REPOSITORY) if resolved.is_relative_to(REPOSITORY) else resolved).as_posix()
+    return resolved.relative_to(REPOSITORY).as_posix() if resolved.is_relative_to(REPOSITORY) else resolved.name
 
 
 def evaluation_command(actor: str, json_path: str, arguments: dict) -> list[str]:
