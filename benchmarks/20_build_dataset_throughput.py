@@ -2,7 +2,7 @@
 """build_dataset throughput in JointState messages per second (target: >= 30,000 msg/s on this machine;
 docs/ACCEPTANCE.md).
 
-Times the whole tool in-process (`stylepong_policy.build_dataset.run`: find the bag, read and decode
+Times the whole tool in-process (`stylepong_policy.training.build_dataset.run`: find the bag, read and decode
 every JointState, check counts, resample to 60 Hz, trim, augment x2/x3/x5, write the .npz) on bags
 written as StylePong's recorder writes them (rosbags, 500 Hz, six joints), and on the real UR3e recording
 when ../shared/interop-bags is there. For scale it also times rosbags' own read + deserialize of the
@@ -23,7 +23,7 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
-from stylepong_policy.build_dataset import run  # noqa: E402
+from stylepong_policy.training.build_dataset import run  # noqa: E402
 from stylepong_recording.joint_state_bags import jazzy_typestore, write_recorder_bag  # noqa: E402
 
 TARGET_MSG_S = 30_000

@@ -65,7 +65,7 @@ def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]
 
 
 def env_rate(num_envs: int) -> float:
-    from stylepong_policy import task
+    from stylepong_policy.training import task
 
     env = task.make_env(task.TaskConfig(num_envs=num_envs), 'cpu', 0)
     env.reset()
@@ -93,7 +93,7 @@ def main() -> int:
           f'`batched_world.torch_threads`), 60 Hz policy steps each with 2 physics steps at '
           f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
           f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
-          f'from the vectorised sampler); "env": `stylepong_policy.task.TableTennisEnv.step` with random '
+          f'from the vectorised sampler); "env": `stylepong_policy.training.task.TableTennisEnv.step` with random '
           f'actions (observations, noise, delays, rewards, domain randomisation, resets). "torch.compile": '
           f'`BatchedWorld(compile=True)` (TaskConfig.compile_world), the same physics fused by inductor '
           f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). '

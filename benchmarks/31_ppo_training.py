@@ -2,7 +2,7 @@
 """PPO training throughput end to end in the batched world, and the share of wall time spent in the world.
 
 Runs the real runner (rollouts with the policy under inference mode, GAE, PPO update, checkpoint and
-CSV log) on `stylepong_policy.task.make_env` with the shipped config's PPO settings, for the paper's
+CSV log) on `stylepong_policy.training.task.make_env` with the shipped config's PPO settings, for the paper's
 network sizes and a smaller pair, and prints one Markdown section for BENCHMARKS.md.
 """
 from __future__ import annotations
@@ -26,11 +26,11 @@ SHARES = ('world_share', 'policy_share', 'learn_share')   # the table's columns 
 
 
 def measure(hidden_dims: list[int]) -> dict[str, float]:
-    from stylepong_policy import task
     from stylepong_policy.rl.config import load_config
     from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
     from stylepong_policy.rl.throughput import measure_throughput
-    from stylepong_policy.train import default_config_path
+    from stylepong_policy.training import task
+    from stylepong_policy.training.train import default_config_path
 
     cfg = load_config(default_config_path())
     cfg.policy.actor_hidden_dims = list(hidden_dims)
@@ -55,8 +55,9 @@ def main() -> int:
         rows.append((dims, measure(dims), time.perf_counter() - started))
     first = rows[0][1]
     print('## PPO training throughput (end to end)\n')
-    print(f'`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.task.make_env` with N = {NUM_ENVS} '
-          f'environments on the CPU (torch {torch.__version__}, 2 threads), the shipped `config/ppo.yaml` '
+    print('`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.training.task.make_env` '
+          f'with N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
+          '`config/ppo.yaml` '
           f'({first["steps"]} steps per env per iteration, {first["epochs"]} epochs x {first["minibatches"]} '
           f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
           f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '

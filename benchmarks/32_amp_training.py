@@ -3,7 +3,7 @@
 
 Runs the real runner with the motion prior (`train --method amp`'s path: rollouts, style reward from
 the discriminator on every step's windows, PPO update, discriminator updates, checkpoint and CSV log)
-on `stylepong_policy.task.make_env` with the shipped config/amp.yaml, the reference motions built from
+on `stylepong_policy.training.task.make_env` with the shipped config/amp.yaml, the reference motions built from
 the shipped clips, N environments on the CPU; prints one Markdown section for BENCHMARKS.md.
 """
 from __future__ import annotations
@@ -29,11 +29,11 @@ SHARES = ('world_share', 'policy_share', 'learn_share', 'style_share')   # the t
 
 
 def measure(run_dir: pathlib.Path) -> dict[str, float]:
-    from stylepong_policy import task
     from stylepong_policy.rl.config import load_config
     from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
     from stylepong_policy.rl.throughput import measure_throughput
-    from stylepong_policy.train import default_config_path, make_motion_prior
+    from stylepong_policy.training import task
+    from stylepong_policy.training.train import default_config_path, make_motion_prior
 
     cfg = load_config(default_config_path('amp'))
     cfg.task['num_envs'] = NUM_ENVS
@@ -55,7 +55,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as run_dir, contextlib.redirect_stdout(io.StringIO()):
         r = measure(pathlib.Path(run_dir))
     print('## AMP training throughput (end to end)\n')
-    print(f'`benchmarks/32_amp_training.py`: the runner with the motion prior on `stylepong_policy.task.make_env`, '
+    print('`benchmarks/32_amp_training.py`: the runner with the motion prior on '
+          '`stylepong_policy.training.task.make_env`, '
           f'N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
           f'`config/amp.yaml` (actor and critic {r["hidden"]}, discriminator {r["disc_hidden"]} on windows of '
           f'{r["length"]} arm states, {r["updates"]} discriminator steps of {r["batch"]} + {r["batch"]} windows '

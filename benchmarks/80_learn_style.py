@@ -27,7 +27,7 @@ GPU_LOG = ROOT / 'benchmarks' / 'logs' / 'learn_style_cuda_h100.log'
 
 def gpu_paragraph(log: pathlib.Path) -> str:
     """The GPU run's training throughput, from its progress lines ('train ... | T/B s [..., it K, ...')."""
-    from stylepong_policy import learn_style
+    from stylepong_policy.training import learn_style
     steps_per_env = learn_style.recipe(None)[0].ppo.num_steps_per_env
     text = log.read_text()
     envs = int(re.search(r'(\d+) envs on cuda', text).group(1))
@@ -47,8 +47,8 @@ def gpu_paragraph(log: pathlib.Path) -> str:
 def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         run = pathlib.Path(tmp) / 'run'
-        command = [sys.executable, '-m', 'stylepong_policy.learn_style', str(ROOT / 'ros2_ws' / 'bags'), '--out',
-                   str(run), '--minutes', f'{MINUTES:g}', '--device', DEVICE]
+        command = [sys.executable, '-m', 'stylepong_policy.training.learn_style', str(ROOT / 'ros2_ws' / 'bags'),
+                   '--out', str(run), '--minutes', f'{MINUTES:g}', '--device', DEVICE]
         load_before = os.getloadavg()[0]
         started = time.perf_counter()
         result = subprocess.run(command, capture_output=True, text=True)

@@ -1,4 +1,4 @@
-"""How the `ros2` helper (tools/ros2) decides that discovery is complete.
+"""How the `ros2` helper (stylepong_ros2cli.helper, run as tools/ros2) decides that discovery is complete.
 
 A participant's publications and subscriptions reach a new participant through separate DDS
 endpoint-discovery exchanges, which a loaded machine can deliver more than a second apart (CI once listed
@@ -8,9 +8,6 @@ discovered. These tests check that decision on synthetic GIDs, the wait itself w
 faked (it must outlast a quiet graph that is still incomplete), and the reader against a node running in
 another process (the GIDs it names must be those the graph reports, byte for byte).
 """
-import importlib.machinery
-import importlib.util
-import pathlib
 import subprocess
 import sys
 import time
@@ -20,16 +17,12 @@ from rmw_dds_common.msg import Gid, NodeEntitiesInfo, ParticipantEntitiesInfo
 
 from stylepong_common.node_process import wait_until
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-
 
 @pytest.fixture(scope='module')
 def helper():
-    """tools/ros2 as a module (a script without the .py suffix)."""
-    loader = importlib.machinery.SourceFileLoader('ros2_helper', str(ROOT / 'tools' / 'ros2'))
-    module = importlib.util.module_from_spec(importlib.util.spec_from_loader('ros2_helper', loader))
-    loader.exec_module(module)
-    return module
+    """The helper's module, as tools/ros2 runs it."""
+    from stylepong_ros2cli import helper
+    return helper
 
 
 def _prefix(participant: int) -> bytes:

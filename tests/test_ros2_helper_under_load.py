@@ -1,4 +1,5 @@
-"""The `ros2` helper (tools/ros2) with ur5_sim running on a machine whose cores are all busy.
+"""The `ros2` helper (stylepong_ros2cli.helper, run as tools/ros2) with ur5_sim running on a machine whose
+cores are all busy.
 
 A fresh `ros2` process often sees a running node only at that node's next discovery announcement (every
 3 s with Fast DDS), later still when the CPU is contended; a fixed 1 s wait then lists only the helper's

@@ -1,10 +1,11 @@
-"""tools/ship_run.py: what it copies into models/ and the summary it writes (no training, no evaluation)."""
+"""ship_run (stylepong_policy.shipping.ship_run): what it copies into models/ and the summary it writes
+(no training, no evaluation)."""
 import json
 import pathlib
 
 import pytest
 
-from tests.tool_module import load_tool
+from stylepong_policy.shipping import ship_run
 
 
 @pytest.fixture
@@ -24,7 +25,7 @@ def run_dir(tmp_path) -> pathlib.Path:
 def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
-    written = load_tool('ship_run').ship(run_dir, 'ppo', models)
+    written = ship_run.ship(run_dir, 'ppo', models)
     assert {p.name for p in written} == {
         'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv',
         'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
@@ -44,5 +45,26 @@ def test_ship_refuses_a_run_without_a_selected_actor(run_dir, tmp_path):
     models = tmp_path / 'models'
     models.mkdir()
     with pytest.raises(FileNotFoundError, match='ppo_actor.onnx'):
-        load_tool('ship_run').ship(run_dir, 'ppo', models)
+        ship_run.ship(run_dir, 'ppo', models)
     assert not any(models.iterdir())
+
+
+def test_evaluations_call_run_evaluation_and_record_the_command_that_repeats_them(tmp_path, monkeypatch):
+    """evaluate_shipped evaluates in this process (no `ros2 run`): one run_evaluation per protocol entry,
+    its summary written with the actor as the record names it and the `evaluate` command line."""
+    from stylepong_policy.evaluation import evaluate
+    calls = []
+
+    def fake_run_evaluation(actor, **arguments):
+        calls.append((pathlib.Path(actor), arguments))
+        return {'success_rate': 0.5, 'actor': str(actor)}
+
+    monkeypatch.setattr(evaluate, 'run_evaluation', fake_run_evaluation)
+    written = ship_run.evaluate_shipped('ppo', tmp_path)
+    assert [p.name for p in written] == ['ppo_eval_all.json', 'ppo_eval_high.json']
+    assert calls == [(tmp_path / 'ppo_actor.pt', arguments) for arguments in ship_run.EVALUATIONS.values()]
+    record = json.loads((tmp_path / 'ppo_eval_high.json').read_text())
+    # Outside the repository only the file name is kept: no folder of this machine in a shipped record.
+    assert record['actor'] == 'ppo_actor.pt'
+    assert record['command'] == ('ros2 run stylepong_policy evaluate --actor ppo_actor.pt --seeds 10 --first-seed 2000 '
+                                 '--balls 200 --speed high --json ppo_eval_high.json')

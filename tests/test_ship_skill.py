@@ -1,5 +1,6 @@
-"""tools/ship_skill.py: a learn_style run's network into the skill library, with the demonstrations behind it
-(through the runs it started from) and how its config differed from the recipe (no training)."""
+"""ship_skill (stylepong_policy.shipping.ship_skill): a learn_style run's network into the skill library, with
+the demonstrations behind it (through the runs it started from) and how its config differed from the recipe
+(no training)."""
 import json
 import pathlib
 
@@ -8,10 +9,10 @@ import pytest
 import torch
 import yaml
 
-from stylepong_policy import learn_style, skills
-from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
-from stylepong_policy.train import default_config_path
-from tests.tool_module import load_tool
+from stylepong_policy.shipping import ship_skill
+from stylepong_policy.training import learn_style, skills
+from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
+from stylepong_policy.training.train import default_config_path
 
 
 def fake_run(run: pathlib.Path, start: pathlib.Path, swing_rad: float, config: dict) -> pathlib.Path:
@@ -43,7 +44,7 @@ def test_a_skill_carries_its_starts_demonstrations_and_its_differences_from_the_
     changed = {**recipe, 'amp': {**recipe['amp'], 'hold_success_margin': 0.05, 'dataset': 'elsewhere.npz'}}
     second = fake_run(tmp_path / 'second', first / learn_style.ACTOR_CHECKPOINT_NAME, 0.5, changed)
     models = tmp_path / 'models'
-    written = load_tool('ship_skill').ship_skill(second, 'second', models)
+    written = ship_skill.ship_skill(second, 'second', models)
     assert [p.name for p in written] == ['second.pt', 'second.json']
     fingerprints = [learn_style.fingerprint_of(learn_style.paths_of(run)) for run in (first, second)]
     library = skills.library(models)
@@ -57,5 +58,5 @@ def test_an_unfinished_run_is_refused_in_one_line(tmp_path, capsys):
     run = tmp_path / 'run'
     run.mkdir()
     learn_style.write_state(learn_style.paths_of(run), {'stages': {'train': {}}})
-    assert load_tool('ship_skill').main(['--run', str(run), '--name', 'x', '--models-dir', str(tmp_path)]) == 2
+    assert ship_skill.main(['--run', str(run), '--name', 'x', '--models-dir', str(tmp_path)]) == 2
     assert capsys.readouterr().err.count('\n') == 1

@@ -14,7 +14,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.training.dataset import ReferenceDataset
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 BAGS = ROOT / 'ros2_ws' / 'bags'

@@ -11,9 +11,9 @@ import pathlib
 import numpy as np
 import pytest
 
-from stylepong_policy import build_dataset
-from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.style_metrics import dtw_distance_rad, smoothness
+from stylepong_policy.evaluation.style_metrics import dtw_distance_rad, smoothness
+from stylepong_policy.training import build_dataset
+from stylepong_policy.training.dataset import ReferenceDataset
 from stylepong_recording.bag_reading import median_rate_hz, read_joint_states
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent

@@ -14,7 +14,7 @@ import time
 import pytest
 
 PACKAGES = ('stylepong_msgs', 'stylepong_description', 'stylepong_sim', 'stylepong_fdcc', 'stylepong_recording',
-            'stylepong_player', 'stylepong_policy')
+            'stylepong_player', 'stylepong_policy', 'stylepong_ros2cli')
 
 
 def test_python3_is_the_project_interpreter_with_rclpy():

@@ -29,4 +29,4 @@ fi
 train_stage "$config/ppo_stage2.yaml"
 ros2 run stylepong_policy select_checkpoint --run "$run" --seeds 10 --first-seed 900 --balls 200 \
     --high-first-seed 950 --export "$run/selected/ppo_actor.pt"
-python3 tools/ship_run.py --run "$run" --name ppo
+ros2 run stylepong_policy ship_run --run "$run" --name ppo

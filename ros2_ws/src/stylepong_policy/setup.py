@@ -24,14 +24,24 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'build_dataset = stylepong_policy.build_dataset:main',
-            'train = stylepong_policy.train:main',
-            'evaluate = stylepong_policy.evaluate:main',
-            'select_checkpoint = stylepong_policy.select_checkpoint:main',
-            'average_checkpoints = stylepong_policy.average_checkpoints:main',
-            'paper_tables = stylepong_policy.paper_tables:main',
-            'style_confusion = stylepong_policy.style_confusion:main',
-            'learn_style = stylepong_policy.learn_style:main',
+            # The names are what users type (`ros2 run stylepong_policy <name>`); the modules behind them
+            # are grouped by role, so a name never follows a module when it moves.
+            'build_dataset = stylepong_policy.training.build_dataset:main',
+            'train = stylepong_policy.training.train:main',
+            'select_checkpoint = stylepong_policy.training.select_checkpoint:main',
+            'average_checkpoints = stylepong_policy.training.average_checkpoints:main',
+            'learn_style = stylepong_policy.training.learn_style:main',
+            'evaluate = stylepong_policy.evaluation.evaluate:main',
+            'demo_returns = stylepong_policy.evaluation.demo_returns:main',
+            'offline_rallies = stylepong_policy.evaluation.offline_rallies:main',
+            'replay_clip = stylepong_policy.evaluation.player_replay:main',
+            'paper_tables = stylepong_policy.reports.paper_tables:main',
+            'style_confusion = stylepong_policy.reports.style_confusion:main',
+            'compare_demo_sets = stylepong_policy.reports.compare_demo_sets:main',
+            'ship_run = stylepong_policy.shipping.ship_run:main',
+            'ship_skill = stylepong_policy.shipping.ship_skill:main',
+            'amp_sequence_length = stylepong_policy.experiments.amp_sequence_length:main',
+            'amp_frame_features = stylepong_policy.experiments.amp_frame_features:main',
             # The user's pipeline ends in this package (learn_style, then play the actor), so the
             # player is offered under its name too; the one implementation stays in
             # stylepong_player, which the robot computer installs without torch.

@@ -1,4 +1,5 @@
-"""Training bridge (bags to reference motions), PPO + AMP training, evaluation and the 60 Hz player."""
+"""Learning and evaluation: `training/`, `evaluation/`, `reports/`, `shipping/`, `experiments/`, and the
+algorithms in `rl/` (README.md lists the modules)."""
 import os
 
 # Before torch or onnxruntime start their thread pools, which every entry point of this package reaches

@@ -3,8 +3,8 @@ import pathlib
 
 import numpy as np
 
-from stylepong_policy import strokes
-from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
+from stylepong_policy.evaluation import strokes
+from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
 
 
 def write_reference(path: pathlib.Path, labels=strokes.DIRECTIONS) -> pathlib.Path:

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.rl.amp import (
     MotionPrior,
     ReferenceMotion,
@@ -18,6 +17,7 @@ from stylepong_policy.rl.amp import (
 )
 from stylepong_policy.rl.config import AMPConfig, config_from_dict
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+from stylepong_policy.training.dataset import ReferenceDataset
 
 import ppo_toy_task as TOY  # beside this file: conftest.py
 
@@ -71,10 +71,10 @@ def test_style_rewards_are_bounded_and_rise_with_the_discriminator_output():
 def _shipped_or_synthetic_dataset(tmp_path) -> ReferenceDataset:
     """The dataset of the shipped clips; a synthetic swing set where the bags are not there."""
     if any(BAGS.glob('*/metadata.yaml')):
-        from stylepong_policy import build_dataset
+        from stylepong_policy.training import build_dataset
         assert build_dataset.run([str(BAGS), '-o', str(tmp_path / 'd.npz')]) == 0
         return ReferenceDataset.load(tmp_path / 'd.npz')
-    from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
+    from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
     t = np.arange(120) / 60.0
     originals = []
     for i in range(4):

@@ -8,7 +8,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from stylepong_policy.build_dataset import build_parser, process_bag, settings_from_args
+from stylepong_policy.training.build_dataset import build_parser, process_bag, settings_from_args
 from stylepong_recording.joint_state_bags import URDF_JOINTS, read_with_rosbags
 
 # ../shared/interop-bags beside the repository, unless STYLEPONG_INTEROP_BAGS names another copy.

@@ -1,11 +1,11 @@
-"""stylepong_policy.contacts: the blade at a contact, for known poses, strokes and demonstrations."""
+"""stylepong_policy.evaluation.contacts: the blade at a contact, for known poses, strokes and demonstrations."""
 import numpy as np
 import pytest
 from synthetic_reference import write_reference  # beside this file: conftest.py
 
-from stylepong_policy import contacts
-from stylepong_policy.dataset import ReferenceDataset, hit_frame
-from stylepong_policy.strokes import Stroke, paddle_home_position_m
+from stylepong_policy.evaluation import contacts
+from stylepong_policy.evaluation.strokes import Stroke, paddle_home_position_m
+from stylepong_policy.training.dataset import ReferenceDataset, hit_frame
 from stylepong_sim import world_spec
 
 HOME = np.asarray(world_spec.HOME_JOINT_POSITIONS_RAD, dtype=float)

@@ -1,11 +1,11 @@
-"""Recording -> 60 Hz clips -> augmentation -> .npz -> discriminator windows (stylepong_policy.dataset)."""
+"""Recording -> 60 Hz clips -> augmentation -> .npz -> discriminator windows (stylepong_policy.training.dataset)."""
 import math
 import pathlib
 
 import numpy as np
 import pytest
 
-from stylepong_policy.dataset import (
+from stylepong_policy.training.dataset import (
     PER_CLIP_FIELDS,
     Clip,
     ClipOptions,
@@ -243,7 +243,7 @@ def _shipped_dataset(tmp_path_factory) -> ReferenceDataset | None:
     bags = pathlib.Path(__file__).resolve().parents[3] / 'bags'
     if not any(bags.glob('*/metadata.yaml')):
         return None
-    from stylepong_policy import build_dataset
+    from stylepong_policy.training import build_dataset
     out = tmp_path_factory.mktemp('shipped') / 'dataset.npz'
     assert build_dataset.run([str(bags), '-o', str(out)]) == 0
     return ReferenceDataset.load(out)

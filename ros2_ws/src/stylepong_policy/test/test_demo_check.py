@@ -8,9 +8,9 @@ import time
 import numpy as np
 import pytest
 
-from stylepong_policy import build_dataset
-from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.demo_check import (
+from stylepong_policy.training import build_dataset
+from stylepong_policy.training.dataset import ReferenceDataset
+from stylepong_policy.training.demo_check import (
     MIN_RATE_HZ,
     DemonstrationError,
     check_demonstrations,
@@ -224,7 +224,7 @@ def test_a_refusal_comes_fast_without_torch(tmp_path):
     bag = tmp_path / 'bad' / 'take1'
     write_recorder_bag(bag, SWING, SWING.total_s, label=None)
     script = ('import sys\n'
-              'from stylepong_policy.demo_check import DemonstrationError, check_demonstrations\n'
+              'from stylepong_policy.training.demo_check import DemonstrationError, check_demonstrations\n'
               f'try:\n    check_demonstrations({str(bag.parent)!r}, window_frames=8)\n'
               'except DemonstrationError as error:\n    print(error)\n'
               "print('torch imported' if 'torch' in sys.modules else 'no torch')\n")

@@ -1,12 +1,12 @@
-"""Replaying a joint-position sequence against incoming balls (stylepong_policy.demo_replay)."""
+"""Replaying a joint-position sequence against incoming balls (stylepong_policy.evaluation.demo_replay)."""
 import pathlib
 
 import numpy as np
 import pytest
 import torch
 
-from stylepong_policy import demo_replay
-from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.evaluation import demo_replay
+from stylepong_policy.training.dataset import ReferenceDataset
 from stylepong_sim import world_spec
 
 ALL_SPEEDS = tuple(world_spec.SPEED_RANGES_M_S['all'])
@@ -41,7 +41,7 @@ def test_the_shipped_opened_blade_returns_the_ball_and_an_upright_one_seldom_doe
     bags = pathlib.Path(__file__).resolve().parents[3] / 'bags'
     if not any(bags.glob('*/metadata.yaml')):
         pytest.skip('no shipped clips in ros2_ws/bags')
-    from stylepong_policy import build_dataset
+    from stylepong_policy.training import build_dataset
     assert build_dataset.run([str(bags), '-o', str(tmp_path / 'dataset.npz')]) == 0
     dataset = ReferenceDataset.load(tmp_path / 'dataset.npz')
     clip = dataset.clip(int(dataset.select(labels=['forward'], speed_factors=[5])[0])).q

@@ -8,7 +8,7 @@ import pytest
 from json_text import json_strings  # beside this file: conftest.py
 from synthetic_reference import write_reference
 
-from stylepong_policy import evaluate, strokes
+from stylepong_policy.evaluation import evaluate, strokes
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PPO_ACTOR = PACKAGE / 'models' / 'ppo_actor.pt'
@@ -80,8 +80,8 @@ def test_json_has_directions_smoothness_dtw_and_no_absolute_path(evaluated):
 
 
 def test_dtw_in_the_json_is_recomputable_from_the_stroke_file(evaluated):
-    from stylepong_policy import style_metrics
-    from stylepong_policy.dataset import ReferenceDataset
+    from stylepong_policy.evaluation import style_metrics
+    from stylepong_policy.training.dataset import ReferenceDataset
 
     result = json.loads((evaluated / 'out' / 'eval.json').read_text())
     dataset = ReferenceDataset.load(evaluated / 'reference.npz')

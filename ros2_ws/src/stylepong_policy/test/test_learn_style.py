@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_policy import learn_style, skills, style_report
+from stylepong_policy.reports import style_report
 from stylepong_policy.rl.export import load_actor, read_sidecar
+from stylepong_policy.training import learn_style, skills
 
 BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
 
@@ -115,7 +116,7 @@ def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
     started = time.monotonic()
     empty = tmp_path / 'empty'
     empty.mkdir()
-    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.learn_style', str(empty), '--out',
+    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.training.learn_style', str(empty), '--out',
                              str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
@@ -134,7 +135,7 @@ def test_a_device_without_cuda_is_refused_in_one_line_before_anything_is_written
 
 
 def test_candidates_are_averages_along_the_end_of_the_run_and_the_last_checkpoint(tmp_path, monkeypatch):
-    from stylepong_policy import select_checkpoint
+    from stylepong_policy.training import select_checkpoint
     numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]     # 12 checkpoints
     monkeypatch.setattr(select_checkpoint, 'numbered_checkpoints', lambda run_dir: numbered)
     candidates = dict(learn_style.candidates_of(tmp_path))
@@ -173,8 +174,8 @@ def test_training_gets_all_but_the_reserve():
 def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clock(tmp_path):
     """The train bar counts the run's training time against the budget: a resumed run's starts where the
     stopped one was (its progress log's last wall time), so its ETA is the budget really left."""
-    from stylepong_policy.learn_style_progress import StageBar
     from stylepong_policy.rl.logger import CSV_NAME
+    from stylepong_policy.training.learn_style_progress import StageBar
     assert learn_style.trained_s(tmp_path) == 0.0
     (tmp_path / CSV_NAME).write_text('iteration,wall_time_s\n1,2.5\n2,828.0\n')
     assert learn_style.trained_s(tmp_path) == 828.0

@@ -5,7 +5,7 @@ import pathlib
 import pytest
 from json_text import json_strings  # beside this file: conftest.py
 
-from stylepong_policy import paper_tables
+from stylepong_policy.reports import paper_tables
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PPO_ACTOR = PACKAGE / 'models' / 'ppo_actor.pt'

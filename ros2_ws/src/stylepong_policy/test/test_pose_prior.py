@@ -7,10 +7,10 @@ import pytest
 import torch
 from synthetic_reference import write_reference  # beside this file: conftest.py
 
-from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
 from stylepong_policy.rl.config import AMPConfig
 from stylepong_policy.rl.pose_prior import PosePrior
+from stylepong_policy.training.dataset import ReferenceDataset
 
 LABELS = ('forward', 'leftward', 'rightward')
 
@@ -117,8 +117,8 @@ def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose
 
 
 def test_stroke_prior_rewards_each_stroke_once_by_its_dtw_to_the_nearest_clip_of_its_label():
+    from stylepong_policy.evaluation.style_metrics import dtw_distance_rad
     from stylepong_policy.rl.stroke_prior import StrokePrior
-    from stylepong_policy.style_metrics import dtw_distance_rad
     clip = line_clip(4, 1)[0]
     prior = StrokePrior([[clip], []], sigma_rad=0.5, num_envs=3, joints=6)
     frames = torch.zeros(3, 6)

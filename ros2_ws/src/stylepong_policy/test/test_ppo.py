@@ -13,7 +13,7 @@ from stylepong_policy.rl.normalizer import RunningNormalizer
 from stylepong_policy.rl.ppo import PPO, gaussian_kl
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 from stylepong_policy.rl.storage import RolloutStorage
-from stylepong_policy.task import TaskConfig
+from stylepong_policy.training.task import TaskConfig
 
 import ppo_toy_task  # beside this file: conftest.py
 

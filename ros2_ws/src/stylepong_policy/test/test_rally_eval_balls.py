@@ -1,7 +1,7 @@
 """rally_eval serves, for seed S, exactly the balls `evaluate` plays for S (the task's first balls)."""
 import numpy as np
 
-from stylepong_policy import task
+from stylepong_policy.training import task
 from stylepong_sim import rally_eval, world_spec
 
 

@@ -11,8 +11,8 @@ import pytest
 import torch
 from synthetic_reference import write_reference  # beside this file: conftest.py
 
-from stylepong_policy import average_checkpoints, select_checkpoint
 from stylepong_policy.rl.export import load_actor
+from stylepong_policy.training import average_checkpoints, select_checkpoint
 
 TOY_CONFIG = """
 policy: {actor_hidden_dims: [32, 32], critic_hidden_dims: [32, 32], init_noise_std: 1.0}
@@ -28,8 +28,9 @@ def run_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp('select')
     (root / 'toy.yaml').write_text(TOY_CONFIG)
     run = root / 'run'
-    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.train', '--config', str(root / 'toy.yaml'),
-                             '--out', str(run), '--iterations', '2', '--num-envs', '64', '--no-tensorboard'],
+    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.training.train',
+                             '--config', str(root / 'toy.yaml'), '--out', str(run),
+                             '--iterations', '2', '--num-envs', '64', '--no-tensorboard'],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     assert [i for i, _ in select_checkpoint.numbered_checkpoints(run)] == [1, 2]

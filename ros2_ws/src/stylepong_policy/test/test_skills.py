@@ -7,8 +7,8 @@ import pytest
 import torch
 from synthetic_reference import write_reference
 
-from stylepong_policy import skills
-from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.training import skills
+from stylepong_policy.training.dataset import ReferenceDataset
 
 
 @pytest.fixture
@@ -52,7 +52,7 @@ def test_the_library_is_the_shipped_skill_then_the_learned_ones_and_a_set_is_not
 
 
 def test_the_shipped_library_holds_networks_of_the_recipes_sizes_each_with_its_demonstrations():
-    from stylepong_policy.learn_style import models_dir
+    from stylepong_policy.training.learn_style import models_dir
     library = {s.name: s for s in skills.library(models_dir())}
     from stylepong_policy.rl.networks import ActorCritic, fit_value_streams, network_sizes
     shipped = torch.load(library[skills.SHIPPED].path, map_location='cpu', weights_only=False)

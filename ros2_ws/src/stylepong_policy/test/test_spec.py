@@ -8,7 +8,7 @@ import torch
 
 from stylepong_description import robot_model
 from stylepong_player import player_core, spec
-from stylepong_policy import task
+from stylepong_policy.training import task
 
 
 def test_layout_and_contract():

@@ -1,8 +1,8 @@
-"""Stroke directions from ball tracks, and the stroke file (stylepong_policy.strokes)."""
+"""Stroke directions from ball tracks, and the stroke file (stylepong_policy.evaluation.strokes)."""
 import numpy as np
 import pytest
 
-from stylepong_policy import strokes
+from stylepong_policy.evaluation import strokes
 from stylepong_sim import teacher, world_spec
 
 RATE_HZ = 60.0

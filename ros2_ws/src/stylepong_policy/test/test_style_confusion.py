@@ -5,8 +5,9 @@ import pathlib
 import pytest
 from synthetic_reference import write_reference
 
-from stylepong_policy import evaluate, style_confusion
-from stylepong_policy.dataset import ReferenceDataset
+from stylepong_policy.evaluation import evaluate
+from stylepong_policy.reports import style_confusion
+from stylepong_policy.training.dataset import ReferenceDataset
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 MODELS = PACKAGE / 'models'

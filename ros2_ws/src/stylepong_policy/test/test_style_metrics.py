@@ -1,9 +1,9 @@
-"""DTW convention and smoothness measures (stylepong_policy.style_metrics)."""
+"""DTW convention and smoothness measures (stylepong_policy.evaluation.style_metrics)."""
 import numpy as np
 import pytest
 
-from stylepong_policy import style_metrics
-from stylepong_policy.dataset import Clip, SourceClip, assemble_dataset
+from stylepong_policy.evaluation import style_metrics
+from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
 
 
 def reference_dtw(a: np.ndarray, b: np.ndarray) -> float:

@@ -7,10 +7,10 @@ import shutil
 import numpy as np
 import pytest
 
-from stylepong_policy import evaluate, strokes, style_metrics
-from stylepong_policy import style_report as report
-from stylepong_policy.dataset import ReferenceDataset
-from stylepong_policy.demo_check import check_demonstrations
+from stylepong_policy.evaluation import evaluate, strokes, style_metrics
+from stylepong_policy.reports import style_report as report
+from stylepong_policy.training.dataset import ReferenceDataset
+from stylepong_policy.training.demo_check import check_demonstrations
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 MODELS = PACKAGE / 'models'

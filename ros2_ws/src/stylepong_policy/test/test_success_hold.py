@@ -7,7 +7,7 @@ import pytest
 
 from stylepong_policy.rl.config import load_config
 from stylepong_policy.rl.success_hold import SuccessHold
-from stylepong_policy.train import default_config_path
+from stylepong_policy.training.train import default_config_path
 
 
 def _hold(smoothing: float = 0.5) -> SuccessHold:

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from stylepong_player import spec
-from stylepong_policy import task
+from stylepong_policy.training import task
 from stylepong_sim import referee, world_spec
 
 
@@ -318,7 +318,7 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
     from its launch. Balls that fly past an arm held at home cross the paddle's home plane at the y that
     strokes.direction_of labels the same way, in the nominal and in the randomised world (drag, gravity and
     restitution change the flight, not its heading)."""
-    from stylepong_policy import strokes
+    from stylepong_policy.evaluation import strokes
     plane_x_m, home_y_m, _ = strokes.paddle_home_position_m()
     for randomize in (False, True):
         env = _env(256, seed=3, randomize=randomize, reset_joint_noise_rad=0.0)

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stylepong_policy.dataset import window_start_indices
+from stylepong_policy.training.dataset import window_start_indices
 
 from .config import FRAME_FEATURES, AMPConfig
 from .networks import make_mlp
@@ -108,7 +108,7 @@ class ReferenceMotion:
     def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
                      device: torch.device | str = 'cpu', features: str = 'q_qdot',
                      label_names: Sequence[str] = (), phases: bool = False) -> 'ReferenceMotion':
-        """Windows of a stylepong_policy.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
+        """Windows of a stylepong_policy.training.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
         of the clips with these speed factors (None: all, originals and speed-ups). With label_names, each
         window also carries the index of its clip's label among them (a clip with another label: an error);
         with phases, whether its last frame is at or after its clip's hit."""

@@ -1,7 +1,7 @@
 """The batched-environment contract the runner, PPO and the motion prior are written against.
 
 Like rsl_rl's VecEnv: N environments stepped together on tensors, each resetting itself when its
-episode ends. Nothing here knows what the task is; the table-tennis task (stylepong_policy.task) and the
+episode ends. Nothing here knows what the task is; the table-tennis task (stylepong_policy.training.task) and the
 toy task of the tests both follow it.
 
 Sizes: `num_envs`, `num_obs` (the actor's input), `num_critic_obs` (the critic's, privileged),

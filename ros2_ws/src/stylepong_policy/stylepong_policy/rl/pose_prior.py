@@ -98,9 +98,9 @@ class PosePrior:
     @classmethod
     def from_dataset(cls, dataset, label_names: Sequence[str], sigma_rad: float,
                      device: torch.device | str = 'cpu', follow_through_s: float | None = None) -> 'PosePrior':
-        """The clips of a stylepong_policy.dataset.ReferenceDataset (every speed factor), grouped by the
+        """The clips of a stylepong_policy.training.dataset.ReferenceDataset (every speed factor), grouped by the
         labels of label_names; () : one group of every clip."""
-        from stylepong_policy.dataset import hit_frame
+        from stylepong_policy.training.dataset import hit_frame
 
         def clips_of(chosen) -> list[tuple[np.ndarray, int]]:
             clips = [dataset.clip(int(c)) for c in chosen]

@@ -5,7 +5,7 @@
 The stroke is each episode's joint positions from its first frame to the step the env marks as the
 stroke's end (rl.env's 'style_stroke_end'; the task: FOLLOW_THROUGH_S after the paddle's touch, or the
 ball's verdict), exactly as `evaluate` cuts strokes; the clips are all of the label's, every speed factor,
-and the distance is the one `evaluate --dtw` reports (stylepong_policy.style_metrics: dtaidistance's DTW,
+and the distance is the one `evaluate --dtw` reports (stylepong_policy.evaluation.style_metrics: dtaidistance's DTW,
 Euclidean local cost, not normalised). Dividing by the stroke's frames makes sigma a distance per frame.
 
 Why. The discriminator and the pose prior judge windows and poses; what a style is measured by is the
@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from stylepong_policy import style_metrics
+from stylepong_policy.evaluation import style_metrics
 
 # A stroke longer than this (frames at the policy rate; 5 s at 60 Hz) keeps its first MAX_FRAMES frames.
 MAX_FRAMES = 300
@@ -46,7 +46,7 @@ class StrokePrior:
 
     @classmethod
     def from_dataset(cls, dataset, label_names: Sequence[str], sigma_rad: float, num_envs: int) -> 'StrokePrior':
-        """The clips of a stylepong_policy.dataset.ReferenceDataset (every speed factor) grouped by the labels
+        """The clips of a stylepong_policy.training.dataset.ReferenceDataset (every speed factor) grouped by the labels
         of label_names; () : one group of every clip."""
         groups = [dataset.select(labels=[name]) for name in label_names] or [np.arange(dataset.num_clips)]
         return cls([[dataset.clip(int(c)).q for c in chosen] for chosen in groups], sigma_rad, num_envs,
