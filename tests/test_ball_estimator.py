@@ -24,8 +24,8 @@ from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
 from stylepong_player.ball_prediction import predict_ball
 from stylepong_sim import referee, world_spec
-from stylepong_sim.tracker import FRAME_CAMERA, TrackerConfig, world_to_camera
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe, stamp_s
+from stylepong_sim.cells.tracker import FRAME_CAMERA, TrackerConfig, world_to_camera
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 PARKED = np.array(world_spec.HOME_JOINT_POSITIONS_RAD) + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])
 BALLS = 40
@@ -34,8 +34,8 @@ VELOCITY_TOLERANCE_M_S = 0.3
 
 
 def _tracker_params() -> dict:
-    from ament_index_python.packages import get_package_share_directory
     import yaml
+    from ament_index_python.packages import get_package_share_directory
     path = f"{get_package_share_directory('stylepong_sim')}/config/tracker_sensing.yaml"
     with open(path) as file:
         return yaml.safe_load(file)['ur5_sim']['ros__parameters']
@@ -91,10 +91,11 @@ class FakeTracker:
     records what reaches /ball/state."""
 
     def __init__(self, config):
-        from stylepong_description.robot_state import LinkTransform
-        from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, _to_message
-        from tf2_msgs.msg import TFMessage
         from geometry_msgs.msg import PointStamped
+        from tf2_msgs.msg import TFMessage
+
+        from stylepong_description.robot_state import LinkTransform
+        from stylepong_sim.nodes.robot_state_publisher_node import LATCHED_QOS, _to_message
         self.config = config
         self.context = rclpy.Context()
         rclpy.init(context=self.context)

@@ -12,7 +12,7 @@ import pytest
 from stylepong_common.node_process import NodeProcess
 from stylepong_msgs.msg import RallyEvent
 from stylepong_sim import world_spec
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe
 
 
 @pytest.mark.parametrize('executable, param, value', [('ur5_sim', 'engine', 'bullet'),

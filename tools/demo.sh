@@ -36,7 +36,7 @@ import yaml
 from rosbags.highlevel import AnyReader
 
 from stylepong_description import robot_model as rm
-from stylepong_sim.teacher import CellKinematics
+from stylepong_sim.teaching.teacher import CellKinematics
 
 bag = pathlib.Path(sys.argv[1])
 kinematics = CellKinematics()

@@ -22,8 +22,9 @@ import yaml
 
 from stylepong_description import robot_model
 from stylepong_player import player_core
-from stylepong_sim import referee, sensing, ur_servoj
-from stylepong_sim.rally_eval import balls_for_seed, goals_for_seed
+from stylepong_sim import referee
+from stylepong_sim.cells import sensing, ur_servoj
+from stylepong_sim.nodes.rally_eval import balls_for_seed, goals_for_seed
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'
@@ -37,9 +38,9 @@ def make_cell(engine: str, actuator: str, joint_drive: str):
     """The cell to play in (ur_servoj at the CB3's 125 Hz, look-ahead 0.03 s, gain 2000)."""
     servoj = ur_servoj.ServojSettings(125.0, 0.03, 2000.0)
     if engine == 'pybullet':
-        from stylepong_sim.bullet_cell import BulletCell
+        from stylepong_sim.cells.bullet_cell import BulletCell
         return BulletCell(actuator=actuator, servoj=servoj, joint_drive=joint_drive)
-    from stylepong_sim.cell import Cell
+    from stylepong_sim.cells.cell import Cell
     return Cell(actuator=actuator, servoj=servoj)
 
 

@@ -38,7 +38,7 @@ from the home pose, default damping (30 N s/m, 3 N m s/rad), 500 Hz:
     model    rise to 90 % speed   moved during the push   coasts after release   at rest after release
     virtual        0.12 s               0.306 m                 0.023 m                 0.19 s
     urdf           0.64 s               0.225 m                 0.102 m                 1.19 s
-    through the MuJoCo cell (stylepong_sim.cell: servo, F/T sensor; 4 ms transport each way):
+    through the MuJoCo cell (stylepong_sim.cells.cell: servo, F/T sensor; 4 ms transport each way):
     virtual        0.10 s               0.277 m                 0.020 m                 0.14 s
     urdf           0.55 s               0.198 m                 0.094 m                 0.99 s
 

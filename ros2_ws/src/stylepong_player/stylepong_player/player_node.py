@@ -1,7 +1,8 @@
 """`ros2 run stylepong_player player`: the trained actor at 60 Hz on a UR5 (real, or ur5_sim).
 
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
-            frame world, stamp = instant observed: the ball estimator's output, never the simulator's truth), /player/goal (geometry_msgs/PointStamped, frame world),
+            frame world, stamp = instant observed: the ball estimator's output, never the simulator's truth),
+            /player/goal (geometry_msgs/PointStamped, frame world),
             /player/enable (std_msgs/Bool: true enables, false disables)
 Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order; with
             stream_commands one per joint state along the straight path to the latest 60 Hz command, else

@@ -395,8 +395,8 @@ def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'o
     import mujoco
 
     from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_sim import scene
-    from stylepong_sim.video import VideoRecorder
+    from stylepong_sim.cells import scene
+    from stylepong_sim.cells.video import VideoRecorder
 
     model = scene.build_model()
     data = mujoco.MjData(model)
@@ -476,7 +476,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     torch.set_num_threads(args.num_threads)
     if args.video is not None:
-        from stylepong_sim.scene import CAMERAS
+        from stylepong_sim.cells.scene import CAMERAS
         if args.camera not in CAMERAS:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2

@@ -512,7 +512,8 @@ def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protoc
     lines += smoothness_section(summaries, reference_rows, protocol) + directions_section(summaries, protocol)
     lines += table_four(sim2sim, summaries, protocol) + figure_section(figure, protocol)
     lines += ['## About the paper\'s figures', ''] + [f'- {note}' for note in paper.INCONSISTENCIES] + [
-        '- The paper ran IsaacGym; ours is the batched torch world of this project (stylepong_sim.batched_world), '
+        '- The paper ran IsaacGym; ours is the batched torch world of this project '
+        '(stylepong_sim.batched.batched_world), '
         'with its own ball distribution, robot servo and referee, so equal numbers are not expected: the '
         'comparison is between methods under one setting.', '']
     return '\n'.join(lines)

@@ -32,8 +32,8 @@ from std_srvs.srv import Trigger
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model
 from stylepong_msgs.srv import StartClip
-from stylepong_sim.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
-from stylepong_sim.teacher import (
+from stylepong_sim.teaching.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
+from stylepong_sim.teaching.teacher import (
     MAX_SIDE_REACH_M,
     MAX_SIDE_TURN_RAD,
     SWINGS,

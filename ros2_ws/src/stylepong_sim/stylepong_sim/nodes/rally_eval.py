@@ -87,7 +87,7 @@ class SeedResult:
 def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.ndarray]:
     """Launch positions [count, 3] and velocities [count, 3]: evaluate's first balls for this seed (its
     task builds the sampler with batch max(1024, 2 N) and draws all N environments' balls at once)."""
-    from stylepong_sim import batched_launcher
+    from stylepong_sim.batched import batched_launcher
     sampler = batched_launcher.IncomingBallSampler(tuple(world_spec.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu',
                                                    batch=max(1024, 2 * count))
     position, velocity, _ = sampler.sample(count)
