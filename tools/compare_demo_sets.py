@@ -19,10 +19,9 @@ import sys
 
 import numpy as np
 
+from stylepong_description.robot_cell import STROKE_LABELS as LABELS
 from stylepong_policy.dataset import ReferenceDataset
 from stylepong_policy.style_metrics import dtw_distance_rad, smoothness
-
-LABELS = ('forward', 'leftward', 'rightward')
 
 
 def original_clips(dataset: ReferenceDataset) -> list[tuple[str, np.ndarray]]:

@@ -7,8 +7,8 @@ import signal
 import pytest
 from rclpy.node import Node
 
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
 from stylepong_common.node_support import (
-    EXIT_CONFIG_ERROR,
     Param,
     ParameterError,
     ThrottledLog,

@@ -45,6 +45,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from stylepong_description import robot_cell
+from stylepong_description.robot_cell import FRAME_WORLD
 from stylepong_player import spec
 from stylepong_player.actor_contract import (
     ONNX_INPUT,
@@ -57,7 +58,6 @@ from stylepong_player.actor_contract import (
 )
 from stylepong_player.ball_prediction import predict_ball
 
-FRAME_WORLD = 'world'
 # A ball message arriving this close (in periods) to a step's grid point drives the step; none by this
 # long after it: the step runs on the latest ball. Small, so that steps stay within a few milliseconds of
 # the 60 Hz the actor was trained at whatever the tracker's rate: stepping on the first frame a quarter

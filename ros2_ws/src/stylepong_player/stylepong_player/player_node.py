@@ -38,7 +38,6 @@ from stylepong_player.actor_contract import ActorMismatchError
 
 COMMAND_TOPIC = '/forward_position_controller/commands'
 STATUS_TOPIC = '/player/status'
-WARN_PERIOD_S = 2.0
 
 
 def _default_actor() -> str:
@@ -108,7 +107,7 @@ class PlayerNode(Node):
         actor = core.load_actor(actor_path, value['backend'])
         self.core = core.Player(config, actor)
         self.backend = value['backend']
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._command = Float64MultiArray()
 
         qos = QoSProfile(depth=10)

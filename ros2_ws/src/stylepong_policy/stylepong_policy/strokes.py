@@ -48,7 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DIRECTIONS = ('forward', 'leftward', 'rightward')   # the demonstrations' labels (teacher.SWINGS)
+from stylepong_description.robot_cell import STROKE_LABELS as DIRECTIONS  # noqa: F401  (the labels, for users)
+
 # Halfway between the demonstrated hitting points (teacher.STROKES hit offsets in y: 0, +0.16, -0.18 m).
 LEFTWARD_ABOVE_M = 0.08
 RIGHTWARD_BELOW_M = -0.09

@@ -48,9 +48,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from stylepong_common.command_line import EXIT_INTERRUPTED, print_and_write_json
+from stylepong_common.command_line import print_and_write_json
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR, EXIT_INTERRUPTED
 from stylepong_common.node_process import wait_until
-from stylepong_common.node_support import EXIT_CONFIG_ERROR
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import world_spec

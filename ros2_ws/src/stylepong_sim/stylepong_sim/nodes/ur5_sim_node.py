@@ -92,7 +92,6 @@ from stylepong_sim.nodes.robot_state_publisher_node import LATCHED_QOS, RobotSta
 PROGRAM = 'ur5_sim'
 MUJOCO, PYBULLET = 'mujoco', 'pybullet'
 ENGINES = (MUJOCO, PYBULLET)
-WARN_PERIOD_S = 2.0
 TIMER_PERIOD_S = 0.002
 # real_time_factor 0: wall time a timer callback may spend stepping before inputs are served again.
 FAST_BATCH_WALL_S = 0.004
@@ -214,7 +213,7 @@ class Ur5SimNode(Node):
         self._hand_timeout_s = value['hand_wrench_timeout_s']
         self._ft_include_inertia = value['ft_include_inertia']
         self._max_lag_s = value['max_lag_s']
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._video = None
         self._video_view = None
         video_path = value['record_video']
