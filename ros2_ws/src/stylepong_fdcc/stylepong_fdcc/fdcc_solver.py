@@ -61,7 +61,7 @@ import pinocchio as pin
 
 from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
-from stylepong_fdcc.joint_limits import JointMotionLimits, decelerate, limit_motion
+from stylepong_fdcc.joint_limits import command_limits, decelerate, limit_motion
 
 
 def dynamics_model(config: FdccConfig) -> pin.Model:
@@ -88,7 +88,7 @@ class FdccSolver:
         self.data = self.model.createData()
         # The control frame is the sensor's: the wrench arrives about tool0's origin.
         self.frame_id = self.model.getFrameId(robot_model.TOOL_FRAME)
-        self.limits = JointMotionLimits.from_config(config)
+        self.limits = command_limits(config)
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)
         # Fixed by the configuration, so computed here rather than in every control cycle.

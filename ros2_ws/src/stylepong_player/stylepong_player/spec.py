@@ -90,13 +90,30 @@ def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Te
                  for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
 
 
-def clip_action(action: torch.Tensor) -> torch.Tensor:
-    """The policy's raw output [N, 6] limited to the action range (what is applied and observed back)."""
+@functools.lru_cache(maxsize=1)
+def _numpy_rows() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(home, scale, lower limit, upper limit) as float32 numpy rows: the player's side of `_rows_on`."""
+    limits = robot_model.joint_limits()
+    return tuple(np.asarray(values, dtype=np.float32)
+                 for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
+
+
+def clip_action(action):
+    """The policy's raw output [N, 6] limited to the action range (what is applied and observed back), as a
+    torch tensor for a tensor (training) and a numpy array for an array (the player)."""
+    if isinstance(action, np.ndarray):
+        return np.clip(action, -ACTION_CLIP, ACTION_CLIP)
     return action.clamp(-ACTION_CLIP, ACTION_CLIP)
 
 
-def decode_action(action: torch.Tensor) -> torch.Tensor:
-    """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6]."""
+def decode_action(action):
+    """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6] (or one action [6]), computed
+    in float32 for a torch tensor (training) and a numpy array (the player) alike, with the same operations
+    in the same order so that both give identical values."""
+    if isinstance(action, np.ndarray):
+        home, scale, lower, upper = _numpy_rows()
+        target = home + scale * clip_action(action.astype(np.float32))
+        return np.maximum(np.minimum(target, upper), lower)
     import torch
     home, scale, lower, upper = _rows_on(action.device)
     target = home + scale * clip_action(action.to(torch.float32))
