@@ -22,7 +22,7 @@ import yaml
 
 from stylepong_description import robot_model
 from stylepong_player import player_core
-from stylepong_sim import referee
+from stylepong_sim import referee, world_spec
 from stylepong_sim.cells import sensing, ur_servoj
 from stylepong_sim.nodes.rally_eval import balls_for_seed, goals_for_seed
 
@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--engine', choices=('mujoco', 'pybullet'), default='pybullet')
     parser.add_argument('--actuator', choices=ur_servoj.ACTUATORS, default=ur_servoj.IDEAL)
     parser.add_argument('--joint-drive', choices=('motor', 'pd'), default='motor', help='PyBullet cell only')
-    parser.add_argument('--first-seed', type=int, default=1000)
+    parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED)
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--balls', type=int, default=10)
     parser.add_argument('--no-stream', action='store_true', help="the player's stream_commands false")

@@ -267,10 +267,10 @@ class OneLineArgumentParser(argparse.ArgumentParser):
 def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
     parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--balls', type=int, default=20, help='balls per seed')
+    parser.add_argument('--balls', type=int, default=world_spec.ROS_EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED,
                         help=f'first seed (evaluation seeds are >= {world_spec.FIRST_EVALUATION_SEED})')
-    parser.add_argument('--seeds', type=int, default=1, help='number of seeds')
+    parser.add_argument('--seeds', type=int, default=world_spec.EVALUATION_SEEDS, help='number of seeds')
     parser.add_argument('--speed', choices=tuple(world_spec.SPEED_RANGES_M_S), default='all',
                         help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the summary here')
