@@ -7,7 +7,10 @@ WS := set +u; source $(ROOT)/ros2_ws/install/setup.bash;
 # Tests marked slow (over 20 s each on a 2-core machine) run in .ci/run, which clears this.
 PYTEST_ARGS ?= -m 'not slow'
 
-.PHONY: setup demo test bench clean
+# lint needs only the virtual environment (make setup made it), not the built workspace.
+VENV := $(ROOT)/.venv/bin
+
+.PHONY: setup demo test bench lint clean
 
 setup:
 	@$(ROOT)/tools/setup.sh
@@ -20,6 +23,13 @@ test: setup
 
 bench: setup
 	@$(WS) cd $(ROOT) && python3 tools/bench.py --out BENCHMARKS.md
+
+# The checks of .pre-commit-config.yaml, run from the venv over the whole tree without fetching the hooks'
+# repositories (CI has no network): ruff check (ruff.toml) and codespell (.codespellrc). `ruff format --check .`
+# joins them once the tree has had its one-time format (ruff.toml).
+lint:
+	@[ -x $(VENV)/codespell ] || { echo 'lint: no .venv with ruff and codespell: run make setup first' >&2; exit 2; }
+	@cd $(ROOT) && $(VENV)/python -m ruff check . && $(VENV)/codespell && echo 'lint: ruff check and codespell passed'
 
 clean:
 	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log

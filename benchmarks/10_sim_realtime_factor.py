@@ -19,8 +19,8 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 from stylepong_common import markdown  # noqa: E402
 from stylepong_common.node_process import NodeProcess  # noqa: E402
 from stylepong_sim import world_spec  # noqa: E402
-from stylepong_sim.cell import Cell  # noqa: E402
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe  # noqa: E402
+from stylepong_sim.cells.cell import Cell  # noqa: E402
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe  # noqa: E402
 
 NODE_WINDOW_S = 8.0
 
@@ -90,7 +90,7 @@ def main() -> int:
     load = os.getloadavg()[0]
     print('## Simulated cell: real-time factor (`ur5_sim`)\n')
     print('Physics step 1 ms (MuJoCo 4, implicitfast, UR5 collision meshes) plus the analytic ball, servo and '
-          'referee in Python. "Cell alone": `stylepong_sim.cell.Cell.step` in a loop, no ROS. "Node": '
+          'referee in Python. "Cell alone": `stylepong_sim.cells.cell.Cell.step` in a loop, no ROS. "Node": '
           '`ros2 run stylepong_sim ur5_sim` with a probe process subscribed to every topic '
           '(/joint_states and the F/T wrench at 500 Hz, /clock every step, /sim/ball/ground_truth at 120 Hz, '
           '/rally/events) '

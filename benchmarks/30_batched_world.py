@@ -25,7 +25,7 @@ THREADS = 2
 
 def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]:
     """Policy steps per second of BatchedWorld (with resets), rallies decided, seconds to the first step."""
-    from stylepong_sim import batched_launcher, batched_world
+    from stylepong_sim.batched import batched_launcher, batched_world
 
     started = time.perf_counter()
     world = batched_world.BatchedWorld(num_envs, compile=compile)
@@ -88,7 +88,7 @@ def main() -> int:
         compiled, _, compile_s = world_rate(n, compile=True)
         rows.append((n, world, compiled, compile_s, env_rate(n), decided))
     print('## Batched world: policy steps per second (no network)\n')
-    print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched_world.BatchedWorld` on the CPU (torch '
+    print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched.batched_world.BatchedWorld` on the CPU (torch '
           f'{torch.__version__}, float32; the caller has {THREADS} threads, the world steps with 1: see '
           f'`batched_world.torch_threads`), 60 Hz policy steps each with 2 physics steps at '
           f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '

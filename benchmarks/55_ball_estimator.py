@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """ball_estimator: its error against the simulated cell's truth, and its cost per detection.
 
-1. Accuracy, no ROS (stylepong_sim.estimator_check): the MuJoCo cell and the PyBullet cell serve
+1. Accuracy, no ROS (stylepong_sim.cells.estimator_check): the MuJoCo cell and the PyBullet cell serve
    `evaluate`'s incoming balls of SEEDS (the arm parked at home), the tracker of config/tracker_sensing.yaml
    (150 Hz, 20 +- 5 ms, 3 mm, 3 % lost, 1 % false) sees them, BallEstimator with its defaults turns the
    detections into states, and each published state is compared with the cell's true ball at its stamp,
@@ -17,8 +17,8 @@ import yaml
 
 from stylepong_player.ball_estimator import BallEstimator
 from stylepong_player.ball_prediction import predict_ball
-from stylepong_sim.estimator_check import estimator_errors
-from stylepong_sim.tracker import TrackerConfig
+from stylepong_sim.cells.estimator_check import estimator_errors
+from stylepong_sim.cells.tracker import TrackerConfig
 
 SEEDS = range(900, 960)        # validation seeds: one ball each
 APPEARED_BINS_S = (0.0, 0.05, 0.1, 0.2, 0.4, 1.0)
@@ -64,8 +64,8 @@ def cost_per_detection_s() -> float:
 
 
 def main() -> None:
-    from stylepong_sim.bullet_cell import BulletCell
-    from stylepong_sim.cell import Cell
+    from stylepong_sim.cells.bullet_cell import BulletCell
+    from stylepong_sim.cells.cell import Cell
     config = tracker_preset()
     lines = ['## ball_estimator: error against the cells\' truth, cost per detection', '',
              f'`benchmarks/55_ball_estimator.py`: no ROS; one ball per validation seed {SEEDS[0]}-{SEEDS[-1]} '

@@ -11,7 +11,7 @@ import subprocess
 
 import pytest
 
-from stylepong_common.node_support import EXIT_CONFIG_ERROR
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
 
 # Start-up of a refused node is a Python start and its imports (about 2 s on a 2-core machine beside a
 # training run); a node that does not stop would run until killed.

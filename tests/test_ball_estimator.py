@@ -24,8 +24,8 @@ from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
 from stylepong_player.ball_prediction import predict_ball
 from stylepong_sim import referee, world_spec
-from stylepong_sim.tracker import FRAME_CAMERA, TrackerConfig, world_to_camera
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe, stamp_s
+from stylepong_sim.cells.tracker import FRAME_CAMERA, TrackerConfig, world_to_camera
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 PARKED = np.array(world_spec.HOME_JOINT_POSITIONS_RAD) + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])
 BALLS = 40
@@ -95,7 +95,7 @@ class FakeTracker:
         from tf2_msgs.msg import TFMessage
 
         from stylepong_description.robot_state import LinkTransform
-        from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, _to_message
+        from stylepong_sim.nodes.robot_state_publisher_node import LATCHED_QOS, _to_message
         self.config = config
         self.context = rclpy.Context()
         rclpy.init(context=self.context)

@@ -199,6 +199,19 @@ def test_links_to_sections_resolve(document):
     assert not broken, f'{document.relative_to(ROOT)} links to missing sections: {broken}'
 
 
+PACKAGES_WITH_CONFIG = sorted(path.parent for path in (ROOT / 'ros2_ws' / 'src').glob('*/config'))
+
+
+@pytest.mark.parametrize('package', PACKAGES_WITH_CONFIG, ids=lambda p: p.name)
+def test_every_config_file_is_named_in_its_readme(package):
+    # A parameter file nobody mentions is one nobody finds: each YAML under config/ appears in the package's
+    # README by its path inside config/ (`ppo.yaml`, `styles/compact.yaml`).
+    readme = (package / 'README.md').read_text()
+    unnamed = [str(path.relative_to(package / 'config')) for path in sorted((package / 'config').rglob('*.yaml'))
+               if str(path.relative_to(package / 'config')) not in readme]
+    assert not unnamed, f'{package.name}/README.md does not name config/{unnamed}'
+
+
 def test_a_missing_flag_is_caught():
     # The capture itself must see a parser's flags, or the flag test above would pass on anything.
     flags = capture_flags('stylepong_recording.compress_bag:main')

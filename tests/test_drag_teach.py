@@ -21,7 +21,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model
-from stylepong_sim.teacher import CellKinematics
+from stylepong_sim.teaching.teacher import CellKinematics
 
 CONTROL_RATE_HZ = 500.0          # drag_teach's default
 LIMITS = robot_model.joint_limits()

@@ -26,6 +26,7 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_msgs.msg import BallState
 from stylepong_player import player_core, spec
@@ -278,7 +279,7 @@ def test_a_mismatched_actor_is_refused_at_start(ros_env, tmp_path, key, value, b
                                           ('goal_xy_m:=[-0.5,0.0]', "opponent's half")])
 def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
     result = _run_player('-p', param)
-    assert result.returncode == 2
+    assert result.returncode == EXIT_CONFIG_ERROR
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and words in lines[0], result.stderr
 

@@ -9,10 +9,11 @@ import time
 import numpy as np
 import pytest
 
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR, EXIT_INTERRUPTED
 from stylepong_common.node_process import NodeProcess
 from stylepong_msgs.msg import RallyEvent
 from stylepong_sim import world_spec
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe
 
 
 @pytest.mark.parametrize('executable, param, value', [('ur5_sim', 'engine', 'bullet'),
@@ -21,7 +22,7 @@ from stylepong_sim.ur5_sim_probe import Ur5SimProbe
 def test_a_bad_engine_or_actuator_is_refused_in_one_line(ros_env, executable, param, value):
     result = subprocess.run(['ros2', 'run', 'stylepong_sim', executable, '--ros-args', '-p', f'{param}:={value}'],
                             capture_output=True, text=True, timeout=60, env=ros_env)
-    assert result.returncode == 2, result.stderr
+    assert result.returncode == EXIT_CONFIG_ERROR, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and f'parameter {param} must be one of' in lines[0], result.stderr
     assert result.stdout == ''
@@ -60,5 +61,5 @@ def test_rally_eval_stops_quietly_on_a_signal(ros_env, signum):
     time.sleep(3.0)
     process.send_signal(signum)
     _, stderr = process.communicate(timeout=20)
-    assert process.returncode == 130, stderr
+    assert process.returncode == EXIT_INTERRUPTED, stderr
     assert stderr.strip() == 'rally_eval: interrupted', stderr

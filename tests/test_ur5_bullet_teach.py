@@ -7,7 +7,7 @@ import pytest
 
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model
-from stylepong_sim.teacher import StrokePath, TeacherConfig, sample_variation
+from stylepong_sim.teaching.teacher import StrokePath, TeacherConfig, sample_variation
 from tests.test_virtual_teacher import CENTRE, HOME_CENTRE, KIN, SEED, read_clip, tool_speeds
 
 

@@ -15,7 +15,7 @@ from stylepong_common.node_process import NodeProcess
 from stylepong_description import robot_model
 from stylepong_msgs.msg import RallyEvent
 from stylepong_sim import world_spec
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe, stamp_s
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])   # turned away from the table

@@ -2,7 +2,7 @@
 import imageio_ffmpeg
 
 from stylepong_common.node_process import NodeProcess
-from stylepong_sim.ur5_sim_probe import Ur5SimProbe
+from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe
 
 
 def test_real_time_factor_0_runs_faster_than_the_wall_clock(ros_env):

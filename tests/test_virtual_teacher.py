@@ -13,7 +13,7 @@ from rosbags.highlevel import AnyReader
 from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model
 from stylepong_sim import world_spec
-from stylepong_sim.teacher import CellKinematics, StrokePath, TeacherConfig, sample_variation
+from stylepong_sim.teaching.teacher import CellKinematics, StrokePath, TeacherConfig, sample_variation
 
 KIN = CellKinematics()
 CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)

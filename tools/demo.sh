@@ -36,7 +36,7 @@ import yaml
 from rosbags.highlevel import AnyReader
 
 from stylepong_description import robot_model as rm
-from stylepong_sim.teacher import CellKinematics
+from stylepong_sim.teaching.teacher import CellKinematics
 
 bag = pathlib.Path(sys.argv[1])
 kinematics = CellKinematics()
@@ -80,7 +80,7 @@ export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 # ur5_sim finishes the MP4 on Ctrl-C: give it time.
 NODE_GRACE_S=15
 source tools/node_group.sh
-echo "[demo] playing $ACTOR through ROS: ur5_sim + ball_estimator + player + rally_eval, $BALLS balls of seed 1000 (about $((BALLS * 5 / 60 + 1)) min)"
+echo "[demo] playing $ACTOR through ROS: ur5_sim + ball_estimator + player + rally_eval, $BALLS balls of the first evaluation seed (about $((BALLS * 5 / 60 + 1)) min)"
 # max_lag_s: when rendering or a busy machine holds the cell back, it runs slower than real time rather
 # than catching up in bursts that the player's commands could not reach in time.
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args -p record_video:="$DEMO_DIR/rally.mp4" -p max_lag_s:=0.01 \
@@ -97,7 +97,7 @@ if grep -q '^viewer: open' "$LOGS/viewer.log"; then
 else
   echo "[demo] the viewer did not start (see $LOGS/viewer.log); the rally goes on without it"
 fi
-ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed 1000 --seeds 1 --speed all \
+ros2 run stylepong_sim rally_eval --balls "$BALLS" --seeds 1 --speed all \
   --json "$DEMO_DIR/rally.json" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[demo]   /'
 stop_nodes
 python3 - "$DEMO_DIR/rally.json" <<'PY'

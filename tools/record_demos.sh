@@ -17,7 +17,7 @@
 #
 # Another person's style: STROKES_FILE (default none: the shipped strokes) is a style's hand-made key poses,
 # a YAML file or a name in ros2_ws/src/stylepong_sim/config/styles (long, compact, wristy; the teacher's
-# strokes_file, stylepong_sim/stroke_styles.py), each take checked before it is dragged. BACKSWING_S and
+# strokes_file, stylepong_sim/teaching/stroke_styles.py), each take checked before it is dragged. BACKSWING_S and
 # FORWARD_SWING_S (default 0.8 and 1.6) are the tempo: a careful drag of a real UR5 (about 1 rad/s at the
 # fastest joint) takes about twice as long. JOINT_STATE_RATE_HZ (default 500, the shipped clips) is the
 # simulated arm's /joint_states rate: 125 records clips as a CB3 UR driver does (ur5_sim's

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The sim2sim test through ROS: ur5_sim with realistic sensing + ball_estimator + player + rally_eval, and its result.
 #
-#   tools/sim2sim.sh [--actor PATH.pt] [--seeds 10] [--first-seed 1000] [--balls 20] [--json OUT.json]
+#   tools/sim2sim.sh [--actor PATH.pt] [--seeds N] [--first-seed S] [--balls N] [--json OUT.json]
 #                    [--engine mujoco|pybullet] [--actuator ideal|ur_servoj] [--servo-rate-hz 125]
 #                    [--lookahead-s 0.03] [--gain 2000] [--ball-source estimator|cell]
 #
@@ -15,12 +15,12 @@
 # the balls of `evaluate`'s seeds through /sim/launch_ball and scores each rally. The JSON has
 # `evaluate`'s fields plus `world` (the setting) and the player's timing; Table IV of `paper_tables`
 # reads results/sim2sim_*.json. Needs `source ros2_ws/install/setup.bash`.
+# --seeds, --first-seed and --balls default to rally_eval's, which are the evaluation protocol's
+# (stylepong_sim.world_spec: EVALUATION_SEEDS from FIRST_EVALUATION_SEED, ROS_EVALUATION_BALLS_PER_SEED each).
 set -eo pipefail
 cd "$(dirname "$0")/.."
 ACTOR=ros2_ws/src/stylepong_policy/models/amp_actor.pt
-SEEDS=10
-FIRST_SEED=1000
-BALLS=20
+RALLY_ARGS=()   # only what was given: the rest is rally_eval's defaults
 JSON=results/sim2sim_ros.json
 ENGINE=mujoco
 ACTUATOR=ideal
@@ -32,9 +32,7 @@ COMMAND="tools/sim2sim.sh $*"
 while [ $# -gt 0 ]; do
   case "$1" in
     --actor) ACTOR=$2; shift 2 ;;
-    --seeds) SEEDS=$2; shift 2 ;;
-    --first-seed) FIRST_SEED=$2; shift 2 ;;
-    --balls) BALLS=$2; shift 2 ;;
+    --seeds|--first-seed|--balls) RALLY_ARGS+=("$1" "$2"); shift 2 ;;
     --json) JSON=$2; shift 2 ;;
     --engine) ENGINE=$2; shift 2 ;;
     --actuator) ACTUATOR=$2; shift 2 ;;
@@ -57,7 +55,7 @@ SENSING="$(ros2 pkg prefix stylepong_sim)/share/stylepong_sim/config/$SENSING_FI
 LOGS=$(mktemp -d /tmp/sim2sim.XXXXXX)
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}
 source tools/node_group.sh
-echo "[sim2sim] $ACTOR through ROS: ur5_sim (engine $ENGINE, actuator $ACTUATOR, $SENSING_FILE) + ball source $BALL_SOURCE + player + rally_eval, seeds $FIRST_SEED.. x$SEEDS, $BALLS balls each; logs in $LOGS"
+echo "[sim2sim] $ACTOR through ROS: ur5_sim (engine $ENGINE, actuator $ACTUATOR, $SENSING_FILE) + ball source $BALL_SOURCE + player + rally_eval ${RALLY_ARGS[*]:-(the evaluation seeds and balls)}; logs in $LOGS"
 start_node "$LOGS/ur5_sim.log" ros2 run stylepong_sim ur5_sim --ros-args --params-file "$SENSING" -p engine:="$ENGINE" \
   -p actuator:="$ACTUATOR" -p servo_rate_hz:="$SERVO_RATE_HZ" -p lookahead_s:="$LOOKAHEAD_S" -p gain:="$GAIN"
 sleep 3
@@ -68,7 +66,7 @@ kill -0 "${NODE_PIDS[0]}" 2>/dev/null || { grep -v '^\[' "$LOGS/ur5_sim.log" >&2
 [ "$BALL_SOURCE" = cell ] || start_node "$LOGS/ball_estimator.log" ros2 run stylepong_player ball_estimator
 start_node "$LOGS/player.log" ros2 run stylepong_policy player --ros-args -p actor:="$PWD/$ACTOR" -p use_sim_time:=true
 mkdir -p "$(dirname "$JSON")"
-ros2 run stylepong_sim rally_eval --balls "$BALLS" --first-seed "$FIRST_SEED" --seeds "$SEEDS" --speed all \
+ros2 run stylepong_sim rally_eval "${RALLY_ARGS[@]}" --speed all \
   --json "$JSON.part" 2>"$LOGS/rally_eval.err" | tee "$LOGS/rally_eval.log" | grep '^seed' | sed 's/^/[sim2sim]   /'
 stop_nodes
 python3 - "$JSON.part" "$JSON" "$ACTOR" "$ENGINE" "$ACTUATOR" "$SERVO_RATE_HZ" "$LOOKAHEAD_S" "$GAIN" "$COMMAND" "$BALL_SOURCE" <<'PY'

@@ -23,12 +23,12 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'ur5_sim = stylepong_sim.ur5_sim_node:main',
-            'ur5_bullet = stylepong_sim.ur5_sim_node:main_bullet',
-            'virtual_teacher = stylepong_sim.virtual_teacher_node:main',
-            'rally_eval = stylepong_sim.rally_eval:main',
-            'cell_calibration = stylepong_sim.calibration:main',
-            'robot_state_publisher = stylepong_sim.robot_state_publisher_node:main',
+            'ur5_sim = stylepong_sim.nodes.ur5_sim_node:main',
+            'ur5_bullet = stylepong_sim.nodes.ur5_sim_node:main_bullet',
+            'virtual_teacher = stylepong_sim.nodes.virtual_teacher_node:main',
+            'rally_eval = stylepong_sim.nodes.rally_eval:main',
+            'cell_calibration = stylepong_sim.nodes.calibration:main',
+            'robot_state_publisher = stylepong_sim.nodes.robot_state_publisher_node:main',
         ],
     },
 )

@@ -10,8 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
-# The exit status of a program ended by SIGINT, as a shell reports it (128 + 2).
-EXIT_INTERRUPTED = 130
+from stylepong_common.exit_codes import EXIT_INTERRUPTED
 
 
 def exit_with_run(program: str, run: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None = None,

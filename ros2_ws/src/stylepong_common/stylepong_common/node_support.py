@@ -2,7 +2,7 @@
 
     PARAMETERS = (Param('rate_hz', 60.0, 'loop rate', low=1.0, high=1000.0), ...)
     values = declare_parameters(node, PARAMETERS)      # dict name -> value in the default's type
-    warnings = ThrottledLog(node.get_logger(), period_s=1.0)
+    warnings = ThrottledLog(node.get_logger())       # at most one line per kind every WARN_PERIOD_S
     warnings.warn('joint_state', lambda: f'rejected: {reason}')
     sys.exit(run_node('player', PlayerNode, config_errors=(ActorMismatchError,)))
 
@@ -30,8 +30,12 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
+
 ParameterValue = Union[bool, int, float, str, list]
-EXIT_CONFIG_ERROR = 2
+# How often a node repeats a warning of one kind (ThrottledLog's default): a flood of bad messages at
+# 500 Hz shows as one line every two seconds with the count held back, readable and still current.
+WARN_PERIOD_S = 2.0
 
 
 class ParameterError(ValueError):
@@ -147,7 +151,7 @@ class ThrottledLog:
     Times are monotonic wall time: a flood is a flood whatever clock the node runs on.
     """
 
-    def __init__(self, logger, period_s: float = 1.0, clock: Callable[[], float] = time.monotonic):
+    def __init__(self, logger, period_s: float = WARN_PERIOD_S, clock: Callable[[], float] = time.monotonic):
         self._logger = logger
         self._period_s = period_s
         self._clock = clock

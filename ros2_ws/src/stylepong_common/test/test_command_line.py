@@ -5,12 +5,12 @@ import json
 import pytest
 
 from stylepong_common.command_line import (
-    EXIT_INTERRUPTED,
     exit_with_run,
     print_and_write_json,
     require_counts,
     write_lines,
 )
+from stylepong_common.exit_codes import EXIT_INTERRUPTED
 
 
 def interrupted(argv):

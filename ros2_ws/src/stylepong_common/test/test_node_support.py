@@ -7,8 +7,8 @@ import signal
 import pytest
 from rclpy.node import Node
 
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR, EXIT_INTERRUPTED
 from stylepong_common.node_support import (
-    EXIT_CONFIG_ERROR,
     Param,
     ParameterError,
     ThrottledLog,
@@ -112,7 +112,7 @@ def own_signal_handlers():
         signal.signal(signum, handler)
 
 
-@pytest.mark.parametrize('interrupt, code', [(False, 7), (True, 130)])
+@pytest.mark.parametrize('interrupt, code', [(False, 7), (True, EXIT_INTERRUPTED)])
 def test_run_node_winds_down_before_closing_and_returns_the_nodes_exit_code(own_signal_handlers, interrupt, code):
     calls = []
     assert run_node('scripted', lambda: _ScriptedNode(calls, interrupt), args=['scripted']) == code

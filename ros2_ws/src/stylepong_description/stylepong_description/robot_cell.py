@@ -12,6 +12,15 @@ from __future__ import annotations
 
 import math
 
+# The frame every ball, goal and marker is given in (the module's docstring says where it lies). Messages
+# name it in header.frame_id; a real cell's tf tree must call its root this for the player to accept a ball.
+FRAME_WORLD = 'world'
+
+# The strokes a demonstration is labelled with and a ball asks for: towards the paddle, to the robot's left
+# (+y) or to its right. The recorder's labels, the virtual teacher's swings, the dataset's label names and
+# the per-direction metrics all use these words in this order (the order is the dataset's label indices).
+STROKE_LABELS = ('forward', 'leftward', 'rightward')
+
 # Home pose (URDF joint order): paddle centre at about (-1.47, 0.11, 0.89) m, handle up, face normal +x.
 HOME_JOINT_POSITIONS_RAD = (0.0, -1.9, 1.9, -1.57, -1.57, -1.57)
 

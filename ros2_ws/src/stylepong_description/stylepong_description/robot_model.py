@@ -183,11 +183,39 @@ def mujoco_model():
 
 @dataclass(frozen=True)
 class JointLimits:
-    """Per-joint limits from the URDF, in JOINT_NAMES order."""
+    """Per-joint limits in JOINT_NAMES order: the URDF's (`joint_limits()`), or the narrower ones a controller
+    keeps its commands within (`for_commands`: the player's command limiter, drag_teach's safety layer).
+
+    One type for both, so that every side reads the same fields; the URDF states no acceleration limit,
+    so `acceleration_rad_s2` is None in its limits and set in a controller's.
+    """
     lower_rad: np.ndarray
     upper_rad: np.ndarray
     velocity_rad_s: np.ndarray
     effort_nm: np.ndarray
+    acceleration_rad_s2: np.ndarray | None = None
+
+    @classmethod
+    def for_commands(cls, position_margin_rad: float, velocity_scale: float,
+                     acceleration_rad_s2) -> JointLimits:
+        """The URDF's limits narrowed for commands: positions by a margin on each side, velocities by a
+        scale, plus per-joint acceleration limits (a sequence of NUM_JOINTS values)."""
+        urdf = joint_limits()
+        acceleration = np.asarray(acceleration_rad_s2, dtype=float)
+        if acceleration.shape != (NUM_JOINTS,):
+            raise ValueError(f'acceleration limits need {NUM_JOINTS} values, got shape {acceleration.shape}')
+        return cls(lower_rad=urdf.lower_rad + position_margin_rad, upper_rad=urdf.upper_rad - position_margin_rad,
+                   velocity_rad_s=urdf.velocity_rad_s * velocity_scale, effort_nm=urdf.effort_nm.copy(),
+                   acceleration_rad_s2=acceleration)
+
+
+@dataclass(frozen=True)
+class ToolLoad:
+    """What hangs on the wrist's F/T sensor: total mass (kg) and centre of mass (m, tool0 frame) of the links
+    fixed below tool0 (the paddle). drag_teach reads it from Pinocchio's model, the viewer from the URDF text
+    it is sent; both compensate the sensor reading for the same load."""
+    mass_kg: float
+    com_m: np.ndarray
 
 
 @functools.lru_cache(maxsize=1)

@@ -39,7 +39,6 @@ from stylepong_fdcc.sensor_messages import JointStateReader, wrench_from_cdr
 
 PROGRAM = 'drag_teach'
 BASE_FRAMES = ('', robot_model.BASE_FRAME, 'base')
-WARN_THROTTLE_S = 1.0
 CONTROL_RATE_RANGE_HZ = (10.0, 2000.0)
 
 # Defaults come from FdccConfig, so the YAML file and the code agree. Bounds here are what a parameter
@@ -133,7 +132,7 @@ class DragTeachNode(Node):
         self.controller = DragTeachController(config, enabled=values['start_enabled'],
                                               tare_on_enable=values['tare_on_enable'])
         self.stats = CycleStatistics(config.nominal_period_s)
-        self.warnings = ThrottledLog(self.get_logger(), period_s=WARN_THROTTLE_S)
+        self.warnings = ThrottledLog(self.get_logger())
         self._joint_reader = JointStateReader(robot_model.JOINT_NAMES)
         self._clock_handle = self.get_clock().handle
         self._state = ''

@@ -38,7 +38,7 @@ from the home pose, default damping (30 N s/m, 3 N m s/rad), 500 Hz:
     model    rise to 90 % speed   moved during the push   coasts after release   at rest after release
     virtual        0.12 s               0.306 m                 0.023 m                 0.19 s
     urdf           0.64 s               0.225 m                 0.102 m                 1.19 s
-    through the MuJoCo cell (stylepong_sim.cell: servo, F/T sensor; 4 ms transport each way):
+    through the MuJoCo cell (stylepong_sim.cells.cell: servo, F/T sensor; 4 ms transport each way):
     virtual        0.10 s               0.277 m                 0.020 m                 0.14 s
     urdf           0.55 s               0.198 m                 0.094 m                 0.99 s
 
@@ -61,7 +61,7 @@ import pinocchio as pin
 
 from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
-from stylepong_fdcc.joint_limits import JointMotionLimits, decelerate, limit_motion
+from stylepong_fdcc.joint_limits import command_limits, decelerate, limit_motion
 
 
 def dynamics_model(config: FdccConfig) -> pin.Model:
@@ -88,7 +88,7 @@ class FdccSolver:
         self.data = self.model.createData()
         # The control frame is the sensor's: the wrench arrives about tool0's origin.
         self.frame_id = self.model.getFrameId(robot_model.TOOL_FRAME)
-        self.limits = JointMotionLimits.from_config(config)
+        self.limits = command_limits(config)
         self.damping = np.asarray(config.damping, dtype=float)
         self.stiffness = np.asarray(config.stiffness, dtype=float)
         # Fixed by the configuration, so computed here rather than in every control cycle.

@@ -7,29 +7,16 @@ the tool keeps its direction.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from stylepong_description import robot_model
+from stylepong_description.robot_model import JointLimits
 from stylepong_fdcc.fdcc_config import FdccConfig
 
 
-@dataclass(frozen=True)
-class JointMotionLimits:
-    """Joint position, velocity and acceleration limits for the commands, in URDF joint order."""
-    lower_rad: np.ndarray
-    upper_rad: np.ndarray
-    velocity_rad_s: np.ndarray
-    acceleration_rad_s2: np.ndarray
-
-    @classmethod
-    def from_config(cls, config: FdccConfig) -> 'JointMotionLimits':
-        urdf = robot_model.joint_limits()
-        margin = config.position_margin_rad
-        return cls(lower_rad=urdf.lower_rad + margin, upper_rad=urdf.upper_rad - margin,
-                   velocity_rad_s=urdf.velocity_rad_s * config.velocity_limit_scale,
-                   acceleration_rad_s2=np.asarray(config.acceleration_limit_rad_s2, dtype=float))
+def command_limits(config: FdccConfig) -> JointLimits:
+    """The limits drag_teach's commands keep: the URDF's narrowed by the config's margin, scale and accelerations."""
+    return JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
+                                    config.acceleration_limit_rad_s2)
 
 
 def uniform_scale(vector: np.ndarray, bound: np.ndarray) -> float:
@@ -42,7 +29,7 @@ def uniform_scale(vector: np.ndarray, bound: np.ndarray) -> float:
 
 
 def limit_motion(q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s: float,
-                 limits: JointMotionLimits) -> tuple[np.ndarray, np.ndarray]:
+                 limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """Next (q, qdot) from the wanted velocity, within acceleration, velocity and position limits."""
     delta = qdot_wanted - qdot
     new_qdot = qdot + uniform_scale(delta, limits.acceleration_rad_s2 * dt_s) * delta
@@ -57,7 +44,7 @@ def limit_motion(q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s:
     return clipped, new_qdot
 
 
-def decelerate(qdot: np.ndarray, dt_s: float, limits: JointMotionLimits) -> np.ndarray:
+def decelerate(qdot: np.ndarray, dt_s: float, limits: JointLimits) -> np.ndarray:
     """Joint velocity one step later on a straight-line stop at the acceleration limits."""
     time_to_stop_s = float(np.max(np.abs(qdot) / limits.acceleration_rad_s2))
     if time_to_stop_s <= dt_s:

@@ -16,20 +16,13 @@ from __future__ import annotations
 
 import collections
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from stylepong_description import robot_model
+from stylepong_description.robot_model import ToolLoad
 from stylepong_fdcc.fdcc_config import FdccConfig
-
-
-@dataclass(frozen=True)
-class ToolLoad:
-    """What hangs on the sensor: mass and centre of mass (tool0 frame) of the paddle."""
-    mass_kg: float
-    com_m: np.ndarray
 
 
 def tool_load_from_model(model: pin.Model) -> ToolLoad:

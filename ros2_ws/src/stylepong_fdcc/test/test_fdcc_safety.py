@@ -9,7 +9,7 @@ from stylepong_description import robot_model
 from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.fdcc_solver import FdccSolver
-from stylepong_fdcc.joint_limits import JointMotionLimits, limit_motion
+from stylepong_fdcc.joint_limits import command_limits, limit_motion
 from stylepong_fdcc.wrench_conditioning import (
     WrenchConditioner,
     deadband_and_clamp,
@@ -118,7 +118,7 @@ def test_low_pass_time_constant_does_not_depend_on_the_sample_rate(sample_rate_h
 
 # --- joint limits ---
 def test_motion_limits_hold_whatever_velocity_is_wanted():
-    limits = JointMotionLimits.from_config(FdccConfig())
+    limits = command_limits(FdccConfig())
     rng = np.random.default_rng(0)
     q, qdot, dt = HOME.copy(), np.zeros(6), 0.002
     for _ in range(3000):
@@ -168,7 +168,7 @@ def test_after_a_stall_the_arm_carries_on_instead_of_jumping():
 
 
 def test_velocity_and_acceleration_limits_keep_the_direction_of_motion():
-    limits = JointMotionLimits.from_config(FdccConfig())
+    limits = command_limits(FdccConfig())
     wanted = np.array([10.0, -5.0, 2.0, 1.0, 0.0, 0.5])
     _, qdot = limit_motion(HOME, np.zeros(6), wanted, 0.002, limits)
     assert np.dot(qdot, wanted) / (np.linalg.norm(qdot) * np.linalg.norm(wanted)) == pytest.approx(1.0)

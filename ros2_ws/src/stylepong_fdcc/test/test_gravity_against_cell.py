@@ -13,7 +13,7 @@ from stylepong_description import robot_model
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import WrenchConditioner, gravity_wrench_on_tool, tool_load_from_model
 from stylepong_sim import world_spec
-from stylepong_sim.cell import Cell
+from stylepong_sim.cells.cell import Cell
 
 MODEL = robot_model.pinocchio_model()
 DATA = MODEL.createData()

@@ -8,7 +8,7 @@ from stylepong_fdcc.drag_teach_controller import DragTeachController
 from stylepong_fdcc.fdcc_config import FdccConfig
 from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load_from_model
 from stylepong_sim import world_spec
-from stylepong_sim.teacher import CellKinematics, TeacherConfig, VirtualTeacher
+from stylepong_sim.teaching.teacher import CellKinematics, TeacherConfig, VirtualTeacher
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()

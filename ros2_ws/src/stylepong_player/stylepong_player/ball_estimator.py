@@ -95,7 +95,7 @@ class Estimate:
 
 @dataclass(frozen=True)
 class Result:
-    """What a detection did, with the estimate to publish or the reason it was refused."""
+    """What one detection did: its outcome, the estimate it led to (if any) and why it was rejected."""
     outcome: Outcome
     estimate: Estimate | None = None
     kind: str = ''              # why it was rejected, a short key for counters and throttled warnings

@@ -27,13 +27,12 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
+from stylepong_description.robot_cell import FRAME_WORLD
 from stylepong_msgs.msg import BallState
 from stylepong_player.ball_estimator import BallEstimator, EstimatorConfig, Outcome
-from stylepong_player.player_core import FRAME_WORLD
 from stylepong_player.static_frames import StaticFrames
 
 PROGRAM = 'ball_estimator'
-WARN_PERIOD_S = 2.0
 STATUS_PERIOD_S = 1.0
 # /tf_static as tf2's static broadcaster offers it: every transform latched for late subscribers.
 TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
@@ -79,7 +78,7 @@ class BallEstimatorNode(Node):
             raise ParameterError(str(error)) from error
         self.frames = StaticFrames()
         self.counts: dict[str, int] = collections.defaultdict(int)
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._msg = BallState()
         self._msg.header.frame_id = FRAME_WORLD
         qos = QoSProfile(depth=10)

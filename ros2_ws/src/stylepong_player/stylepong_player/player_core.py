@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import collections
 import enum
-import functools
 import math
 import pathlib
 import time
@@ -45,6 +44,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from stylepong_description import robot_cell
+from stylepong_description.robot_cell import FRAME_WORLD
+from stylepong_description.robot_model import JointLimits
 from stylepong_player import spec
 from stylepong_player.actor_contract import (
     ONNX_INPUT,
@@ -57,7 +58,6 @@ from stylepong_player.actor_contract import (
 )
 from stylepong_player.ball_prediction import predict_ball
 
-FRAME_WORLD = 'world'
 # A ball message arriving this close (in periods) to a step's grid point drives the step; none by this
 # long after it: the step runs on the latest ball. Small, so that steps stay within a few milliseconds of
 # the 60 Hz the actor was trained at whatever the tracker's rate: stepping on the first frame a quarter
@@ -75,26 +75,6 @@ ARRIVAL_TOLERANCE_S = 1e-9     # a stream segment has ended (times are sums of f
 
 
 # --- limits and the command limiter ------------------------------------------------------------------
-@dataclass(frozen=True)
-class JointLimits:
-    """Per-joint bounds for commands (URDF joint order): positions, velocity, acceleration."""
-    lower_rad: np.ndarray
-    upper_rad: np.ndarray
-    velocity_rad_s: np.ndarray
-    acceleration_rad_s2: np.ndarray
-
-    @classmethod
-    def for_commands(cls, position_margin_rad: float, velocity_scale: float,
-                     acceleration_rad_s2: Sequence[float]) -> 'JointLimits':
-        """The URDF's limits narrowed by a margin (positions) and a scale (velocities)."""
-        decoding = spec.action_decoding()
-        lower = np.asarray(decoding['lower_limit_rad'], dtype=float) + position_margin_rad
-        upper = np.asarray(decoding['upper_limit_rad'], dtype=float) - position_margin_rad
-        from stylepong_description import robot_model
-        velocity = np.asarray(robot_model.joint_limits().velocity_rad_s, dtype=float) * velocity_scale
-        return cls(lower, upper, velocity, np.asarray(acceleration_rad_s2, dtype=float))
-
-
 def stopping_speed(distance_rad: np.ndarray, acceleration_rad_s2: np.ndarray, period_s: float) -> np.ndarray:
     """The largest speed per period from which CommandLimiter can stop within `distance_rad`.
 
@@ -214,10 +194,8 @@ class CommandStream:
 
 
 # --- observation and action ---------------------------------------------------------------------------
-# The observation is spec.build_observation's; the action's decoding is spec.decode_action's, in numpy.
+# The observation is spec.build_observation's and the action's decoding spec.decode_action's, on numpy arrays.
 _HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD, dtype=np.float64)
-_HOME32 = _HOME.astype(np.float32)
-_SCALE32 = np.asarray(spec.ACTION_SCALE_RAD, dtype=np.float32)
 
 
 def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: np.ndarray,
@@ -228,25 +206,6 @@ def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: 
         if np.shape(part) != (size,):
             raise ValueError(f'{name} needs {size} values, got shape {np.shape(part)}')
     return spec.build_observation(*(np.asarray(part, dtype=np.float32)[None, :] for part in parts))
-
-
-def clip_action(action: np.ndarray) -> np.ndarray:
-    """The action clipped to the actor's action range (spec.ACTION_CLIP)."""
-    return np.clip(action, -spec.ACTION_CLIP, spec.ACTION_CLIP)
-
-
-def decode_action(action: np.ndarray) -> np.ndarray:
-    """Joint position targets (rad, URDF order) for one raw action, computed in float32 as
-    spec.decode_action computes them."""
-    lower, upper = _decoding()
-    target = _HOME32 + _SCALE32 * clip_action(np.asarray(action, dtype=np.float32))
-    return np.clip(target, lower, upper).astype(np.float64)
-
-
-@functools.lru_cache(maxsize=1)
-def _decoding() -> tuple[np.ndarray, np.ndarray]:
-    d = spec.action_decoding()
-    return (np.asarray(d['lower_limit_rad'], dtype=np.float32), np.asarray(d['upper_limit_rad'], dtype=np.float32))
 
 
 class JointOrder:
@@ -645,8 +604,8 @@ class Player:
             # Never reaches the arm: hold the course (the limiter brakes toward where it is going).
             self.counts['actor_output_rejected'] += 1
             return self.limiter.step(self.limiter.position_rad)
-        self.last_action = clip_action(raw)
-        return self.limiter.step(decode_action(raw))
+        self.last_action = spec.clip_action(raw)
+        return self.limiter.step(spec.decode_action(raw).astype(np.float64))
 
     def _record_command(self, now_s: float, wall_s: float, policy: bool) -> None:
         if self._last_state_for_period == self.state and now_s - self._last_command_s < 3.0 * self.period_s:

@@ -1,7 +1,7 @@
 """`ros2 run stylepong_player player`: the trained actor at 60 Hz on a UR5 (real, or ur5_sim).
 
 Subscribes  /joint_states (sensor_msgs/JointState, any joint order), /ball/state (stylepong_msgs/BallState,
-            frame world, stamp = instant observed: ball_estimator's output, never the simulator's truth),
+            frame world, stamp = instant observed: the ball estimator's output, never the simulator's truth),
             /player/goal (geometry_msgs/PointStamped, frame world),
             /player/enable (std_msgs/Bool: true enables, false disables)
 Publishes   /forward_position_controller/commands (std_msgs/Float64MultiArray: 6 positions, URDF order; with
@@ -38,7 +38,6 @@ from stylepong_player.actor_contract import ActorMismatchError
 
 COMMAND_TOPIC = '/forward_position_controller/commands'
 STATUS_TOPIC = '/player/status'
-WARN_PERIOD_S = 2.0
 
 
 def _default_actor() -> str:
@@ -108,7 +107,7 @@ class PlayerNode(Node):
         actor = core.load_actor(actor_path, value['backend'])
         self.core = core.Player(config, actor)
         self.backend = value['backend']
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._command = Float64MultiArray()
 
         qos = QoSProfile(depth=10)

@@ -2,7 +2,7 @@
 
 The contract in words: docs/DESIGN.md, "Observation and action contract".
 
-The batched training env (stylepong_policy.task, torch tensors) and the `player` node (numpy arrays) both
+The batched training env (stylepong_policy.training.task, torch tensors) and the `player` node (numpy arrays) both
 build the actor's observation with `build_observation` and decode its action here and nowhere else: a
 train/deploy mismatch fails silently on the robot, so the tests feed both kinds of array the same state
 and require identical values. The exporter writes
@@ -20,7 +20,7 @@ world_spec, SI units):
   last_action                the previous action as applied (clipped to [-1, 1])
 What the robot can sense only: the critic's privileged inputs are the task's business.
 Sensing noise and latency are not part of the contract (the real sensors bring their own); the
-training env (stylepong_policy.task) simulates them before calling `build_observation`.
+training env (stylepong_policy.training.task) simulates them before calling `build_observation`.
 
 Action (one row per environment, NUM_ACTIONS = 6, at ACTION_RATE_HZ): joint position targets
   q_cmd = clip(HOME + ACTION_SCALE_RAD * clip(a, -1, 1), URDF lower limit, URDF upper limit)
@@ -90,13 +90,30 @@ def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Te
                  for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
 
 
-def clip_action(action: torch.Tensor) -> torch.Tensor:
-    """The policy's raw output [N, 6] limited to the action range (what is applied and observed back)."""
+@functools.lru_cache(maxsize=1)
+def _numpy_rows() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(home, scale, lower limit, upper limit) as float32 numpy rows: the player's side of `_rows_on`."""
+    limits = robot_model.joint_limits()
+    return tuple(np.asarray(values, dtype=np.float32)
+                 for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
+
+
+def clip_action(action):
+    """The policy's raw output [N, 6] limited to the action range (what is applied and observed back), as a
+    torch tensor for a tensor (training) and a numpy array for an array (the player)."""
+    if isinstance(action, np.ndarray):
+        return np.clip(action, -ACTION_CLIP, ACTION_CLIP)
     return action.clamp(-ACTION_CLIP, ACTION_CLIP)
 
 
-def decode_action(action: torch.Tensor) -> torch.Tensor:
-    """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6]."""
+def decode_action(action):
+    """Joint position targets [N, 6] (rad, URDF order) for raw actions [N, 6] (or one action [6]), computed
+    in float32 for a torch tensor (training) and a numpy array (the player) alike, with the same operations
+    in the same order so that both give identical values."""
+    if isinstance(action, np.ndarray):
+        home, scale, lower, upper = _numpy_rows()
+        target = home + scale * clip_action(action.astype(np.float32))
+        return np.maximum(np.minimum(target, upper), lower)
     import torch
     home, scale, lower, upper = _rows_on(action.device)
     target = home + scale * clip_action(action.to(torch.float32))

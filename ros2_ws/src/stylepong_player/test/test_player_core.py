@@ -78,11 +78,14 @@ def test_training_and_player_build_the_same_observation_from_random_inputs():
         np.testing.assert_array_equal(got[0], training[i])
 
 
-def test_numpy_decoding_equals_the_spec_decoding():
+def test_numpy_decoding_equals_the_torch_decoding():
+    """The player decodes one numpy action at a time, training a batch of tensors: the same targets."""
     actions = np.random.default_rng(2).normal(0, 2, (200, 6)).astype(np.float32)
     expected = spec.decode_action(torch.from_numpy(actions)).numpy()
-    got = np.stack([player_core.decode_action(a) for a in actions])
-    np.testing.assert_array_equal(got.astype(np.float32), expected)
+    got = np.stack([spec.decode_action(a) for a in actions])
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(spec.decode_action(actions), expected)
 
 
 def test_state_machine_disabled_ready_playing_ready_disabled():

@@ -7,12 +7,11 @@ import pytest
 import torch
 from synthetic_reference import write_reference  # beside this file: conftest.py
 
+from stylepong_description.robot_cell import STROKE_LABELS as LABELS
 from stylepong_policy.rl.amp import MotionPrior, ReferenceMotion
 from stylepong_policy.rl.config import AMPConfig
 from stylepong_policy.rl.pose_prior import PosePrior
 from stylepong_policy.training.dataset import ReferenceDataset
-
-LABELS = ('forward', 'leftward', 'rightward')
 
 
 def line_clip(frames: int, hit: int, joint: int = 0) -> tuple[np.ndarray, int]:

@@ -2,7 +2,8 @@
 import numpy as np
 
 from stylepong_policy.training import task
-from stylepong_sim import rally_eval, world_spec
+from stylepong_sim import world_spec
+from stylepong_sim.nodes import rally_eval
 
 
 def test_rally_eval_balls_are_the_evaluation_balls_of_the_seed():

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from stylepong_policy.evaluation import strokes
-from stylepong_sim import teacher, world_spec
+from stylepong_sim import world_spec
+from stylepong_sim.teaching import teacher
 
 RATE_HZ = 60.0
 PHYSICS_DT_S = 0.001

@@ -7,7 +7,7 @@ arrays (`table_contact_verdicts`, `ball_state_verdicts` and their helpers: Pytho
 numpy arrays and torch tensors alike), so the MuJoCo cell's Referee here and the batched training
 world, which judges N balls at once in torch, apply the same code.
 
-Events (codes identical to stylepong_msgs/RallyEvent):
+Events (codes: stylepong_msgs/RallyEvent's constants):
   LAUNCHED                at launch.
   BOUNCE_OWN_SIDE         the ball touches the table top with x < 0 (the robot's half).
   BOUNCE_OPPONENT_SIDE    the ball touches the table top with x >= 0.
@@ -47,19 +47,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from stylepong_msgs.msg import RallyEvent as RallyEventMessage
 from stylepong_sim import world_spec
 
-# Mirror of stylepong_msgs/RallyEvent's constants (a unit test keeps them equal).
-LAUNCHED = 0
-BOUNCE_OWN_SIDE = 1
-PADDLE_HIT = 2
-BOUNCE_OPPONENT_SIDE = 3
-NET = 4
-ROBOT_CONTACT = 5
-TABLE_CONTACT_BY_ROBOT = 6
-OUT = 7
-TIMEOUT = 8
-RALLY_END = 9
+# The event codes are the interface's: stylepong_msgs/msg/RallyEvent.msg defines them and the referee reads
+# them off the generated message class (plain class attributes: reading them loads no ROS runtime, so the
+# batched world stays free of ROS), so the cells, the batched world, rally_eval and a bag's reader cannot
+# disagree on a number.
+LAUNCHED = RallyEventMessage.LAUNCHED
+BOUNCE_OWN_SIDE = RallyEventMessage.BOUNCE_OWN_SIDE
+PADDLE_HIT = RallyEventMessage.PADDLE_HIT
+BOUNCE_OPPONENT_SIDE = RallyEventMessage.BOUNCE_OPPONENT_SIDE
+NET = RallyEventMessage.NET
+ROBOT_CONTACT = RallyEventMessage.ROBOT_CONTACT
+TABLE_CONTACT_BY_ROBOT = RallyEventMessage.TABLE_CONTACT_BY_ROBOT
+OUT = RallyEventMessage.OUT
+TIMEOUT = RallyEventMessage.TIMEOUT
+RALLY_END = RallyEventMessage.RALLY_END
 
 EVENT_NAMES = {
     LAUNCHED: 'LAUNCHED', BOUNCE_OWN_SIDE: 'BOUNCE_OWN_SIDE', PADDLE_HIT: 'PADDLE_HIT',

@@ -130,6 +130,12 @@ def robot_base_pose() -> tuple[np.ndarray, np.ndarray]:
 # selected in (docs/DESIGN.md, "Evaluation protocol"). Read by train, select_checkpoint, evaluate and
 # rally_eval.
 FIRST_EVALUATION_SEED = 1000
+# The reported evaluation: this many seeds from FIRST_EVALUATION_SEED, this many balls each (the defaults of
+# evaluate, paper_tables and style_confusion). Through ROS (rally_eval, tools/sim2sim.sh) a ball takes seconds
+# of wall time, so the same seeds serve ROS_EVALUATION_BALLS_PER_SEED balls each: the first balls of each seed.
+EVALUATION_SEEDS = 10
+EVALUATION_BALLS_PER_SEED = 200
+ROS_EVALUATION_BALLS_PER_SEED = 20
 # A rally's goal: a region of this radius on the opponent's half, its centre drawn per ball (the task
 # and rally_eval).
 GOAL_RADIUS_M = 0.25

@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from stylepong_description import robot_model
-from stylepong_sim import batched_kinematics, batched_launcher, batched_world, referee, world_spec
+from stylepong_sim import referee, world_spec
+from stylepong_sim.batched import batched_kinematics, batched_launcher, batched_world
 
 HOME = torch.tensor(world_spec.HOME_JOINT_POSITIONS_RAD, dtype=torch.float64)
 

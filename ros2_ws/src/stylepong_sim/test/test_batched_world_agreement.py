@@ -1,4 +1,4 @@
-"""The batched torch world agrees with the MuJoCo cell (stylepong_sim.cell) on the same inputs.
+"""The batched torch world agrees with the MuJoCo cell (stylepong_sim.cells.cell) on the same inputs.
 
 * Ball: the same launched ball touches the table within 6 mm of where it touches it in the cell, and
   after that first bounce it lands on the floor within 7 mm of the cell's landing (measured: at most
@@ -6,7 +6,7 @@
 * Arm: the same joint-position step command gives joint trajectories within 2 % RMS of the cell's
   (RMS of the difference over 1 s, relative to the RMS of the cell's motion from its start; measured:
   at most 1.8 %).
-These are the figures stylepong_sim.batched_world's docstring states; both simulators are deterministic,
+These are the figures stylepong_sim.batched.batched_world's docstring states; both simulators are deterministic,
 so the margins hold from run to run.
 The cell steps at 1 ms and is sampled at the batched world's policy instants (linear interpolation
 between its 1 ms samples); the batched world runs at its defaults (120 Hz physics, 60 Hz policy).
@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 import torch
 
-from stylepong_sim import batched_world, referee, world_spec
-from stylepong_sim.cell import Cell
+from stylepong_sim import referee, world_spec
+from stylepong_sim.batched import batched_world
+from stylepong_sim.cells.cell import Cell
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 POLICY_DT_S = 1.0 / world_spec.POLICY_RATE_HZ

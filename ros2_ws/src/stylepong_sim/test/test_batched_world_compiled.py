@@ -12,7 +12,8 @@ import math
 import pytest
 import torch
 
-from stylepong_sim import batched_launcher, batched_world, world_spec
+from stylepong_sim import world_spec
+from stylepong_sim.batched import batched_launcher, batched_world
 
 NUM_ENVS = 64
 STEPS = 90            # 1.5 s at the 60 Hz policy rate: every ball is decided by then

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from stylepong_description import robot_model
-from stylepong_sim import referee, ur_servoj, world_spec
-from stylepong_sim.bullet_cell import BulletCell, InputError, coulomb_friction
+from stylepong_sim import referee, world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.cells.bullet_cell import BulletCell, InputError, coulomb_friction
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 
@@ -39,7 +40,7 @@ def _types(events) -> list[str]:
 
 def test_the_bullet_cell_loads_nothing_of_the_analytic_contacts():
     code = ('import sys, rclpy\n'
-            'from stylepong_sim.ur5_sim_node import Ur5SimNode\n'
+            'from stylepong_sim.nodes.ur5_sim_node import Ur5SimNode\n'
             'rclpy.init()\n'
             'node = Ur5SimNode(default_engine="pybullet")\n'
             'node._cell.step(5)\n'
@@ -47,8 +48,8 @@ def test_the_bullet_cell_loads_nothing_of_the_analytic_contacts():
             'node.close(); node.destroy_node(); rclpy.shutdown()\n')
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60, check=True)
     loaded = result.stdout.strip().splitlines()[-1]
-    assert 'stylepong_sim.bullet_cell' in loaded
-    for module in ('ball_contacts', 'batched_world', 'stylepong_sim.cell\''):
+    assert 'stylepong_sim.cells.bullet_cell' in loaded
+    for module in ('ball_contacts', 'batched_world', 'stylepong_sim.cells.cell\''):
         assert module not in loaded, loaded
 
 
@@ -156,7 +157,7 @@ def test_bad_inputs_are_refused(cell):
 
 
 def test_the_video_view_poses_the_mujoco_scene_like_the_bullet_cell(cell):
-    from stylepong_sim.bullet_video import MirroredScene
+    from stylepong_sim.cells.bullet_video import MirroredScene
     view = MirroredScene()
     cell.reset()
     cell.set_joint_targets(HOME + 0.1)

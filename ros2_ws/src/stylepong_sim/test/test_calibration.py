@@ -5,7 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from stylepong_sim import calibration, ur_servoj, world_spec
+from stylepong_sim import world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.nodes import calibration
 
 
 def test_an_aimed_throw_reaches_its_target_with_drag():

@@ -6,7 +6,7 @@ import pytest
 
 from stylepong_description import robot_model
 from stylepong_sim import referee, world_spec
-from stylepong_sim.cell import Cell, InputError
+from stylepong_sim.cells.cell import Cell, InputError
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 # The arm turned away from the table, out of every incoming ball's way.

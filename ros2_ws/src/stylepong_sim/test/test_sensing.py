@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
+from stylepong_sim.cells.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
 
 DT_S = 0.001
 

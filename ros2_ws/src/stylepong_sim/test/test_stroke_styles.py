@@ -7,9 +7,9 @@ import rclpy
 import yaml
 
 from stylepong_common.node_support import ParameterError
-from stylepong_sim import stroke_styles
-from stylepong_sim.teacher import STROKES, SWINGS, StrokePath, SwingVariation, TeacherConfig, sample_variation
-from stylepong_sim.virtual_teacher_node import VirtualTeacherNode
+from stylepong_sim.nodes.virtual_teacher_node import VirtualTeacherNode
+from stylepong_sim.teaching import stroke_styles
+from stylepong_sim.teaching.teacher import STROKES, SWINGS, StrokePath, SwingVariation, TeacherConfig, sample_variation
 
 STYLE_FILES = sorted(stroke_styles.STYLES_DIR.glob('*.yaml'))
 KINEMATICS = stroke_styles.StrokeKinematics()

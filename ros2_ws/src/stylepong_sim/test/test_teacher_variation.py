@@ -12,7 +12,7 @@ import pytest
 
 from stylepong_description import robot_model
 from stylepong_sim import world_spec
-from stylepong_sim.teacher import (
+from stylepong_sim.teaching.teacher import (
     MAX_SIDE_REACH_M,
     STROKES,
     SWINGS,

@@ -3,7 +3,7 @@ latency, noise, lost frames and false detections."""
 import numpy as np
 import pytest
 
-from stylepong_sim.tracker import BallTracker, TrackerConfig, camera_to_world, world_to_camera
+from stylepong_sim.cells.tracker import BallTracker, TrackerConfig, camera_to_world, world_to_camera
 
 BALL = np.array([-0.5, 0.2, 1.0])
 

@@ -12,7 +12,7 @@ from stylepong_common.node_context import node_in_context, ros_context
 from stylepong_common.node_support import ParameterError
 from stylepong_common.parameter_files import file_parameters
 from stylepong_sim import world_spec
-from stylepong_sim.ur5_sim_node import PARAMETERS, Ur5SimNode
+from stylepong_sim.nodes.ur5_sim_node import PARAMETERS, Ur5SimNode
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config'
 

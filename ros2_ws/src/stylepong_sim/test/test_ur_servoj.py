@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from stylepong_sim import ur_servoj, world_spec
-from stylepong_sim.cell import Cell
+from stylepong_sim import world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.cells.cell import Cell
 
 DT = world_spec.PHYSICS_DT_S
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from stylepong_sim import world_spec
-from stylepong_sim.cell import Cell
-from stylepong_sim.video import VideoRecorder
+from stylepong_sim.cells.cell import Cell
+from stylepong_sim.cells.video import VideoRecorder
 
 
 def _record(cell: Cell, recorder: VideoRecorder, duration_s: float) -> None:

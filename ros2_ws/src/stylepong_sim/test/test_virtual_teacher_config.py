@@ -6,8 +6,8 @@ import pytest
 from stylepong_common.node_context import node_in_context, ros_context
 from stylepong_common.node_support import ParameterError
 from stylepong_common.parameter_files import differences_from_defaults, file_parameters
-from stylepong_sim.teacher import SwingVariation, sample_variation
-from stylepong_sim.virtual_teacher_node import PARAMETERS, VirtualTeacherNode
+from stylepong_sim.nodes.virtual_teacher_node import PARAMETERS, VirtualTeacherNode
+from stylepong_sim.teaching.teacher import SwingVariation, sample_variation
 
 CONFIG = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'virtual_teacher.yaml'
 

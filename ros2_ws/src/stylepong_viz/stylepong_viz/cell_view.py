@@ -28,13 +28,13 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from stylepong_description import robot_model
+from stylepong_description.robot_cell import FRAME_WORLD
 from stylepong_description.robot_state import RobotState, quaternion_from_matrix, rotate
 from stylepong_sim import world_spec
 from stylepong_viz.batch_transforms import LinkPoses, joint_rotations
 from stylepong_viz.decimate import ColumnBuffer, Decimator, Trail
 from stylepong_viz.hand_wrench import STANDARD_GRAVITY_M_S2, hand_wrench_in_tool, tool_load_from_urdf
 
-FRAME_WORLD = 'world'
 TIMELINE = 'time'
 ARM_RATE_HZ = 30.0         # arm frames a second in the recording (scrubbing); the page shows them as they come
 PLOT_RATE_HZ = 50.0        # plot points a second per series: 500 in a 10 s window, a swing's 0.4 s in 20

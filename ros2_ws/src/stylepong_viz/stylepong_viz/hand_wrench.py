@@ -12,20 +12,13 @@ shows the physical push, and a sensor bias shows as a constant arrow.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 
 import numpy as np
 
+from stylepong_description.robot_model import ToolLoad
 from stylepong_description.robot_state import RobotState, quaternion_multiply, rotate
 
 STANDARD_GRAVITY_M_S2 = 9.81     # as the URDF's (Pinocchio's) default gravity
-
-
-@dataclass(frozen=True)
-class ToolLoad:
-    """What hangs on the sensor: total mass (kg) and centre of mass (m, tool frame) of the links fixed below it."""
-    mass_kg: float
-    com_m: np.ndarray
 
 
 def tool_load_from_urdf(urdf_xml: str, tool_frame: str) -> ToolLoad:

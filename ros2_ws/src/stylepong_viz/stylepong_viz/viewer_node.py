@@ -23,7 +23,8 @@ import pathlib
 import sys
 import time
 
-EXIT_CONFIG_ERROR = 2
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
+
 PROGRAM = 'viewer'
 FLUSH_RATE_HZ = 10.0      # the page's updates a second: each one a batch per entity
 DEFAULT_NICE = 10         # a display yields the CPU to the nodes it watches
@@ -147,7 +148,7 @@ def make_live_node(args: argparse.Namespace):
         def __init__(self, **node_kwargs):
             super().__init__('stylepong_viewer', **node_kwargs)
             self.view, self.page, page_threads = _start_page(args)
-            self._warnings = ThrottledLog(self.get_logger(), 2.0)
+            self._warnings = ThrottledLog(self.get_logger())
             self._joint_bytes = JointStateBytes()
             # The subscriptions hang on a second node that no executor spins: no callback, no wake-up per
             # message (a Python callback per 500 Hz message was most of the viewer's CPU). Best effort, so

@@ -45,7 +45,7 @@ def _paddle_poses(q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The paddle centre [3, K] (m) and its face normal [3, K] in the world at each row of q_rad [K, 6]."""
     import torch
 
-    from stylepong_sim import batched_kinematics
+    from stylepong_sim.batched import batched_kinematics
     kin = batched_kinematics.forward_kinematics(batched_kinematics.build_arm_model(dtype=torch.float64),
                                                 torch.as_tensor(q_rad.T, dtype=torch.float64))
     return kin.paddle_pos_m.numpy(), kin.paddle_rot[:, 2].numpy()

@@ -17,7 +17,8 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from stylepong_sim import batched_launcher, batched_world, referee
+from stylepong_sim import referee
+from stylepong_sim.batched import batched_launcher, batched_world
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ from stylepong_policy.evaluation.strokes import (
 )
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
 from stylepong_sim.referee import REASON_RETURNED
-from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
+from stylepong_sim.world_spec import EVALUATION_BALLS_PER_SEED, EVALUATION_SEEDS, FIRST_EVALUATION_SEED
 
 SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
 NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
@@ -218,8 +218,8 @@ def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.nda
     return result
 
 
-def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
-                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = 200, speed: str = 'all',
+def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALUATION_SEEDS,
+                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = EVALUATION_BALLS_PER_SEED, speed: str = 'all',
                    randomize: bool = False, device: str | torch.device = 'cpu',
                    progress: Callable[[SeedResult], None] | None = None, drive: Drive = Drive()) -> Evaluation:
     """Run the protocol (module docstring) and keep every stroke; `progress` is called after each seed."""
@@ -365,8 +365,8 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
     return summary
 
 
-def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = 10,
-                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = 200, speed: str = 'all',
+def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALUATION_SEEDS,
+                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = EVALUATION_BALLS_PER_SEED, speed: str = 'all',
                    randomize: bool = False, device: str | torch.device = 'cpu',
                    dtw_dataset: str | os.PathLike | None = None) -> dict:
     """Evaluate an actor (a path to an exported actor, or one loaded with rl.export.load_actor) and return
@@ -395,8 +395,8 @@ def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'o
     import mujoco
 
     from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_sim import scene
-    from stylepong_sim.video import VideoRecorder
+    from stylepong_sim.cells import scene
+    from stylepong_sim.cells.video import VideoRecorder
 
     model = scene.build_model()
     data = mujoco.MjData(model)
@@ -425,10 +425,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command line of evaluate."""
     parser = argparse.ArgumentParser(prog='evaluate', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', required=True, type=pathlib.Path, help='exported actor (.pt with its .json)')
-    parser.add_argument('--seeds', type=int, default=10, help='number of seeds')
+    parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='number of seeds')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
                         help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')
-    parser.add_argument('--balls', type=int, default=200, help='balls per seed')
+    parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--speed', choices=SPEEDS, default='all', help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the results here')
     parser.add_argument('--save-strokes', type=pathlib.Path, help='write every stroke to this .npz')
@@ -476,7 +476,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     torch.set_num_threads(args.num_threads)
     if args.video is not None:
-        from stylepong_sim.scene import CAMERAS
+        from stylepong_sim.cells.scene import CAMERAS
         if args.camera not in CAMERAS:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2

@@ -22,8 +22,9 @@ import yaml
 from stylepong_description import robot_model
 from stylepong_player import player_core
 from stylepong_policy import paths
-from stylepong_sim import referee, sensing, ur_servoj
-from stylepong_sim.rally_eval import balls_for_seed, goals_for_seed
+from stylepong_sim import referee, world_spec
+from stylepong_sim.cells import sensing, ur_servoj
+from stylepong_sim.nodes.rally_eval import balls_for_seed, goals_for_seed
 
 ACTOR = paths.MODELS / 'amp_actor.pt'
 REALISTIC_SENSING = paths.REPOSITORY / 'ros2_ws/src/stylepong_sim/config/realistic_sensing.yaml'
@@ -36,9 +37,9 @@ def make_cell(engine: str, actuator: str, joint_drive: str):
     """The cell to play in (ur_servoj at the CB3's 125 Hz, look-ahead 0.03 s, gain 2000)."""
     servoj = ur_servoj.ServojSettings(125.0, 0.03, 2000.0)
     if engine == 'pybullet':
-        from stylepong_sim.bullet_cell import BulletCell
+        from stylepong_sim.cells.bullet_cell import BulletCell
         return BulletCell(actuator=actuator, servoj=servoj, joint_drive=joint_drive)
-    from stylepong_sim.cell import Cell
+    from stylepong_sim.cells.cell import Cell
     return Cell(actuator=actuator, servoj=servoj)
 
 
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--engine', choices=('mujoco', 'pybullet'), default='pybullet')
     parser.add_argument('--actuator', choices=ur_servoj.ACTUATORS, default=ur_servoj.IDEAL)
     parser.add_argument('--joint-drive', choices=('motor', 'pd'), default='motor', help='PyBullet cell only')
-    parser.add_argument('--first-seed', type=int, default=1000)
+    parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED)
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--balls', type=int, default=10)
     parser.add_argument('--no-stream', action='store_true', help="the player's stream_commands false")

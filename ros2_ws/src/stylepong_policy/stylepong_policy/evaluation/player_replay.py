@@ -62,7 +62,7 @@ class ReplayNode(Node):
         self.deviation_rad = 0.0
         self.finished = False
         self.exit_code = 0
-        self._warnings = ThrottledLog(self.get_logger(), 2.0)
+        self._warnings = ThrottledLog(self.get_logger())
         qos = QoSProfile(depth=10)
         self._pub = self.create_publisher(Float64MultiArray, '/forward_position_controller/commands', qos)
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos)

@@ -6,7 +6,7 @@ which the paddle first touched the ball (or up to the referee's verdict when it 
 the verdict comes first: after it the environment has already reset the arm).
 
 Directions. The demonstrations are labelled forward, leftward and rightward by where the stroke meets
-the ball (stylepong_sim.teacher.STROKES: hits straight ahead of the paddle's home pose, 0.16 m to the
+the ball (stylepong_sim.teaching.teacher.STROKES: hits straight ahead of the paddle's home pose, 0.16 m to the
 robot's left, 0.18 m to its right; world +y is the robot's left). A ball is labelled the same way, by
 where it reaches the robot: its lateral position when it crosses the paddle's home plane (the plane
 x = x of the paddle centre at the home pose) after its bounce on the robot's half. Its offset from the
@@ -48,7 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DIRECTIONS = ('forward', 'leftward', 'rightward')   # the demonstrations' labels (teacher.SWINGS)
+from stylepong_description.robot_cell import STROKE_LABELS as DIRECTIONS  # noqa: F401  (the labels, for users)
+
 # Halfway between the demonstrated hitting points (teacher.STROKES hit offsets in y: 0, +0.16, -0.18 m).
 LEFTWARD_ABOVE_M = 0.08
 RIGHTWARD_BELOW_M = -0.09

@@ -18,10 +18,9 @@ import sys
 
 import numpy as np
 
-from stylepong_policy.evaluation.style_metrics import dtw_distance_rad, smoothness
+from stylepong_description.robot_cell import STROKE_LABELS as LABELS
 from stylepong_policy.training.dataset import ReferenceDataset
-
-LABELS = ('forward', 'leftward', 'rightward')
+from stylepong_policy.evaluation.style_metrics import dtw_distance_rad, smoothness
 
 
 def original_clips(dataset: ReferenceDataset) -> list[tuple[str, np.ndarray]]:

@@ -11,9 +11,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stylepong_description.robot_cell import STROKE_LABELS as DIRECTIONS
+
 PAPER_COLOUR = '#9aa5b1'
 OURS_COLOUR = '#1f6fb2'
-DIRECTIONS = ('forward', 'leftward', 'rightward')
 
 
 def _pyplot():

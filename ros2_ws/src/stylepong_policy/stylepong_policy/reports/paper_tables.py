@@ -45,8 +45,14 @@ from stylepong_policy.evaluation.strokes import DIRECTIONS, FOLLOW_THROUGH_S, sa
 from stylepong_policy.reports import paper_charts as charts
 from stylepong_policy.reports import paper_figures as paper
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
+from stylepong_policy.evaluation.strokes import DIRECTIONS, FOLLOW_THROUGH_S, save_strokes
 from stylepong_policy.training.train import actor_name
-from stylepong_sim.world_spec import FIRST_EVALUATION_SEED, SPEED_RANGES_M_S
+from stylepong_sim.world_spec import (
+    EVALUATION_BALLS_PER_SEED,
+    EVALUATION_SEEDS,
+    FIRST_EVALUATION_SEED,
+    SPEED_RANGES_M_S,
+)
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')
 SHIPPED_FILES = {name: actor_name(name) for name in ACTOR_NAMES}    # amp-noaug: amp_noaug_actor.pt
@@ -513,7 +519,8 @@ def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protoc
     lines += smoothness_section(summaries, reference_rows, protocol) + directions_section(summaries, protocol)
     lines += table_four(sim2sim, summaries, protocol) + figure_section(figure, protocol)
     lines += ['## About the paper\'s figures', ''] + [f'- {note}' for note in paper.INCONSISTENCIES] + [
-        '- The paper ran IsaacGym; ours is the batched torch world of this project (stylepong_sim.batched_world), '
+        '- The paper ran IsaacGym; ours is the batched torch world of this project '
+        '(stylepong_sim.batched.batched_world), '
         'with its own ball distribution, robot servo and referee, so equal numbers are not expected: the '
         'comparison is between methods under one setting.', '']
     return '\n'.join(lines)
@@ -559,8 +566,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help=f'name=path,... for any of {", ".join(ACTOR_NAMES)} (default: the shipped ones)')
     parser.add_argument('--models-dir', type=pathlib.Path, default=DEFAULT_MODELS_DIR,
                         help='where the shipped actors are')
-    parser.add_argument('--seeds', type=int, default=10, help='seeds per table')
-    parser.add_argument('--balls', type=int, default=200, help='balls per seed')
+    parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='seeds per table')
+    parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED, help='first seed of Tables I, II')
     parser.add_argument('--band-first-seed', type=int, default=BAND_FIRST_SEED, help='first seed of Table III')
     source = parser.add_mutually_exclusive_group()
@@ -589,7 +596,8 @@ def command_line(args: argparse.Namespace) -> str:
     if args.actor_overrides:
         overrides = ','.join(f'{n}={evaluate.portable_path(p)}' for n, p in args.actor_overrides.items())
         parts.append(f'--actors {overrides}')
-    for flag, value, default in (('--seeds', args.seeds, 10), ('--balls', args.balls, 200),
+    for flag, value, default in (('--seeds', args.seeds, EVALUATION_SEEDS),
+                                 ('--balls', args.balls, EVALUATION_BALLS_PER_SEED),
                                  ('--first-seed', args.first_seed, FIRST_EVALUATION_SEED),
                                  ('--band-first-seed', args.band_first_seed, BAND_FIRST_SEED)):
         if value != default:

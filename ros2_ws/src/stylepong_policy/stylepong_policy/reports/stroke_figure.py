@@ -4,7 +4,7 @@ The two policies are shown on the same ball: a seed serves the same balls whatev
 ball (seed, environment) is the first one of the chosen direction that both returned (failing that,
 the first of that direction). The reference row is the demonstration of that direction (an original
 clip, speed factor 1) nearest to the AMP stroke by DTW. Frames are rendered with the cell's MuJoCo
-scene (stylepong_sim.scene; kinematics only: joint positions and the ball set each frame) from one
+scene (stylepong_sim.cells.scene; kinematics only: joint positions and the ball set each frame) from one
 camera: a policy's seven frames are evenly spaced from SWING_LEAD_S before the paddle's first contact
 to the stroke's end (0.3 s after it), the clip's over the whole clip. The default camera,
 FIGURE_CAMERA, is a free camera close to the robot (three-quarter view from the robot's left front,
@@ -103,7 +103,7 @@ def render_rows(rows: Sequence[FigureRow], camera: str = FIGURE_CAMERA) -> list[
     import mujoco
 
     from stylepong_description.robot_model import JOINT_NAMES
-    from stylepong_sim import scene
+    from stylepong_sim.cells import scene
 
     model = scene.build_model()
     data = mujoco.MjData(model)

@@ -231,7 +231,7 @@ def heatmap(path: pathlib.Path, record: dict) -> pathlib.Path:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of style_confusion."""
-    from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
+    from stylepong_sim.world_spec import EVALUATION_BALLS_PER_SEED, EVALUATION_SEEDS, FIRST_EVALUATION_SEED
 
     parser = argparse.ArgumentParser(prog='style_confusion', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', dest='actors', action='append', type=parse_named, required=True,
@@ -240,10 +240,11 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar='NAME=BAGS_DIR_OR_DATASET', help='a demonstration set (repeat)')
     parser.add_argument('--baseline', required=True, type=pathlib.Path, metavar='ACTOR.pt',
                         help='the actor every distance is normalised by (PPO: no style)')
-    parser.add_argument('--seeds', type=int, default=10, help='evaluation seeds (default %(default)s)')
+    parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='evaluation seeds (default %(default)s)')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
                         help='first seed (default %(default)s)')
-    parser.add_argument('--balls', type=int, default=200, help='balls per seed (default %(default)s)')
+    parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED,
+                        help='balls per seed (default %(default)s)')
     parser.add_argument('--out', required=True, type=pathlib.Path, help='folder for the .md, .json and .png')
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')

@@ -1,4 +1,4 @@
-"""The table-tennis task: the batched world (stylepong_sim.batched_world) as an RL environment.
+"""The table-tennis task: the batched world (stylepong_sim.batched.batched_world) as an RL environment.
 
 Where things live: the world (physics, robot, referee) is a simulator of the cell and sits with the
 cell in stylepong_sim; what makes it a learning problem (observations through stylepong_player.spec,
@@ -47,7 +47,8 @@ import torch
 from stylepong_player import spec
 from stylepong_policy.evaluation import strokes
 from stylepong_policy.rl import env as env_contract
-from stylepong_sim import batched_launcher, batched_world, referee, world_spec
+from stylepong_sim import referee, world_spec
+from stylepong_sim.batched import batched_launcher, batched_world
 
 FAILURE_REASONS: tuple[str, ...] = referee.REASONS
 SUCCESS_INDEX = referee.REASON_INDEX[referee.REASON_RETURNED]

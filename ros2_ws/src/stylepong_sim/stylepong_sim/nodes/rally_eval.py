@@ -48,9 +48,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from stylepong_common.command_line import EXIT_INTERRUPTED, print_and_write_json
+from stylepong_common.command_line import print_and_write_json
+from stylepong_common.exit_codes import EXIT_CONFIG_ERROR, EXIT_INTERRUPTED
 from stylepong_common.node_process import wait_until
-from stylepong_common.node_support import EXIT_CONFIG_ERROR
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
 from stylepong_sim import world_spec
@@ -87,7 +87,7 @@ class SeedResult:
 def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.ndarray]:
     """Launch positions [count, 3] and velocities [count, 3]: evaluate's first balls for this seed (its
     task builds the sampler with batch max(1024, 2 N) and draws all N environments' balls at once)."""
-    from stylepong_sim import batched_launcher
+    from stylepong_sim.batched import batched_launcher
     sampler = batched_launcher.IncomingBallSampler(tuple(world_spec.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu',
                                                    batch=max(1024, 2 * count))
     position, velocity, _ = sampler.sample(count)
@@ -267,10 +267,10 @@ class OneLineArgumentParser(argparse.ArgumentParser):
 def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
     parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--balls', type=int, default=20, help='balls per seed')
+    parser.add_argument('--balls', type=int, default=world_spec.ROS_EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED,
                         help=f'first seed (evaluation seeds are >= {world_spec.FIRST_EVALUATION_SEED})')
-    parser.add_argument('--seeds', type=int, default=1, help='number of seeds')
+    parser.add_argument('--seeds', type=int, default=world_spec.EVALUATION_SEEDS, help='number of seeds')
     parser.add_argument('--speed', choices=tuple(world_spec.SPEED_RANGES_M_S), default='all',
                         help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the summary here')

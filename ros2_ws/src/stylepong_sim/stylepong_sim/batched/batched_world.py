@@ -5,7 +5,7 @@ that simulates the cell (world spec, MuJoCo cell, referee) and stylepong_policy 
 (spec, task rewards, PPO). This module is a second simulator of the same cell, held to the MuJoCo
 cell by agreement tests, so it sits beside the cell and reads the same world spec, robot model and
 referee rules; the task (rewards, goals, domain randomisation, observations) that turns it into an
-RL environment is stylepong_policy.task.
+RL environment is stylepong_policy.training.task.
 
 What it simulates, for every environment at once (layout: the environment axis last, see
 batched_kinematics):
@@ -37,8 +37,9 @@ from typing import NamedTuple
 import torch
 
 from stylepong_description import robot_model
-from stylepong_sim import batched_kinematics, referee, world_spec
-from stylepong_sim.batched_kinematics import Kinematics
+from stylepong_sim import referee, world_spec
+from stylepong_sim.batched import batched_kinematics
+from stylepong_sim.batched.batched_kinematics import Kinematics
 
 # The world's default step rates (the task's TaskConfig takes them from here): physics at 120 Hz, two
 # steps per 60 Hz policy step, and the arm at 4 sub-steps per physics step (480 Hz); see the docstring.

@@ -4,9 +4,9 @@ cell (whose module brings the analytic ball contacts with it)."""
 from __future__ import annotations
 
 from stylepong_description import robot_model
+from stylepong_description.robot_cell import FRAME_WORLD  # noqa: F401  (the cells' API names its frames here)
 
 MAX_LAUNCH_SPEED_M_S = 30.0
-FRAME_WORLD = 'world'
 FRAME_TOOL = robot_model.TOOL_FRAME
 
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from visualization_msgs.msg import Marker, MarkerArray
 
+from stylepong_description.robot_cell import FRAME_WORLD
 from stylepong_sim import world_spec
 
-FRAME_WORLD = 'world'
 NAMESPACE = 'cell'
 TABLE_ID, NET_ID, BALL_ID = 0, 1, 2
 TABLE_RGBA = (0.05, 0.25, 0.55, 1.0)

@@ -29,11 +29,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from stylepong_common.exit_codes import EXIT_INTERRUPTED, EXIT_STOPPED
 from stylepong_common.node_support import Param, ParameterError, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model
 from stylepong_msgs.srv import StartClip
-from stylepong_sim.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
-from stylepong_sim.teacher import (
+from stylepong_sim.teaching.stroke_styles import check_stroke, load_strokes_file, resolve_strokes_file
+from stylepong_sim.teaching.teacher import (
     MAX_SIDE_REACH_M,
     MAX_SIDE_TURN_RAD,
     SWINGS,
@@ -44,9 +45,6 @@ from stylepong_sim.teacher import (
 )
 
 PROGRAM = 'virtual_teacher'
-WARN_PERIOD_S = 1.0
-EXIT_INTERRUPTED = 130      # the shell's code for a program ended by Ctrl-C
-EXIT_STOPPED = 1            # the ROS context was shut down under the node before it was done
 RELEASE_REPEATS = 5         # on the way out, the zero wrench is sent this many times, 10 ms apart
 
 _DEFAULTS = TeacherConfig()
@@ -132,7 +130,7 @@ class VirtualTeacherNode(Node):
         self._started_s = self._now_s()
         self._bracket = 'idle'              # idle -> starting -> recording -> stopping -> done
         self._announced = ''
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
 
         self.wrench_pub = self.create_publisher(WrenchStamped, '/sim/hand_wrench', 10)
         # Reused at every tick (publishing copies it): filling fields is cheaper than a new message.

@@ -25,12 +25,11 @@ from tf2_msgs.msg import TFMessage
 
 from stylepong_common.node_support import Param, ThrottledLog, declare_parameters, run_node
 from stylepong_description import robot_model
+from stylepong_description.robot_cell import FRAME_WORLD
 from stylepong_description.robot_state import LinkTransform, RobotState, quaternion_from_matrix
 from stylepong_sim import world_spec
 
 PROGRAM = 'robot_state_publisher'
-FRAME_WORLD = 'world'
-WARN_PERIOD_S = 2.0
 # robot_state_publisher's QoS: /robot_description and /tf_static latched (transient local, depth 1);
 # /tf keep-last 100 as tf2's broadcaster.
 LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -96,7 +95,7 @@ class RobotStatePublisherNode(Node):
         value = declare_parameters(self, PARAMETERS)
         self._min_period_ns = int(1e9 / value['publish_frequency'])
         self._last_published_ns: int | None = None
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._outputs = RobotStateOutputs(self)
         self._outputs.publish_description_and_static(self.get_clock().now().to_msg())
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, QoSProfile(depth=10))

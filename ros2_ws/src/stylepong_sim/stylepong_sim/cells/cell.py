@@ -64,9 +64,10 @@ import mujoco
 import numpy as np
 
 from stylepong_description import robot_model
-from stylepong_sim import ball_contacts, scene, ur_servoj, world_spec
-from stylepong_sim.cell_base import CellBase
-from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
+from stylepong_sim import world_spec
+from stylepong_sim.cells import ball_contacts, scene, ur_servoj
+from stylepong_sim.cells.cell_base import CellBase
+from stylepong_sim.cells.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
 
 _GRAVITY = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2])
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import mujoco
 
-from stylepong_sim import scene
+from stylepong_sim.cells import scene
 
 
 class MirroredScene:

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stylepong_sim import referee, ur_servoj, world_spec
+from stylepong_sim import referee, world_spec
+from stylepong_sim.cells import ur_servoj
 
 CROSSING_X_M = -1.2                    # before the paddle at home (x = -1.47): the arm does not touch the rebound
 POLICY_DT_S = 1.0 / world_spec.POLICY_RATE_HZ
@@ -65,9 +66,9 @@ def make_cell(engine: str, actuator: str = ur_servoj.IDEAL,
               servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
     """A fresh cell of `engine` ('mujoco' or 'pybullet')."""
     if engine == 'pybullet':
-        from stylepong_sim.bullet_cell import BulletCell
+        from stylepong_sim.cells.bullet_cell import BulletCell
         return BulletCell(actuator=actuator, servoj=servoj)
-    from stylepong_sim.cell import Cell
+    from stylepong_sim.cells.cell import Cell
     return Cell(actuator=actuator, servoj=servoj)
 
 
@@ -112,7 +113,7 @@ def batched_ball_traces(positions_m: np.ndarray, velocities_m_s: np.ndarray, q_t
     """The same balls [N, 3] in one batched world (float64, its default rates), arm commanded to q_target."""
     import torch
 
-    from stylepong_sim import batched_world
+    from stylepong_sim.batched import batched_world
     n = len(positions_m)
     world = batched_world.BatchedWorld(n, dtype=torch.float64)
     world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.tensor(positions_m).T, torch.tensor(velocities_m_s).T)
@@ -349,7 +350,7 @@ def markdown(result: dict) -> list[str]:
               f'A {STEP_RAD} rad step on shoulder_pan and wrist_3 together; the ramp is 1 rad/s on shoulder_pan '
               'commanded at 60 Hz (held between commands), its lag averaged after 0.5 s. ur_servoj settings: rate, '
               'look-ahead, gain '
-              '(`stylepong_sim/ur_servoj.py`).', '',
+              '(`stylepong_sim/cells/ur_servoj.py`).', '',
               '| actuator | cell | pan delay 10 % (ms) | pan rise 10-90 % (ms) | pan settle 2 % (ms) '
               '| pan overshoot (%) '
               '| wrist_3 delay / rise / settle (ms) | ramp lag (ms) |', '|---|---|---|---|---|---|---|---|']

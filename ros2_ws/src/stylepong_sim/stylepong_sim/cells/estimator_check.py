@@ -13,9 +13,9 @@ import numpy as np
 
 from stylepong_player.ball_estimator import BallEstimator, EstimatorConfig, Outcome
 from stylepong_sim import referee, world_spec
-from stylepong_sim.cell import Cell
-from stylepong_sim.sensing import SampleClock
-from stylepong_sim.tracker import BallTracker, TrackerConfig, camera_to_world
+from stylepong_sim.cells.cell import Cell
+from stylepong_sim.cells.sensing import SampleClock
+from stylepong_sim.cells.tracker import BallTracker, TrackerConfig, camera_to_world
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,11 @@
 """`ros2 run stylepong_sim ur5_sim`: the simulated UR5 table-tennis cell, driven like a real UR5.
 
 Thin ROS wiring around a cell (physics, servo, ball, referee) and sensing.py (sensor models). The cell is
-engine:=mujoco, stylepong_sim.cell.Cell (analytic ball contacts, as the batched training world), or
-engine:=pybullet, stylepong_sim.bullet_cell.BulletCell (Bullet's own dynamics and contacts; also
+engine:=mujoco, stylepong_sim.cells.cell.Cell (analytic ball contacts, as the batched training world), or
+engine:=pybullet, stylepong_sim.cells.bullet_cell.BulletCell (Bullet's own dynamics and contacts; also
 `ros2 run stylepong_sim ur5_bullet`); both behind the same topics, services and parameters. actuator:=ideal
 (world_spec's servo reference) or ur_servoj (the UR controller's servoj: servo_rate_hz, lookahead_s, gain;
-stylepong_sim.ur_servoj states its law).
+stylepong_sim.cells.ur_servoj states its law).
 Time: the cell's simulated time, from 0 at start. It is published on /clock and stamps every message; nodes
 that run with use_sim_time follow it. real_time_factor 1.0 paces the simulation by the wall clock (a
 schedule: after a stall it catches up, by up to max_lag_s, then gives the backlog up with a warning);
@@ -81,17 +81,17 @@ from stylepong_description import robot_model
 from stylepong_description.robot_state import LinkTransform
 from stylepong_msgs.msg import BallState, RallyEvent
 from stylepong_msgs.srv import LaunchBall
-from stylepong_sim import ur_servoj, world_spec
-from stylepong_sim.cell_inputs import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
-from stylepong_sim.cell_markers import cell_markers
-from stylepong_sim.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
-from stylepong_sim.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
-from stylepong_sim.tracker import FRAME_CAMERA, BallTracker, TrackerConfig
+from stylepong_sim import world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.cells.cell_inputs import FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
+from stylepong_sim.cells.cell_markers import cell_markers
+from stylepong_sim.cells.sensing import BallCamera, ForceTorqueSensor, SampleClock, SensingConfig
+from stylepong_sim.cells.tracker import FRAME_CAMERA, BallTracker, TrackerConfig
+from stylepong_sim.nodes.robot_state_publisher_node import LATCHED_QOS, RobotStateOutputs
 
 PROGRAM = 'ur5_sim'
 MUJOCO, PYBULLET = 'mujoco', 'pybullet'
 ENGINES = (MUJOCO, PYBULLET)
-WARN_PERIOD_S = 2.0
 TIMER_PERIOD_S = 0.002
 # real_time_factor 0: wall time a timer callback may spend stepping before inputs are served again.
 FAST_BATCH_WALL_S = 0.004
@@ -166,9 +166,9 @@ def _stamp(time_s: float) -> Time:
 def build_cell(engine: str, home_joint_positions_rad, actuator: str, servoj: ur_servoj.ServojSettings):
     """The cell of `engine` (one of ENGINES); ValueError for a bad home pose."""
     if engine == PYBULLET:
-        from stylepong_sim.bullet_cell import BulletCell  # pybullet is loaded only when asked for
+        from stylepong_sim.cells.bullet_cell import BulletCell  # pybullet is loaded only when asked for
         return BulletCell(home_joint_positions_rad, actuator=actuator, servoj=servoj)
-    from stylepong_sim.cell import Cell  # with it the analytic ball contacts, which the Bullet cell must not load
+    from stylepong_sim.cells.cell import Cell  # with it the analytic ball contacts, which the Bullet cell must not load
     return Cell(home_joint_positions_rad=home_joint_positions_rad, actuator=actuator, servoj=servoj)
 
 
@@ -213,15 +213,15 @@ class Ur5SimNode(Node):
         self._hand_timeout_s = value['hand_wrench_timeout_s']
         self._ft_include_inertia = value['ft_include_inertia']
         self._max_lag_s = value['max_lag_s']
-        self._warnings = ThrottledLog(self.get_logger(), WARN_PERIOD_S)
+        self._warnings = ThrottledLog(self.get_logger())
         self._video = None
         self._video_view = None
         video_path = value['record_video']
         if video_path:
-            from stylepong_sim.video import VideoRecorder
+            from stylepong_sim.cells.video import VideoRecorder
             try:
                 if self.engine == PYBULLET:   # Bullet's state drawn by the MuJoCo scene's renderer
-                    from stylepong_sim.bullet_video import MirroredScene
+                    from stylepong_sim.cells.bullet_video import MirroredScene
                     self._video_view = MirroredScene()
                 model = self._cell.model if self._video_view is None else self._video_view.model
                 self._video = VideoRecorder(model, video_path, fps=value['video_fps'],
@@ -259,8 +259,10 @@ class Ur5SimNode(Node):
         if self._camera is not None:   # the camera model's noise, as a tracker's estimate would state it
             position_var = sensing.ball_position_noise_std_m ** 2
             velocity_var = sensing.ball_velocity_noise_std_m_s ** 2
-            self._ball_msg.position_covariance = np.diag([position_var] * 3).ravel().tolist()
-            self._ball_msg.velocity_covariance = np.diag([velocity_var] * 3).ravel().tolist()
+            self._ball_msg.position_covariance = [position_var, 0.0, 0.0, 0.0, position_var, 0.0, 0.0, 0.0,
+                                                  position_var]
+            self._ball_msg.velocity_covariance = [velocity_var, 0.0, 0.0, 0.0, velocity_var, 0.0, 0.0, 0.0,
+                                                  velocity_var]
         self._truth_msg = BallState()
         self._truth_msg.header.frame_id = FRAME_WORLD
         self._detection_msg = PointStamped()

@@ -43,9 +43,9 @@ import pinocchio as pin
 
 from stylepong_common.settings import check_ranges, non_negative, positive, within
 from stylepong_description import robot_model
+from stylepong_description.robot_cell import STROKE_LABELS as SWINGS  # a swing per stroke label
 from stylepong_sim import world_spec
 
-SWINGS = ('forward', 'leftward', 'rightward')
 # Which side each swing goes to (+: the robot's left, world +y): the sign of TeacherConfig.side_turn_rad's
 # turn about the vertical and of side_reach_m's carry along y.
 SIDE_SIGN = {'forward': 0.0, 'leftward': 1.0, 'rightward': -1.0}

@@ -33,9 +33,9 @@ import yaml
 
 from stylepong_description import robot_model
 from stylepong_sim import world_spec
-from stylepong_sim.teacher import SWINGS, CellKinematics, StrokePath, StrokeShape
+from stylepong_sim.teaching.teacher import SWINGS, CellKinematics, StrokePath, StrokeShape
 
-STYLES_DIR = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'styles'
+STYLES_DIR = pathlib.Path(__file__).resolve().parents[2] / 'config' / 'styles'
 KEYS = ('back_offset_m', 'hit_offset_m', 'follow_offset_m', 'yaw_rad', 'pitch_rad')
 REQUIRED_KEYS = KEYS[:4]
 

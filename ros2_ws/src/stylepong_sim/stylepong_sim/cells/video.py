@@ -14,8 +14,8 @@ import pathlib
 import mujoco
 import numpy as np
 
-from stylepong_sim import scene
-from stylepong_sim.sensing import SampleClock
+from stylepong_sim.cells import scene
+from stylepong_sim.cells.sensing import SampleClock
 
 
 class VideoRecorder:

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_description import robot_model
-from stylepong_sim import referee, ur_servoj, world_spec
-from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
+from stylepong_sim import referee, world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.cells.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError
 
 
 @dataclass

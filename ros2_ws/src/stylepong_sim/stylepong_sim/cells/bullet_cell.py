@@ -59,16 +59,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stylepong_sim.quiet_stdout import quiet_c_stdout
+from stylepong_sim.cells.quiet_stdout import quiet_c_stdout
 
 with quiet_c_stdout():   # its import prints its build time on stdout, which a node's output should not carry
     import pybullet
     from pybullet_utils import bullet_client
 
 from stylepong_description import robot_model
-from stylepong_sim import ur_servoj, world_spec
-from stylepong_sim.cell_base import CellBase
-from stylepong_sim.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
+from stylepong_sim import world_spec
+from stylepong_sim.cells import ur_servoj
+from stylepong_sim.cells.cell_base import CellBase
+from stylepong_sim.cells.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_SPEED_M_S, InputError  # noqa: F401
 
 MOTOR_DRIVE, PD_DRIVE = 'motor', 'pd'
 JOINT_DRIVES = (MOTOR_DRIVE, PD_DRIVE)
