@@ -19,8 +19,8 @@ import sys
 import numpy as np
 
 from stylepong_description.robot_cell import STROKE_LABELS as LABELS
-from stylepong_policy.training.dataset import ReferenceDataset
 from stylepong_policy.evaluation.style_metrics import dtw_distance_rad, smoothness
+from stylepong_policy.training.dataset import ReferenceDataset
 
 
 def original_clips(dataset: ReferenceDataset) -> list[tuple[str, np.ndarray]]:

@@ -45,7 +45,6 @@ from stylepong_policy.evaluation.strokes import DIRECTIONS, FOLLOW_THROUGH_S, sa
 from stylepong_policy.reports import paper_charts as charts
 from stylepong_policy.reports import paper_figures as paper
 from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_actor
-from stylepong_policy.evaluation.strokes import DIRECTIONS, FOLLOW_THROUGH_S, save_strokes
 from stylepong_policy.training.train import actor_name
 from stylepong_sim.world_spec import (
     EVALUATION_BALLS_PER_SEED,
