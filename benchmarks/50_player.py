@@ -135,7 +135,7 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
         time.sleep(3.0)
         cpu_start, wall_start = process_cpu_s(player.pid), time.monotonic()
         out = logs / 'rally.json'
-        subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS),
+        subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--seeds', '1', '--balls', str(RALLY_BALLS),
                         '--first-seed', '900', '--json', str(out)],
                        env=env, capture_output=True, text=True, timeout=300, check=True)
         cpu_share = (process_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)

@@ -96,7 +96,7 @@ def graph_run(what: str, viewer_options: list[str] | None) -> dict:
 def _rally(env: dict, node: subprocess.Popen, logs: pathlib.Path) -> list[dict]:
     """rally_eval serving RALLY_BALLS balls to the player; the player's status at the end."""
     out = logs / 'rally.json'
-    result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(RALLY_BALLS),
+    result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--seeds', '1', '--balls', str(RALLY_BALLS),
                              '--first-seed', '900', '--json', str(out)], env=env, capture_output=True, text=True,
                             timeout=300)
     if result.returncode != 0 or node.poll() is not None:
