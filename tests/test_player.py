@@ -290,8 +290,8 @@ def test_player_and_rally_eval_return_balls_in_ur5_sim(ros_env, tmp_path):
     with NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim, \
             NodeProcess('stylepong_player', 'ball_estimator'), \
             NodeProcess('stylepong_policy', 'player', params={'use_sim_time': True}) as player:
-        result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '2', '--first-seed', '900', '--seeds', '1',
-                                 '--json', str(out)], capture_output=True, text=True, timeout=50)
+        result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '2', '--first-seed', '900',
+                                 '--seeds', '1', '--json', str(out)], capture_output=True, text=True, timeout=50)
         assert result.returncode == 0, result.stderr + sim.output() + player.output()
     summary = json.loads(out.read_text())
     for key in ('success_rate', 'success_rate_std', 'per_seed', 'hit_rate', 'failures', 'balls', 'seeds'):

@@ -56,7 +56,8 @@ def test_ur5_bullet_serves_the_cells_topics_and_judges_a_ball(ros_env):
 @pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
 def test_rally_eval_stops_quietly_on_a_signal(ros_env, signum):
     # No cell: rally_eval is waiting for /sim/launch_ball while its executor spins.
-    process = subprocess.Popen(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '1', '--seeds', '1'], env=ros_env,
+    process = subprocess.Popen(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '1', '--seeds', '1'],
+                               env=ros_env,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(3.0)
     process.send_signal(signum)
