@@ -28,7 +28,7 @@ from stylepong_sim.cells.tracker import FRAME_CAMERA, TrackerConfig, world_to_ca
 from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 PARKED = np.array(world_spec.HOME_JOINT_POSITIONS_RAD) + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])
-BALLS = 40
+BALLS = 20
 AFTER_BOUNCE_S = 0.05
 VELOCITY_TOLERANCE_M_S = 0.3
 
