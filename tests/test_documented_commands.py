@@ -22,7 +22,7 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / 'README.md', ROOT / 'docs' / 'DESIGN.md', *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md')),
+DOCUMENTS = [ROOT / 'README.md', ROOT / 'docs/DESIGN.md', *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md')),
              ROOT / 'tools' / 'README.md', ROOT / 'demonstrations' / 'README.md']
 
 FENCE = re.compile(r'^```[^\n]*\n(.*?)^```', re.M | re.S)
