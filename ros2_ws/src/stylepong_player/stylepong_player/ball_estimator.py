@@ -218,6 +218,9 @@ class BallEstimator:
         self.config = config or EstimatorConfig()
         self.config.validate()
         self._r = np.eye(3) * self.config.measurement_noise_std_m ** 2
+        # The play volume as arrays once, not per detection.
+        self._low = np.array(self.config.play_volume_min_m)
+        self._high = np.array(self.config.play_volume_max_m)
         self._track: _Track | None = None
         self._candidate: _Track | None = None
         self._stamp_s = -math.inf           # the latest detection's stamp
@@ -286,10 +289,9 @@ class BallEstimator:
         return Result(Outcome.PUBLISHED, estimate)
 
     def _outside_play_volume(self, p: np.ndarray) -> Result | None:
-        low, high = np.array(self.config.play_volume_min_m), np.array(self.config.play_volume_max_m)
-        if (low <= p).all() and (p <= high).all():
+        if (self._low <= p).all() and (p <= self._high).all():
             return None
-        if p[0] < low[0]:
+        if p[0] < self._low[0]:
             return _rejected('behind_robot', f'detection {np.round(p, 2).tolist()} m is behind the robot')
         return _rejected('outside', f'detection {np.round(p, 2).tolist()} m is outside the play volume')
 
