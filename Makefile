@@ -28,8 +28,8 @@ bench: setup
 # repositories (CI has no network): ruff check (ruff.toml) and codespell (.codespellrc). `ruff format --check .`
 # joins them once the tree has had its one-time format (ruff.toml).
 lint:
-	@[ -x $(VENV)/codespell ] || { echo 'lint: no .venv with ruff and codespell: run make setup first' >&2; exit 2; }
-	@cd $(ROOT) && $(VENV)/python -m ruff check . && $(VENV)/codespell && echo 'lint: ruff check and codespell passed'
+	@$(VENV)/python -c 'import ruff, codespell_lib' 2>/dev/null || { echo 'lint: no .venv with ruff and codespell: run make setup first' >&2; exit 2; }
+	@cd $(ROOT) && $(VENV)/python -m ruff check . && $(VENV)/python -m codespell_lib && echo 'lint: ruff check and codespell passed'
 
 clean:
 	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log
