@@ -5,6 +5,8 @@ import signal
 import subprocess
 import time
 
+import pytest
+
 from stylepong_common.node_process import NodeProcess, wait_until
 
 TRAIN_LIMIT_S = 120.0   # the bound for `train --iterations 2 --num-envs 256` (docs/ACCEPTANCE.md)
@@ -15,6 +17,7 @@ def ros2_run(executable: str, *args: str, env: dict, timeout_s: float) -> subpro
                           text=True, timeout=timeout_s)
 
 
+@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_train_two_iterations_then_evaluate_and_resume(tmp_path, ros_env):
     run_dir = tmp_path / 'run'
     started = time.monotonic()

@@ -3,8 +3,10 @@
 `chromium --screenshot` shoots when the page's load event fires, before rerun's Wasm viewer has connected
 and drawn, so the page is opened in a headless Chromium with a DevTools port and shot when asked
 (Page.captureScreenshot), as often as the caller wants. WebGL runs on SwiftShader (CPU): no GPU needed.
-cell_view_pixels reads what a shot's 3D view shows. Used by the system test (tests/test_viewer.py) and for
-the README's screenshot (demo_shot.py); a page shot by hand:
+cell_view_pixels reads what a shot's 3D view shows; watch_requests follows the page's requests to its data
+(a failed connection leaves rerun's page on its welcome screen, which a slow page also shows for a while).
+Used by the system test (tests/test_viewer.py) and for the README's screenshot (demo_shot.py); a page shot
+by hand:
 
     python3 -m stylepong_viz.browser_shot URL OUT.png [--wait-s 8]
 """
@@ -51,6 +53,32 @@ def _free_port() -> int:
         return probe.getsockname()[1]
 
 
+class RequestWatch:
+    """A page's requests to urls that start with `url_prefix`, from DevTools' Network events: when each was
+    sent (`sent`: timestamps on time.monotonic()'s clock, which Chromium's are on Linux) and which failed."""
+
+    def __init__(self, url_prefix: str):
+        self.url_prefix = url_prefix
+        self.sent: list[tuple[float, str]] = []     # (when sent, url)
+        self._urls: dict[str, str] = {}             # DevTools request id: url
+        self._failed: list[str] = []
+
+    def on_event(self, event: dict) -> None:
+        method, params = event.get('method'), event.get('params', {})
+        if method == 'Network.requestWillBeSent' and params['request']['url'].startswith(self.url_prefix):
+            self._urls[params['requestId']] = params['request']['url']
+            self.sent.append((params['timestamp'], params['request']['url']))
+        elif method == 'Network.loadingFailed' and params.get('requestId') in self._urls \
+                and not params.get('canceled'):
+            self._failed.append(f'{self._urls[params["requestId"]]}: {params.get("errorText")}')
+
+    def take_failed(self) -> list[str]:
+        """'url: error' for each request that failed since the last call. One the browser cancelled (the page
+        navigated away from it) did not fail."""
+        failed, self._failed = self._failed, []
+        return failed
+
+
 class HeadlessPage:
     """One headless Chromium showing one page; shoot() returns PNG bytes. Use as a context manager."""
 
@@ -82,6 +110,7 @@ class HeadlessPage:
         self._socket = connect(targets[0]['webSocketDebuggerUrl'], max_size=64 * 1024 * 1024, open_timeout=10)
         self._socket.__enter__()   # websockets wants its sync client entered; close() leaves it
         self._next_id = 0
+        self.requests: RequestWatch | None = None     # the page's requests followed (watch_requests)
         self._call('Emulation.setDeviceMetricsOverride', width=width, height=height, deviceScaleFactor=1, mobile=False)
         if url is not None:
             self.navigate(url)
@@ -89,6 +118,28 @@ class HeadlessPage:
     def navigate(self, url: str) -> None:
         """Open url (a browser started early, before the page is served, saves its start-up time)."""
         self._call('Page.navigate', url=url)
+
+    def watch_requests(self, url_prefix: str) -> None:
+        """Follow the page's requests to urls that start with url_prefix: self.requests, and
+        take_failed_requests()."""
+        self.requests = RequestWatch(url_prefix)
+        self._call('Network.enable')
+
+    def take_failed_requests(self) -> list[str]:
+        """The followed requests that failed since the last call (RequestWatch.take_failed)."""
+        if self.requests is None:
+            raise BrowserError('no requests followed: call watch_requests first')
+        while True:      # the events that arrived since the last DevTools call
+            try:
+                message = self._socket.recv(timeout=0)
+            except TimeoutError:
+                break
+            self._on_event(json.loads(message))
+        return self.requests.take_failed()
+
+    def _on_event(self, event: dict) -> None:
+        if self.requests is not None:
+            self.requests.on_event(event)
 
     def _call(self, method: str, timeout_s: float = 30.0, **params) -> dict:
         self._next_id += 1
@@ -100,6 +151,7 @@ class HeadlessPage:
                 if 'error' in reply:
                     raise BrowserError(f'{method}: {reply["error"]}')
                 return reply.get('result', {})
+            self._on_event(reply)
 
     def shoot(self, timeout_s: float = 30.0) -> bytes:
         """The page as it is now, PNG (a software-drawn frame on a busy machine can take tens of seconds)."""

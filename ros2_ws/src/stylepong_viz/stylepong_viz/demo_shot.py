@@ -39,6 +39,23 @@ def _wait_for_url(log: pathlib.Path, viewer: subprocess.Popen) -> str:
     raise RuntimeError('the viewer printed no address:\n' + log.read_text(errors='replace')[-2000:])
 
 
+def _wait_for_cell(browser: HeadlessPage, url: str) -> None:
+    """Shoot the page until it shows the table and the arm (at most START_TIMEOUT_S). Under SwiftShader on a
+    small machine that takes tens of seconds, on rerun's welcome screen; a page whose data connection failed
+    stays there for good (rerun does not connect again), and only that one is opened again."""
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while time.monotonic() < deadline:
+        found = cell_view_pixels(browser.shoot(timeout_s=SHOT_TIMEOUT_S), BACKGROUND_RGB)
+        if found['table'] > 2000 and found['arm'] > 1000:
+            return
+        failed = browser.take_failed_requests()
+        if failed:
+            print(f'demo_shot: the page could not read its data ({failed}); opening it again')
+            browser.navigate(url)
+        time.sleep(SHOT_PERIOD_S)
+    print(f'demo_shot: no cell view on the page in {START_TIMEOUT_S:.0f} s; the rally starts anyway')
+
+
 def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, height: int) -> dict | None:
     """Run the cell, the player, the viewer and a rally; write the best shot to `out`; its pixel counts."""
     env = isolated_ros_env()
@@ -51,15 +68,15 @@ def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, heig
     best: tuple[int, bytes, dict] | None = None
     try:
         with HeadlessPage(width=width, height=height, start_timeout_s=START_TIMEOUT_S) as browser:
+            grpc_port = free_port()
             viewer = start_logged(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(free_port()),
-                                   '--grpc-port', str(free_port())], env, logs / 'viewer.log')
+                                   '--grpc-port', str(grpc_port)], env, logs / 'viewer.log')
             processes.append(viewer)
+            browser.watch_requests(f'http://127.0.0.1:{grpc_port}/')
             url = _wait_for_url(logs / 'viewer.log', viewer)
             browser.navigate(url)
-            time.sleep(5.0)                     # the page, the player's actor
-            if cell_view_pixels(browser.shoot(timeout_s=SHOT_TIMEOUT_S), BACKGROUND_RGB)['region'] is None:
-                browser.navigate(url)           # rerun's welcome screen: its first connection failed
-                time.sleep(5.0)
+            time.sleep(5.0)                     # the player's actor
+            _wait_for_cell(browser, url)
             rally = start_logged(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(balls),
                                   '--first-seed', str(first_seed)], env, logs / 'rally.log')
             processes.append(rally)
