@@ -1,11 +1,20 @@
 """ship_run (stylepong_policy.shipping.ship_run): what it copies into models/ and the summary it writes
 (no training, no evaluation)."""
 import json
+import lzma
 import pathlib
 
+import numpy as np
 import pytest
+from PIL import Image
 
+from stylepong_policy.rl.logger import read_progress
 from stylepong_policy.shipping import ship_run
+
+PROGRESS = 'iteration,success_rate\n1,0.25\n2,0.5\n'
+# A chart's pixels as train leaves them: RGBA, more colours than a palette holds.
+CURVE = np.dstack([np.arange(48 * 64).reshape(48, 64) % 251, np.arange(48 * 64).reshape(48, 64) // 251,
+                   np.full((48, 64), 7), np.full((48, 64), 255)]).astype(np.uint8)
 
 
 @pytest.fixture
@@ -15,8 +24,11 @@ def run_dir(tmp_path) -> pathlib.Path:
     (run / 'selected').mkdir(parents=True)
     (run / 'summary.json').write_text(json.dumps({'method': 'ppo', 'iterations': 1700, 'seed': 1}))
     (run / 'selection.json').write_text(json.dumps({'iteration': 1650, 'val_success_all': 0.95}))
-    for name in ('config.yaml', 'progress.csv', 'learning_curve.png', 'validation.csv', 'validation_curve.png'):
+    for name in ('config.yaml', 'validation.csv'):
         (run / name).write_text(f'contents of {name}')
+    (run / 'progress.csv').write_text(PROGRESS)
+    for name in ('learning_curve.png', 'validation_curve.png'):
+        Image.fromarray(CURVE, mode='RGBA').save(run / name)
     for suffix in ('.pt', '.json', '.onnx'):
         (run / 'selected' / f'ppo_actor{suffix}').write_text(f'actor {suffix}')
     return run
@@ -27,10 +39,19 @@ def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, 
     models.mkdir()
     written = ship_run.ship(run_dir, 'ppo', models)
     assert {p.name for p in written} == {
-        'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv',
+        'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv.xz',
         'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
     assert (models / 'ppo_validation.csv').read_text() == 'contents of validation.csv'
     assert (models / 'ppo_actor.onnx').read_text() == 'actor .onnx'
+    # The training log shipped compressed, read as it was; shipping it again gives the same bytes (no time in it).
+    packed = (models / 'ppo_progress.csv.xz').read_bytes()
+    assert lzma.decompress(packed).decode() == PROGRESS
+    assert read_progress(models / 'ppo_progress.csv.xz') == {'iteration': [1.0, 2.0], 'success_rate': [0.25, 0.5]}
+    ship_run.ship(run_dir, 'ppo', models)
+    assert (models / 'ppo_progress.csv.xz').read_bytes() == packed
+    # The curves shipped palettised.
+    with Image.open(models / 'ppo_learning_curve.png') as curve:
+        assert curve.mode == 'P' and curve.size == (64, 48)
     summary = json.loads((models / 'ppo_summary.json').read_text())
     assert summary['iterations'] == 1700 and summary['seed'] == 1
     assert summary['selection'] == {'iteration': 1650, 'val_success_all': 0.95}

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # The recipe on styles it never saw: learn_style on every demonstration set in demonstrations/ (defaults,
-# the same config for each), the learned actors kept in results/styles/, and the style confusion matrix
-# (every actor's DTW distance to every set's clips, normalised by PPO's) written to results/.
+# the same config for each), then the style confusion matrix (every actor's DTW distance to every set's
+# clips, normalised by PPO's) written to results/, and from the same evaluations each learned style's
+# report, its PNGs and its actor.onnx in results/styles/<set>/.
 #
 #   tools/style_sets.sh                  learn every set not yet learned (runs/style_<set>, 60 min each; a run
-#                                        that was stopped resumes), then the matrix
-#   tools/style_sets.sh --matrix-only    the matrix from the actors already in results/styles/
+#                                        that was stopped resumes), then the matrix of those runs' actors
+#   tools/style_sets.sh --matrix-only    the matrix of the learned styles shipped in the skill library
+#                                        (models/skills/<set>.pt, put there by ship_skill): results/ as kept
 #
 # Needs the workspace built (make setup). The matrix evaluates every actor on seeds 1000-1009 x 200 balls.
 set -eo pipefail
@@ -15,8 +17,6 @@ set +u
 source ros2_ws/install/setup.bash
 set -u
 MODELS=ros2_ws/src/stylepong_policy/models
-STYLES=results/styles
-mkdir -p "$STYLES"
 SETS=()
 for dir in demonstrations/*/; do SETS+=("$(basename "$dir")"); done
 
@@ -27,16 +27,16 @@ if [ "${1:-}" != "--matrix-only" ]; then
       resume=(); [ -f "$run/learn_style.json" ] && resume=(--resume)
       ros2 run stylepong_policy learn_style "demonstrations/$set" --out "$run" "${resume[@]}"
     fi
-    mkdir -p "$STYLES/$set"
-    # The actor and its report's figures (report.json; report.md and its PNGs stay in the run: 1.6 MB a set).
-    cp "$run"/actor.pt "$run"/actor.json "$run"/report.json "$STYLES/$set/"
   done
 fi
 
 actors=(--actor "shipped=$MODELS/amp_actor.pt")
 sets=(--set "shipped=ros2_ws/bags")
 for set in "${SETS[@]}"; do
-  [ -f "$STYLES/$set/actor.pt" ] && actors+=(--actor "$set=$STYLES/$set/actor.pt")
+  # The skill is the learned network as shipped (style_confusion exports it: the actor's very actions).
+  actor=$MODELS/skills/$set.pt
+  [ "${1:-}" != "--matrix-only" ] && actor=runs/style_$set/actor.pt
+  [ -f "$actor" ] && actors+=(--actor "$set=$actor")
   sets+=(--set "$set=demonstrations/$set")
 done
 ros2 run stylepong_policy style_confusion "${actors[@]}" "${sets[@]}" --baseline "$MODELS/ppo_actor.pt" \

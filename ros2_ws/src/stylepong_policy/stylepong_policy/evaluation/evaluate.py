@@ -327,8 +327,10 @@ def load_reference(path: str | os.PathLike):
     return dataset
 
 
-def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.PathLike | None = None) -> dict:
-    """The JSON-ready results of an evaluation (DTW only when a reference dataset is given)."""
+def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.PathLike | None = None,
+              matches: Sequence[style_metrics.DtwMatch | None] | None = None) -> dict:
+    """The JSON-ready results of an evaluation (DTW only when a reference dataset is given). matches: the
+    strokes' nearest_matches against `dataset` when already measured (style_confusion), else measured here."""
     results = evaluation.results
     rates = [r.success_rate for r in results]
     failures: dict[str, int] = {}
@@ -357,7 +359,8 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
     }
     if dataset is not None:
         references = references_by_direction(dataset)
-        matches = nearest_matches(strokes, references)
+        if matches is None:
+            matches = nearest_matches(strokes, references)
         summary['dtw'] = dtw_table(strokes, matches, references)
         summary['dtw_by_lateral_offset'] = dtw_by_lateral_offset(strokes, matches, home_y)
         summary['dtw_dataset'] = portable_path(dataset_path) if dataset_path is not None else None

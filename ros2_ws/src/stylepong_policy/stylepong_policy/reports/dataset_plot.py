@@ -10,6 +10,7 @@ import pathlib
 
 import numpy as np
 
+from stylepong_policy import png
 from stylepong_policy.training.dataset import ReferenceDataset
 
 MAX_ROWS = 40   # beyond this a figure is unreadable; the title says how many were left out
@@ -59,6 +60,6 @@ def plot_dataset(dataset: ReferenceDataset, path: str | os.PathLike) -> pathlib.
                     + (f' ({left_out} originals not shown)' if left_out else ''))
     figure.tight_layout(rect=(0, 0.6 / (2.2 * n_rows + 0.8), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=80)
+    png.save_figure(figure, path, dpi=80)
     plt.close(figure)
     return path

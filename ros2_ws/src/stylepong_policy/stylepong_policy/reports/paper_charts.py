@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from stylepong_description.robot_cell import STROKE_LABELS as DIRECTIONS
+from stylepong_policy import png
 
 PAPER_COLOUR = '#9aa5b1'
 OURS_COLOUR = '#1f6fb2'
@@ -27,7 +28,7 @@ def _pyplot():
 def _save(figure, path: str | os.PathLike) -> pathlib.Path:
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110)
+    png.save_figure(figure, path, dpi=110)
     _pyplot().close(figure)
     return path
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stylepong_policy import png
 from stylepong_policy.evaluation import strokes, style_metrics
 
 FRAMES_PER_ROW = 7
@@ -150,7 +151,7 @@ def save_grid(path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequen
         axes[r][0].set_ylabel(row.label, fontsize=8)
     figure.suptitle(title, fontsize=9)
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    png.save_figure(figure, path, dpi=110)
     plt.close(figure)
     return path
 

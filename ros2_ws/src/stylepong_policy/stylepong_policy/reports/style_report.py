@@ -17,6 +17,9 @@ constants: success, DTW and ratios, smoothness, and per demonstrated direction a
 stroke, the new actor's on the same ball, the demonstration nearest to the new actor's: the paper's
 Fig. 2 laid out by stroke_figure) and the joint angles of that stroke beside that demonstration.
 A strip needs an OpenGL context (EGL headless); without one the report says why it has none.
+
+write_report_of writes the same from evaluations in hand into any folder: style_confusion's, which
+evaluated every actor already (all speeds only: no high-speed success then).
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_common import markdown
+from stylepong_policy import png
 from stylepong_policy.evaluation import contacts, style_metrics
 from stylepong_policy.evaluation.strokes import DIRECTIONS, NO_FRAME, Stroke, load_strokes
 
@@ -164,7 +168,7 @@ def _pyplot():
 
 
 def _save(figure, path: pathlib.Path) -> pathlib.Path:
-    figure.savefig(path, dpi=110)
+    png.save_figure(figure, path, dpi=110)
     _pyplot().close(figure)
     return path
 
@@ -419,7 +423,23 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
 
     run_dir = pathlib.Path(run_dir)
     results = {name: load_actor_results(run_dir, name, high_required=name == 'style') for name in ACTORS}
-    dataset = ReferenceDataset.load(dataset_path)
+    return write_report_of(run_dir, results, ReferenceDataset.load(dataset_path),
+                           dataset_name=pathlib.Path(dataset_path).name,
+                           source=f'stylepong_policy.reports.style_report from `{EVAL_DIR}/`', timings_s=timings_s,
+                           checkpoints=checkpoints, notes=notes, render_strips=render_strips,
+                           strip_directions=strip_directions)
+
+
+def write_report_of(out_dir: str | os.PathLike, results: Mapping[str, ActorResults], dataset, *, dataset_name: str,
+                    source: str, timings_s: Mapping[str, float], checkpoints, notes: Sequence[str] = (),
+                    render_strips: bool = True, strip_directions: Sequence[str] | None = None) -> pathlib.Path:
+    """write_report from evaluations already in hand: `results` for each of ACTORS (an ActorResults whose
+    all-speeds summary has DTW against `dataset`; high_speeds may be None for every actor), written to
+    OUT/report.md, report.json and the PNGs. dataset_name: how the report names the demonstrations;
+    source: what wrote the report (after 'by' in its first line). style_confusion calls this with the
+    evaluations it ran, so that a report costs no evaluation of its own."""
+    out_dir = pathlib.Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     rate_hz = results['style'].rate_hz
     distances = {name: dtw_by_direction(r.all_speeds) for name, r in results.items()}
     ratios = dtw_ratios(distances)
@@ -430,18 +450,16 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     setting = setting_text(results['style'].all_speeds)
 
     from stylepong_policy.reports import paper_charts
-    success_chart(run_dir / SUCCESS_PNG, results)
-    dtw_chart(run_dir / DTW_PNG, distances, ratios, setting)
-    paper_charts.smoothness_chart(run_dir / SMOOTHNESS_PNG, {ACTOR_TITLES[n]: r.all_speeds['smoothness']
+    success_chart(out_dir / SUCCESS_PNG, results)
+    dtw_chart(out_dir / DTW_PNG, distances, ratios, setting)
+    paper_charts.smoothness_chart(out_dir / SMOOTHNESS_PNG, {ACTOR_TITLES[n]: r.all_speeds['smoothness']
                                                              for n, r in results.items()}, reference, setting)
     shown = DIRECTIONS if strip_directions is None else tuple(strip_directions)
     strips = [entry for d in DIRECTIONS if clips[d] and d in shown
-              for entry in [strip_for_direction(run_dir, results, dataset, d, rate_hz, render_strips)] if entry]
+              for entry in [strip_for_direction(out_dir, results, dataset, d, rate_hz, render_strips)] if entry]
 
-    dataset_name = pathlib.Path(dataset_path).name
     lines = ['# A learned style: report', '',
-             f'Generated {datetime.date.today().isoformat()} by stylepong_policy.reports.style_report '
-             f'from `{EVAL_DIR}/`.',
+             f'Generated {datetime.date.today().isoformat()} by {source}.',
              'The new style actor beside PPO (no style term) and the shipped style actor, on the same balls'
              + ('.' if _same_balls(results) else ' (NOT the same balls: the evaluations used different seeds).'), '']
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])
@@ -452,8 +470,9 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
     lines += contact_section(blades)
     lines += smoothness_section(results, reference)
     lines += strips_section(strips)
-    lines += run_section(timings_s, checkpoints)
-    report = run_dir / REPORT_MD
+    if timings_s or checkpoints is not None:   # a report without a record of its run leaves the section out
+        lines += run_section(timings_s, checkpoints)
+    report = out_dir / REPORT_MD
     report.write_text('\n'.join(lines))
     record = {'setting': setting, 'dataset': dataset_name, 'clips_per_label': clips,
               'success': {n: {'all': r.all_speeds['success_rate'],
@@ -464,5 +483,5 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
               'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
               'demonstration_smoothness': reference, 'strips': strips, 'timings_s': dict(timings_s),
               'checkpoints': checkpoints, 'notes': list(notes)}
-    (run_dir / REPORT_JSON).write_text(json.dumps(record, indent=2, default=str) + '\n')
+    (out_dir / REPORT_JSON).write_text(json.dumps(record, indent=2, default=str) + '\n')
     return report

@@ -204,10 +204,16 @@ def load_actor(path: str | pathlib.Path, expected: dict[str, Any] | None = None)
     return LoadedActor(module=module, metadata=metadata, path=path)
 
 
-def write_onnx_for(actor_path: str | pathlib.Path) -> pathlib.Path:
-    """`<name>.onnx` for an exported `<name>.pt` (checked against its sidecar and this code's spec)."""
+def write_onnx_for(actor_path: str | pathlib.Path, path: str | pathlib.Path | None = None) -> pathlib.Path:
+    """`<name>.onnx` for an exported `<name>.pt` (checked against its sidecar and this code's spec), beside
+    it or at `path`."""
     actor = load_actor(actor_path)
-    return export_onnx(actor.module, onnx_path(actor.path), _onnx_metadata(actor.metadata))
+    return write_onnx_of(actor, onnx_path(actor.path) if path is None else path)
+
+
+def write_onnx_of(actor: LoadedActor, path: str | pathlib.Path) -> pathlib.Path:
+    """`path`, the ONNX file of an actor already loaded (load_actor), its sidecar's contract inside."""
+    return export_onnx(actor.module, path, _onnx_metadata(actor.metadata))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -6,9 +6,12 @@ the file never holds two histories); TensorBoard is for watching a run live.
 from __future__ import annotations
 
 import csv
+import lzma
 import math
 import pathlib
 from typing import Any
+
+from stylepong_policy import png
 
 CSV_NAME = 'progress.csv'
 TENSORBOARD_DIR = 'tensorboard'
@@ -92,14 +95,16 @@ def _tensorboard_tag(key: str) -> str:
 
 
 def _read_rows(csv_path: pathlib.Path) -> tuple[list[str], list[dict[str, str]]]:
-    with open(csv_path, newline='') as f:
+    # A shipped run's CSV is kept xz-compressed (ship_run: a third of the size); a run's own is appended to, plain.
+    opener = lzma.open if csv_path.suffix == '.xz' else open
+    with opener(csv_path, 'rt', newline='') as f:
         reader = csv.DictReader(f)
         rows = list(reader)
         return list(reader.fieldnames or []), rows
 
 
 def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
-    """Columns of a progress CSV as float lists (empty cells become NaN)."""
+    """Columns of a progress CSV as float lists (empty cells become NaN); a .csv.xz is read as its CSV."""
     fieldnames, rows = _read_rows(pathlib.Path(csv_path))
     if not rows:
         return {}
@@ -150,7 +155,7 @@ def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Pa
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(png_path, dpi=120)
+    png.save_figure(fig, png_path, dpi=120)
     plt.close(fig)
 
 

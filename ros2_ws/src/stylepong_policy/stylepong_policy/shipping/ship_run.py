@@ -5,9 +5,10 @@
 Needs `train` to have written the run (RUN/summary.json, config.yaml, progress.csv, learning_curve.png)
 and `select_checkpoint --run RUN --export RUN/selected/<name>_actor.pt` to have chosen and exported the
 actor (RUN/selection.json, validation.csv, validation_curve.png). Writes <name>_actor.pt/.json/.onnx,
-<name>_config.yaml, <name>_progress.csv, <name>_learning_curve.png, <name>_validation.csv,
-<name>_validation_curve.png and <name>_summary.json: train's summary with select_checkpoint's choice
-under `selection`, and the names of the files beside it. Then it evaluates the shipped actor on the
+<name>_config.yaml, <name>_progress.csv.xz (the run's progress.csv, xz-compressed: rl.logger.read_progress
+reads either), <name>_learning_curve.png, <name>_validation.csv, <name>_validation_curve.png (both PNGs palettised,
+stylepong_policy.png) and <name>_summary.json: train's summary with select_checkpoint's choice under
+`selection`, and the names of the files beside it. Then it evaluates the shipped actor on the
 evaluation protocol's seeds (EVALUATIONS: `evaluate`'s run_evaluation, nominal batched world) into
 <name>_eval_all.json and <name>_eval_high.json (`--no-evaluate` skips this). Nothing is typed by hand;
 run it again after either tool and the shipped files follow.
@@ -16,13 +17,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import lzma
 import pathlib
 import shutil
 import sys
 
+from stylepong_policy import png
 from stylepong_policy.paths import MODELS, REPOSITORY
 
-COPIED = {'config.yaml': 'config.yaml', 'progress.csv': 'progress.csv', 'learning_curve.png': 'learning_curve.png',
+# The run's file -> the shipped one's name after <name>_: the training log is the largest file shipped
+# (over 1 MB plain), so it is kept compressed: xz keeps a third of it (gzip two fifths).
+COPIED = {'config.yaml': 'config.yaml', 'progress.csv': 'progress.csv.xz', 'learning_curve.png': 'learning_curve.png',
           'validation.csv': 'validation.csv', 'validation_curve.png': 'validation_curve.png'}
 ACTOR_SUFFIXES = ('.pt', '.json', '.onnx')
 # The evaluation protocol of the shipped actors (docs/DESIGN.md, "Evaluation protocol"): file suffix ->
@@ -45,14 +50,26 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
     for suffix in ACTOR_SUFFIXES:
         written.append(pathlib.Path(shutil.copyfile(actor.with_suffix(suffix), models / f'{name}_actor{suffix}')))
     for source, target in COPIED.items():
-        written.append(pathlib.Path(shutil.copyfile(run / source, models / f'{name}_{target}')))
-    summary.update(actor=f'{name}_actor.pt', config=f'{name}_config.yaml', progress=f'{name}_progress.csv',
+        written.append(ship_file(run / source, models / f'{name}_{target}'))
+    summary.update(actor=f'{name}_actor.pt', config=f'{name}_config.yaml', progress=f'{name}_progress.csv.xz',
                    learning_curve=f'{name}_learning_curve.png', validation=f'{name}_validation.csv',
                    validation_curve=f'{name}_validation_curve.png', selection=selection)
     path = models / f'{name}_summary.json'
     path.write_text(json.dumps(summary, indent=2) + '\n')
     written.append(path)
     return written
+
+
+def ship_file(source: pathlib.Path, target: pathlib.Path) -> pathlib.Path:
+    """Copy a run's file to `target` in the form models/ keeps: xz-compressed for a .xz target (no time in the
+    format: the same CSV always ships as the same bytes), a PNG palettised (png.shrink: a run from before
+    train wrote small PNGs ships as small ones), anything else as it is."""
+    if target.suffix == '.xz':
+        with open(source, 'rb') as plain, lzma.open(target, 'wb') as packed:
+            shutil.copyfileobj(plain, packed)
+        return target
+    shutil.copyfile(source, target)
+    return png.shrink(target) if target.suffix == '.png' else target
 
 
 def in_repository(path: pathlib.Path) -> str:

@@ -97,13 +97,13 @@ def skill_checkpoint(given: pathlib.Path) -> pathlib.Path:
     candidates = [given / ACTOR_CHECKPOINT_NAME] if given.is_dir() else [
         given.with_name(given.stem + '_checkpoint.pt'), given]
     for candidate in candidates:
-        if candidate.is_file() and _is_training_checkpoint(candidate):
+        if candidate.is_file() and is_training_checkpoint(candidate):
             return candidate
     raise StyleError(f'--from {given}: not a training checkpoint, and no {candidates[0].name} beside it '
                      f'(an exported actor holds no critic to continue from)')
 
 
-def _is_training_checkpoint(path: pathlib.Path) -> bool:
+def is_training_checkpoint(path: pathlib.Path) -> bool:
     """A file torch.save wrote with a network and its architecture (not a TorchScript actor, whose archive
     holds code)."""
     import zipfile

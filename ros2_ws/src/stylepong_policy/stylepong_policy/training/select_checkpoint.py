@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import torch
 
 from stylepong_common.command_line import require_counts
+from stylepong_policy import png
 from stylepong_policy.evaluation.strokes import DIRECTIONS
 from stylepong_policy.rl.config import config_from_dict, method_of
 from stylepong_policy.rl.export import current_spec_contract, export_actor
@@ -290,7 +291,7 @@ def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Sett
     ax.legend(loc='lower right')
     ax.set_title(f'Validation, {setting.balls} balls per seed')
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    png.save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 
