@@ -25,11 +25,10 @@ bench: setup
 	@$(WS) cd $(ROOT) && python3 tools/bench.py --out BENCHMARKS.md
 
 # The checks of .pre-commit-config.yaml, run from the venv over the whole tree without fetching the hooks'
-# repositories (CI has no network): ruff check (ruff.toml) and codespell (.codespellrc). `ruff format --check .`
-# joins them once the tree has had its one-time format (ruff.toml).
+# repositories (CI has no network): ruff check and ruff format --check (ruff.toml) and codespell (.codespellrc).
 lint:
 	@$(VENV)/python -c 'import ruff, codespell_lib' 2>/dev/null || { echo 'lint: no .venv with ruff and codespell: run make setup first' >&2; exit 2; }
-	@cd $(ROOT) && $(VENV)/python -m ruff check . && $(VENV)/python -m codespell_lib && echo 'lint: ruff check and codespell passed'
+	@cd $(ROOT) && $(VENV)/python -m ruff check . && $(VENV)/python -m ruff format --check . && $(VENV)/python -m codespell_lib && echo 'lint: ruff check, ruff format and codespell passed'
 
 clean:
 	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log

@@ -5,6 +5,7 @@ suites running side by side (or a developer's live node graph) never see each ot
 System tests that start nodes ask for `ros_env`, which gives each test a fresh domain of its own, or
 `module_ros_domain` for nodes a whole module shares.
 """
+
 import os
 import random
 import signal

@@ -4,6 +4,7 @@
 Run by `make bench` (prints one Markdown section); alone: `python3 benchmarks/10_sim_realtime_factor.py`
 in a shell with ros2_ws/install/setup.bash sourced.
 """
+
 import os
 import pathlib
 import random
@@ -89,24 +90,40 @@ def main() -> int:
     paced = node_run(1.0)
     load = os.getloadavg()[0]
     print('## Simulated cell: real-time factor (`ur5_sim`)\n')
-    print('Physics step 1 ms (MuJoCo 4, implicitfast, UR5 collision meshes) plus the analytic ball, servo and '
-          'referee in Python. "Cell alone": `stylepong_sim.cells.cell.Cell.step` in a loop, no ROS. "Node": '
-          '`ros2 run stylepong_sim ur5_sim` with a probe process subscribed to every topic '
-          '(/joint_states and the F/T wrench at 500 Hz, /clock every step, /sim/ball/ground_truth at 120 Hz, '
-          '/rally/events) '
-          f'and a randomized ball launched every wall second for {NODE_WINDOW_S:.0f} s. '
-          'Rates are messages received by the probe per wall second; CPU is the node process\'s share of one core. '
-          f'1-minute load average at the end: {load:.1f} (other work on the machine lowers these figures).\n')
+    print(
+        'Physics step 1 ms (MuJoCo 4, implicitfast, UR5 collision meshes) plus the analytic ball, servo and '
+        'referee in Python. "Cell alone": `stylepong_sim.cells.cell.Cell.step` in a loop, no ROS. "Node": '
+        '`ros2 run stylepong_sim ur5_sim` with a probe process subscribed to every topic '
+        '(/joint_states and the F/T wrench at 500 Hz, /clock every step, /sim/ball/ground_truth at 120 Hz, '
+        '/rally/events) '
+        f'and a randomized ball launched every wall second for {NODE_WINDOW_S:.0f} s. '
+        "Rates are messages received by the probe per wall second; CPU is the node process's share of one core. "
+        f'1-minute load average at the end: {load:.1f} (other work on the machine lowers these figures).\n'
+    )
     header = ['setting', 'real-time factor achieved', '/joint_states Hz', 'wrench Hz', 'ball truth Hz', 'node CPU']
-    rows = [['Cell alone, no ball', f'{idle_steps / 1000:.1f}', '', '', '', '1 core'],
-            ['Cell alone, ball in flight', f'{ball_steps / 1000:.1f}', '', '', '', '1 core']]
-    for name, r in (('Node, real_time_factor 0 (as fast as possible)', fast),
-                    ('Node, real_time_factor 1 (default)', paced)):
-        rows.append([name, f"{r['speed']:.2f}", f"{r['joint_hz']:.0f}", f"{r['wrench_hz']:.0f}",
-                     f"{r['ball_hz']:.0f}", f"{100 * r['cpu']:.0f} %"])
+    rows = [
+        ['Cell alone, no ball', f'{idle_steps / 1000:.1f}', '', '', '', '1 core'],
+        ['Cell alone, ball in flight', f'{ball_steps / 1000:.1f}', '', '', '', '1 core'],
+    ]
+    for name, r in (
+        ('Node, real_time_factor 0 (as fast as possible)', fast),
+        ('Node, real_time_factor 1 (default)', paced),
+    ):
+        rows.append(
+            [
+                name,
+                f'{r["speed"]:.2f}',
+                f'{r["joint_hz"]:.0f}',
+                f'{r["wrench_hz"]:.0f}',
+                f'{r["ball_hz"]:.0f}',
+                f'{100 * r["cpu"]:.0f} %',
+            ]
+        )
     print('\n'.join(markdown.table(header, rows)))
-    print('\nTargets (docs/ACCEPTANCE.md): /joint_states and wrench >= 450 Hz at '
-          'real_time_factor 1; /clock >= 1.5x wall time at real_time_factor 0.')
+    print(
+        '\nTargets (docs/ACCEPTANCE.md): /joint_states and wrench >= 450 Hz at '
+        'real_time_factor 1; /clock >= 1.5x wall time at real_time_factor 0.'
+    )
     return 0
 
 

@@ -8,6 +8,7 @@ written as StylePong's recorder writes them (rosbags, 500 Hz, six joints), and o
 when ../shared/interop-bags is there. For scale it also times rosbags' own read + deserialize of the
 same bag. Prints a Markdown section for BENCHMARKS.md.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -28,7 +29,7 @@ from stylepong_recording.joint_state_bags import jazzy_typestore, write_recorder
 
 TARGET_MSG_S = 30_000
 RATE_HZ = 500.0
-DURATION_S = 120.0   # 60,001 messages: two minutes of demonstrations at the driver's rate
+DURATION_S = 120.0  # 60,001 messages: two minutes of demonstrations at the driver's rate
 REPEATS = 3
 TOOLPATH = ROOT.parent / 'shared' / 'interop-bags' / 'ur3e-hw-sqlite3-v5-toolpath'
 
@@ -56,6 +57,7 @@ def time_build(bag: pathlib.Path, out: pathlib.Path) -> list[float]:
 
 def time_rosbags_deserialize(bag: pathlib.Path) -> tuple[int, float]:
     from rosbags.highlevel import AnyReader
+
     start = time.perf_counter()
     count = 0
     with AnyReader([bag], default_typestore=jazzy_typestore()) as reader:
@@ -81,27 +83,38 @@ def main() -> int:
             rows.append((name, count, min(seconds), statistics.median(seconds)))
         baseline_count, baseline_s = time_rosbags_deserialize(bags['mcap'][0])
         cli_start = time.perf_counter()
-        cli = subprocess.run(['ros2', 'run', 'stylepong_policy', 'build_dataset', str(bags['mcap'][0]),
-                              '-o', str(tmp / 'cli.npz')], capture_output=True, text=True)
+        cli = subprocess.run(
+            ['ros2', 'run', 'stylepong_policy', 'build_dataset', str(bags['mcap'][0]), '-o', str(tmp / 'cli.npz')],
+            capture_output=True,
+            text=True,
+        )
         cli_s = time.perf_counter() - cli_start
 
-    main_rate = min(count / median for name, count, _b, median in rows if not name.startswith("sqlite3, real"))
+    main_rate = min(count / median for name, count, _b, median in rows if not name.startswith('sqlite3, real'))
     print('## build_dataset throughput (JointState messages/s)\n')
-    print(f'`benchmarks/20_build_dataset_throughput.py`: the whole tool, in-process (`build_dataset.run`: read, '
-          f'decode, count check, 60 Hz resampling, idle trim, x2/x3/x5 augmentation, .npz written), best and '
-          f'median of {REPEATS} runs, on bags written like the recorder writes them (rosbags, {RATE_HZ:.0f} Hz '
-          f'/joint_states, six joints, {DURATION_S:.0f} s). Target: >= {TARGET_MSG_S:,} msg/s.\n')
+    print(
+        f'`benchmarks/20_build_dataset_throughput.py`: the whole tool, in-process (`build_dataset.run`: read, '
+        f'decode, count check, 60 Hz resampling, idle trim, x2/x3/x5 augmentation, .npz written), best and '
+        f'median of {REPEATS} runs, on bags written like the recorder writes them (rosbags, {RATE_HZ:.0f} Hz '
+        f'/joint_states, six joints, {DURATION_S:.0f} s). Target: >= {TARGET_MSG_S:,} msg/s.\n'
+    )
     print('| bag | messages | best (s) | msg/s (best) | msg/s (median) |')
     print('|---|---:|---:|---:|---:|')
     for name, count, best, median in rows:
         print(f'| {name} | {count:,} | {best:.3f} | {count / best:,.0f} | {count / median:,.0f} |')
     print()
-    print(f'- Slowest synthetic storage: {main_rate:,.0f} msg/s: '
-          f'{"meets" if main_rate >= TARGET_MSG_S else "MISSES"} the {TARGET_MSG_S:,} msg/s target.')
-    print(f'- For scale: rosbags AnyReader + deserialize of the same mcap bag alone: '
-          f'{baseline_count / baseline_s:,.0f} msg/s ({baseline_count:,} messages in {baseline_s:.2f} s).')
-    print(f'- `ros2 run stylepong_policy build_dataset <mcap bag> -o x.npz` wall time, interpreter start '
-          f'included: {cli_s:.2f} s (exit {cli.returncode}).')
+    print(
+        f'- Slowest synthetic storage: {main_rate:,.0f} msg/s: '
+        f'{"meets" if main_rate >= TARGET_MSG_S else "MISSES"} the {TARGET_MSG_S:,} msg/s target.'
+    )
+    print(
+        f'- For scale: rosbags AnyReader + deserialize of the same mcap bag alone: '
+        f'{baseline_count / baseline_s:,.0f} msg/s ({baseline_count:,} messages in {baseline_s:.2f} s).'
+    )
+    print(
+        f'- `ros2 run stylepong_policy build_dataset <mcap bag> -o x.npz` wall time, interpreter start '
+        f'included: {cli_s:.2f} s (exit {cli.returncode}).'
+    )
     return 0
 
 

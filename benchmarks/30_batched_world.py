@@ -9,6 +9,7 @@ contact steps, eight 480 Hz arm servo steps, forward kinematics, referee). Two f
          randomisation, resets): what PPO's rollout calls.
 Run by `make bench`; alone: `python3 benchmarks/30_batched_world.py` with ros2_ws/install/setup.bash sourced.
 """
+
 from __future__ import annotations
 
 import os
@@ -39,7 +40,7 @@ def world_rate(num_envs: int, compile: bool = False) -> tuple[float, int, float]
     decided = 0
 
     def one_step() -> int:
-        with batched_world.torch_threads(1):   # as the task runs it: see batched_world.torch_threads
+        with batched_world.torch_threads(1):  # as the task runs it: see batched_world.torch_threads
             return reset_decided(world.step(next_target()))
 
     def next_target() -> torch.Tensor:
@@ -88,23 +89,29 @@ def main() -> int:
         compiled, _, compile_s = world_rate(n, compile=True)
         rows.append((n, world, compiled, compile_s, env_rate(n), decided))
     print('## Batched world: policy steps per second (no network)\n')
-    print(f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched.batched_world.BatchedWorld` on the CPU (torch '
-          f'{torch.__version__}, float32; the caller has {THREADS} threads, the world steps with 1: see '
-          f'`batched_world.torch_threads`), 60 Hz policy steps each with 2 physics steps at '
-          f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
-          f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
-          f'from the vectorised sampler); "env": `stylepong_policy.training.task.TableTennisEnv.step` with random '
-          f'actions (observations, noise, delays, rewards, domain randomisation, resets). "torch.compile": '
-          f'`BatchedWorld(compile=True)` (TaskConfig.compile_world), the same physics fused by inductor '
-          f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). '
-          f'Load average before the run: {load_before:.1f} (other work on the '
-          f'2 cores slows every figure).\n')
-    print('| N | world steps/s (eager) | world steps/s (torch.compile) | env steps/s (eager) | '
-          'rallies decided in the eager world run |')
+    print(
+        f'`benchmarks/30_batched_world.py`: `stylepong_sim.batched.batched_world.BatchedWorld` on the CPU (torch '
+        f'{torch.__version__}, float32; the caller has {THREADS} threads, the world steps with 1: see '
+        f'`batched_world.torch_threads`), 60 Hz policy steps each with 2 physics steps at '
+        f'120 Hz and 8 arm servo steps at 480 Hz; {WARMUP_STEPS} warm-up steps, then {MEASURED_STEPS} '
+        f'timed. "world": the world with changing joint targets and the resets of decided rallies (new balls '
+        f'from the vectorised sampler); "env": `stylepong_policy.training.task.TableTennisEnv.step` with random '
+        f'actions (observations, noise, delays, rewards, domain randomisation, resets). "torch.compile": '
+        f'`BatchedWorld(compile=True)` (TaskConfig.compile_world), the same physics fused by inductor '
+        f'(agrees with eager to float32 rounding). Target: >= 100,000 policy steps/s at N = 4096 (eager). '
+        f'Load average before the run: {load_before:.1f} (other work on the '
+        f'2 cores slows every figure).\n'
+    )
+    print(
+        '| N | world steps/s (eager) | world steps/s (torch.compile) | env steps/s (eager) | '
+        'rallies decided in the eager world run |'
+    )
     print('|---|---|---|---|---|')
     for n, world, compiled, compile_s, env, decided in rows:
-        print(f'| {n} | {world:,.0f} | {compiled:,.0f} (first step after {compile_s:.0f} s of compilation) | '
-              f'{env:,.0f} | {decided} |')
+        print(
+            f'| {n} | {world:,.0f} | {compiled:,.0f} (first step after {compile_s:.0f} s of compilation) | '
+            f'{env:,.0f} | {decided} |'
+        )
     return 0
 
 

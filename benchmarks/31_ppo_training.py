@@ -5,6 +5,7 @@ Runs the real runner (rollouts with the policy under inference mode, GAE, PPO up
 CSV log) on `stylepong_policy.training.task.make_env` with the shipped config's PPO settings, for the paper's
 network sizes and a smaller pair, and prints one Markdown section for BENCHMARKS.md.
 """
+
 from __future__ import annotations
 
 import os
@@ -12,7 +13,7 @@ import sys
 import tempfile
 import time
 
-os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')   # as `train` does (see train.py), before torch loads
+os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')  # as `train` does (see train.py), before torch loads
 
 import torch
 
@@ -22,7 +23,7 @@ NUM_ENVS = int(os.environ.get('BENCH_PPO_NUM_ENVS', 4096))
 WARMUP_ITERATIONS = 1
 MEASURED_ITERATIONS = 2
 NETWORKS = ([512, 256, 128], [256, 128, 64])
-SHARES = ('world_share', 'policy_share', 'learn_share')   # the table's columns of measure_throughput's shares
+SHARES = ('world_share', 'policy_share', 'learn_share')  # the table's columns of measure_throughput's shares
 
 
 def measure(hidden_dims: list[int]) -> dict[str, float]:
@@ -36,14 +37,18 @@ def measure(hidden_dims: list[int]) -> dict[str, float]:
     cfg.policy.actor_hidden_dims = list(hidden_dims)
     cfg.policy.critic_hidden_dims = list(hidden_dims)
     cfg.task['num_envs'] = NUM_ENVS
-    cfg.runner.save_interval = 10 ** 6
+    cfg.runner.save_interval = 10**6
     seed_everything(1)
     env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
     with tempfile.TemporaryDirectory() as run_dir:
         runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False)
         throughput = measure_throughput(runner, WARMUP_ITERATIONS, MEASURED_ITERATIONS)
-    return {**throughput, 'steps': cfg.ppo.num_steps_per_env, 'epochs': cfg.ppo.num_learning_epochs,
-            'minibatches': cfg.ppo.num_mini_batches}
+    return {
+        **throughput,
+        'steps': cfg.ppo.num_steps_per_env,
+        'epochs': cfg.ppo.num_learning_epochs,
+        'minibatches': cfg.ppo.num_mini_batches,
+    }
 
 
 def main() -> int:
@@ -55,16 +60,25 @@ def main() -> int:
         rows.append((dims, measure(dims), time.perf_counter() - started))
     first = rows[0][1]
     print('## PPO training throughput (end to end)\n')
-    print('`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.training.task.make_env` '
-          f'with N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
-          '`config/ppo.yaml` '
-          f'({first["steps"]} steps per env per iteration, {first["epochs"]} epochs x {first["minibatches"]} '
-          f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
-          f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '
-          f'Load average before the run: {load_before:.1f} (other work on the 2 cores slows every figure).\n')
+    print(
+        '`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.training.task.make_env` '
+        f'with N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
+        '`config/ppo.yaml` '
+        f'({first["steps"]} steps per env per iteration, {first["epochs"]} epochs x {first["minibatches"]} '
+        f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
+        f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '
+        f'Load average before the run: {load_before:.1f} (other work on the 2 cores slows every figure).\n'
+    )
     header = ['hidden sizes', 'samples/s', 's/iteration', 'world share', 'policy inference (rollout)', 'PPO update']
-    cells = [[str(dims), f'{r["samples_per_s"]:,.0f}', f'{r["iteration_s"]:.1f}',
-              *(f'{100 * r[share]:.0f} %' for share in SHARES)] for dims, r, _ in rows]
+    cells = [
+        [
+            str(dims),
+            f'{r["samples_per_s"]:,.0f}',
+            f'{r["iteration_s"]:.1f}',
+            *(f'{100 * r[share]:.0f} %' for share in SHARES),
+        ]
+        for dims, r, _ in rows
+    ]
     print('\n'.join(markdown.table(header, cells)))
     print('\nShares are of training wall time (the rest, a few %, is GAE, logging and checkpoints).')
     return 0

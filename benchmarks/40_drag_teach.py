@@ -13,6 +13,7 @@
    made together compare.
 Prints one Markdown section for BENCHMARKS.md (`make bench`).
 """
+
 import os
 import pathlib
 import re
@@ -28,7 +29,7 @@ from stylepong_common.node_process import isolated_ros_env, start_logged, stop_g
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DURATION_S = 20.0
 CYCLES = 20000
-OLD_COMMIT = '9dcd180'   # the code whose drag_teach missed 0.79 % of its ticks (BENCHMARKS.md of that commit)
+OLD_COMMIT = '9dcd180'  # the code whose drag_teach missed 0.79 % of its ticks (BENCHMARKS.md of that commit)
 PAIRS = 3
 STATS = re.compile(r'(\d+) cycles in .*? (\d+) missed, compute mean (\d+) us, p99 (\d+) us')
 
@@ -46,11 +47,12 @@ def controller_cycles() -> np.ndarray:
     load = tool_load_from_model(model)
     q = np.array(HOME_JOINT_POSITIONS_RAD)
     import pinocchio as pin
+
     pin.framesForwardKinematics(model, data, q)
     rotation = data.oMf[model.getFrameId(robot_model.TOOL_FRAME)].rotation
     weight = gravity_wrench_on_tool(load, rotation, np.array(model.gravity.linear))
     t = 0.0
-    for _ in range(200):                                   # start-up and tare, not timed
+    for _ in range(200):  # start-up and tare, not timed
         controller.on_joint_positions(q, t)
         controller.on_wrench(weight, t)
         controller.tick(t)
@@ -64,7 +66,7 @@ def controller_cycles() -> np.ndarray:
         controller.on_wrench(wrench, t)
         result = controller.tick(t)
         times[k] = time.perf_counter() - started
-        q = result.command                                  # a perfect servo
+        q = result.command  # a perfect servo
         t += 0.002
     return times
 
@@ -72,8 +74,11 @@ def controller_cycles() -> np.ndarray:
 def old_sources() -> pathlib.Path | None:
     """OLD_COMMIT's stylepong_fdcc and stylepong_description packages, extracted; None if the clone lacks it."""
     target = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_old_'))
-    archive = subprocess.run(['git', 'archive', OLD_COMMIT, 'ros2_ws/src/stylepong_fdcc',
-                              'ros2_ws/src/stylepong_description'], cwd=ROOT, capture_output=True)
+    archive = subprocess.run(
+        ['git', 'archive', OLD_COMMIT, 'ros2_ws/src/stylepong_fdcc', 'ros2_ws/src/stylepong_description'],
+        cwd=ROOT,
+        capture_output=True,
+    )
     if archive.returncode != 0:
         return None
     subprocess.run(['tar', '-x', '-C', str(target)], input=archive.stdout, check=True)
@@ -85,8 +90,9 @@ def node_run(old_src: pathlib.Path | None = None) -> tuple[str, tuple[float, flo
     env = isolated_ros_env()
     drag_command = ['ros2', 'run', 'stylepong_fdcc', 'drag_teach']
     if old_src is not None:
-        env['PYTHONPATH'] = os.pathsep.join([str(old_src / 'stylepong_fdcc'), str(old_src / 'stylepong_description'),
-                                             env.get('PYTHONPATH', '')])
+        env['PYTHONPATH'] = os.pathsep.join(
+            [str(old_src / 'stylepong_fdcc'), str(old_src / 'stylepong_description'), env.get('PYTHONPATH', '')]
+        )
         drag_command = [sys.executable, '-m', 'stylepong_fdcc.drag_teach_node']
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_drag_teach_'))
     sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], env, logs / 'ur5_sim.log')
@@ -104,27 +110,33 @@ def node_run(old_src: pathlib.Path | None = None) -> tuple[str, tuple[float, flo
     stats = re.search(r'\d+ cycles in .*?rejected', (logs / 'drag_teach.log').read_text())
     if not stats:
         raise RuntimeError('drag_teach printed no statistics:\n' + (logs / 'drag_teach.log').read_text()[-2000:])
-    return stats.group(0), os.getloadavg()   # the load is read while the nodes just stopped
+    return stats.group(0), os.getloadavg()  # the load is read while the nodes just stopped
 
 
 def main() -> int:
     times_us = controller_cycles() * 1e6
     stats, load = node_run()
     print('## drag_teach: compute time per cycle, achieved rate, missed ticks at 500 Hz\n')
-    print('`python3 benchmarks/40_drag_teach.py`. (1) The FDCC controller alone (`DragTeachController`, '
-          f'virtual dynamics model, all safety stages), {CYCLES} cycles of joint state + sensor wrench + '
-          'control step with a changing push. (2) `ros2 run stylepong_fdcc drag_teach` (defaults: 500 Hz, '
-          f'wall clock) against `ros2 run stylepong_sim ur5_sim` for {DURATION_S:.0f} s from start-up; '
-          'the node\'s own count at Ctrl-C (compute = its timer callback, controller and publishing; a '
-          'missed tick is a 2 ms period without a cycle).\n')
+    print(
+        '`python3 benchmarks/40_drag_teach.py`. (1) The FDCC controller alone (`DragTeachController`, '
+        f'virtual dynamics model, all safety stages), {CYCLES} cycles of joint state + sensor wrench + '
+        'control step with a changing push. (2) `ros2 run stylepong_fdcc drag_teach` (defaults: 500 Hz, '
+        f'wall clock) against `ros2 run stylepong_sim ur5_sim` for {DURATION_S:.0f} s from start-up; '
+        "the node's own count at Ctrl-C (compute = its timer callback, controller and publishing; a "
+        'missed tick is a 2 ms period without a cycle).\n'
+    )
     print('| what | mean | p99 | max |')
     print('|---|---|---|---|')
-    print(f'| controller cycle, no ROS | {times_us.mean():.0f} us | {np.percentile(times_us, 99):.0f} us | '
-          f'{times_us.max():.0f} us |')
+    print(
+        f'| controller cycle, no ROS | {times_us.mean():.0f} us | {np.percentile(times_us, 99):.0f} us | '
+        f'{times_us.max():.0f} us |'
+    )
     print(f'\nNode against ur5_sim: {stats}.\n')
-    print(f'Load average of the machine at the end: {load[0]:.2f} (1 min), {load[1]:.2f} (5 min) on '
-          f'{os.cpu_count()} cores: other work on this shared machine takes cycles from the node, which '
-          'shows as missed ticks.')
+    print(
+        f'Load average of the machine at the end: {load[0]:.2f} (1 min), {load[1]:.2f} (5 min) on '
+        f'{os.cpu_count()} cores: other work on this shared machine takes cycles from the node, which '
+        'shows as missed ticks.'
+    )
     print_side_by_side(old_sources())
     return 0
 
@@ -142,8 +154,11 @@ def print_side_by_side(old_src: pathlib.Path | None) -> None:
         for name, source in ((f'old ({OLD_COMMIT})', old_src), ('today', None)):
             stats, load = node_run(source)
             cycles, missed, mean_us, p99_us = (int(x) for x in STATS.search(stats).groups())
-            print(f'| {name} | {run} | {cycles} | {missed} | {100.0 * missed / (cycles + missed):.2f} % | '
-                  f'{mean_us} us | {p99_us} us | {load[0]:.2f} |', flush=True)
+            print(
+                f'| {name} | {run} | {cycles} | {missed} | {100.0 * missed / (cycles + missed):.2f} % | '
+                f'{mean_us} us | {p99_us} us | {load[0]:.2f} |',
+                flush=True,
+            )
 
 
 if __name__ == '__main__':

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
 """Recorder: what it keeps at 500 Hz, what it costs, what a SIGKILL loses, and bag I/O speed."""
+
 import os
 import random
 import shutil
@@ -45,8 +46,7 @@ class Publisher:
         self.thread.start()
 
     def run(self):
-        joints = JointState(name=[f'j{i}' for i in range(6)], position=[0.0] * 6, velocity=[0.0] * 6,
-                            effort=[0.0] * 6)
+        joints = JointState(name=[f'j{i}' for i in range(6)], position=[0.0] * 6, velocity=[0.0] * 6, effort=[0.0] * 6)
         wrench = WrenchStamped()
         next_s, index = time.monotonic(), 0
         while self.running:
@@ -96,8 +96,15 @@ def record(out, storage, clip_s, kill_at_s=None):
 
 
 def _record(node, out, storage, clip_s, kill_at_s, env):
-    recorder = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-p', f'topics:=[{WRENCH}]',
-                           params={'output_dir': str(out), 'storage': storage}, env=env).start()
+    recorder = NodeProcess(
+        'stylepong_recording',
+        'recorder',
+        '--ros-args',
+        '-p',
+        f'topics:=[{WRENCH}]',
+        params={'output_dir': str(out), 'storage': storage},
+        env=env,
+    ).start()
     start = node.create_client(StartClip, '/recorder/start')
     stop = node.create_client(Trigger, '/recorder/stop')
     publisher = None
@@ -172,8 +179,9 @@ def main():
             bag, pub, t0, t1, cpu = record(tmp / storage, storage, clip_s=10.0)
             kept = kept_fraction(bag, pub, t0, t1)
             size_mb = sum(p.stat().st_size for p in bag.iterdir()) / 1e6
-            clips.append((storage, kept[JOINT_STATES], kept[WRENCH], len(pub.between(t0, t1)), cpu,
-                          size_mb / (t1 - t0) * 60.0))
+            clips.append(
+                (storage, kept[JOINT_STATES], kept[WRENCH], len(pub.between(t0, t1)), cpu, size_mb / (t1 - t0) * 60.0)
+            )
         kills = []
         for storage in ('mcap', 'mcap', 'sqlite3', 'sqlite3'):
             bag, pub, t0, killed_s, _ = record(tmp / f'kill_{len(kills)}', storage, 0.0, kill_at_s=3.0)
@@ -181,31 +189,45 @@ def main():
             times = dict(pub.published)
             missing = [times[s] for s in pub.between(t0, killed_s) if s not in recorded]
             lost_window_s = killed_s - min(missing) if missing else 0.0
-            kills.append((storage, lost_window_s, len(pub.between(t0, killed_s - 0.2)),
-                          sum(1 for s in pub.between(t0, killed_s - 0.2) if s not in recorded)))
+            kills.append(
+                (
+                    storage,
+                    lost_window_s,
+                    len(pub.between(t0, killed_s - 0.2)),
+                    sum(1 for s in pub.between(t0, killed_s - 0.2) if s not in recorded),
+                )
+            )
         io_rows = offline_io(tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
     print('## Recorder: kept fraction at 500 Hz, cost, SIGKILL loss, bag I/O\n')
-    print('`ros2 run stylepong_recording recorder` (defaults: flush every 0.1 s, queue depth 1000, reliable QoS) '
-          f'recording `/joint_states` and `{WRENCH}`, both published at 500 Hz (reliable, depth 10) by '
-          'a Python thread in the benchmark process; clips started and stopped through the services. '
-          'Kept = share of the messages published between the start answer and the stop call found in '
-          'the bag (read back with rosbags AnyReader); CPU = recorder process CPU time / clip time.\n')
-    print('| storage | clip | joint states published | kept /joint_states | kept wrench '
-          '| recorder CPU (one core) | bag MB per minute |')
+    print(
+        '`ros2 run stylepong_recording recorder` (defaults: flush every 0.1 s, queue depth 1000, reliable QoS) '
+        f'recording `/joint_states` and `{WRENCH}`, both published at 500 Hz (reliable, depth 10) by '
+        'a Python thread in the benchmark process; clips started and stopped through the services. '
+        'Kept = share of the messages published between the start answer and the stop call found in '
+        'the bag (read back with rosbags AnyReader); CPU = recorder process CPU time / clip time.\n'
+    )
+    print(
+        '| storage | clip | joint states published | kept /joint_states | kept wrench '
+        '| recorder CPU (one core) | bag MB per minute |'
+    )
     print('|---|---|---|---|---|---|---|')
     for storage, kept_js, kept_w, n, cpu, mb_min in clips:
         print(f'| {storage} | 10 s | {n} | {kept_js:.4f} | {kept_w:.4f} | {cpu * 100:.0f} % | {mb_min:.1f} |')
-    print('\nSIGKILL 3 s into a clip, then `recover_bag`: lost window = kill time minus the publish time of '
-          'the oldest joint state missing from the recovered bag (0 = nothing lost).\n')
+    print(
+        '\nSIGKILL 3 s into a clip, then `recover_bag`: lost window = kill time minus the publish time of '
+        'the oldest joint state missing from the recovered bag (0 = nothing lost).\n'
+    )
     print('| storage | lost window | joint states published up to 0.2 s before the kill | of those missing |')
     print('|---|---|---|---|')
     for storage, window_s, n, missing in kills:
         print(f'| {storage} | {window_s * 1000:.0f} ms | {n} | {missing} |')
-    print('\nOffline, one process: ClipWriter writing 30,000 JointState (a 60 s clip at 500 Hz) with a flush '
-          'every 50 messages, then `recover_bag` on a copy taken before close (no metadata, no footer).\n')
+    print(
+        '\nOffline, one process: ClipWriter writing 30,000 JointState (a 60 s clip at 500 Hz) with a flush '
+        'every 50 messages, then `recover_bag` on a copy taken before close (no metadata, no footer).\n'
+    )
     print('| storage | write rate | recover_bag time (60 s clip) | messages recovered | bag size |')
     print('|---|---|---|---|---|')
     for storage, rate, recover_s, count, size_mb in io_rows:

@@ -12,6 +12,7 @@
    serves RALLY_BALLS balls; the same figures, on the cell's clock (1 ms resolution).
 Prints one Markdown section for BENCHMARKS.md (`make bench`).
 """
+
 import json
 import os
 import pathlib
@@ -25,7 +26,7 @@ import numpy as np
 from stylepong_common.node_process import isolated_ros_env, process_cpu_s, start_logged, stop_group
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'   # the deployed style actor
+ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'  # the deployed style actor
 DURATION_S = 15.0
 CALLS = 3000
 RALLY_BALLS = 6
@@ -33,6 +34,7 @@ RALLY_BALLS = 6
 
 def actor_alone() -> dict[str, np.ndarray]:
     from stylepong_player import player_core, spec
+
     rng = np.random.default_rng(0)
     obs = rng.normal(0, 1, (CALLS, 1, spec.NUM_OBS)).astype(np.float32)
     times = {}
@@ -71,9 +73,25 @@ def node_alone(backend: str) -> tuple[dict, float]:
 
     from stylepong_msgs.msg import BallState
     from stylepong_player import spec
+
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_'))
-    player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'start_enabled:=true',
-                     '-p', f'backend:={backend}', '-p', 'status_rate_hz:=1.0'], dict(os.environ), logs / 'player.log')
+    player = start_logged(
+        [
+            'ros2',
+            'run',
+            'stylepong_player',
+            'player',
+            '--ros-args',
+            '-p',
+            'start_enabled:=true',
+            '-p',
+            f'backend:={backend}',
+            '-p',
+            'status_rate_hz:=1.0',
+        ],
+        dict(os.environ),
+        logs / 'player.log',
+    )
     context = rclpy.Context()
     rclpy.init(context=context)
     node = rclpy.create_node('bench_player_rig', context=context)
@@ -125,19 +143,41 @@ def node_alone(backend: str) -> tuple[dict, float]:
 def with_ur5_sim() -> tuple[dict, float, dict]:
     env = isolated_ros_env()
     logs = pathlib.Path(tempfile.mkdtemp(prefix='bench_player_sim_'))
-    sim = start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env,
-                 logs / 'ur5_sim.log')
+    sim = start_logged(
+        ['ros2', 'run', 'stylepong_sim', 'ur5_sim', '--ros-args', '-p', 'max_lag_s:=0.01'], env, logs / 'ur5_sim.log'
+    )
     # The cell's tracker reports positions; ball_estimator gives the player /ball/state, as on a real cell.
     estimator = start_logged(['ros2', 'run', 'stylepong_player', 'ball_estimator'], env, logs / 'ball_estimator.log')
-    player = start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
-                    logs / 'player.log')
+    player = start_logged(
+        ['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'],
+        env,
+        logs / 'player.log',
+    )
     try:
         time.sleep(3.0)
         cpu_start, wall_start = process_cpu_s(player.pid), time.monotonic()
         out = logs / 'rally.json'
-        subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--seeds', '1', '--balls', str(RALLY_BALLS),
-                        '--first-seed', '900', '--json', str(out)],
-                       env=env, capture_output=True, text=True, timeout=300, check=True)
+        subprocess.run(
+            [
+                'ros2',
+                'run',
+                'stylepong_sim',
+                'rally_eval',
+                '--seeds',
+                '1',
+                '--balls',
+                str(RALLY_BALLS),
+                '--first-seed',
+                '900',
+                '--json',
+                str(out),
+            ],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=True,
+        )
         cpu_share = (process_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)
         summary = json.loads(out.read_text())
         return summary['player_status'], cpu_share, summary
@@ -155,8 +195,12 @@ def _row(what: str, s: dict, key: str = 'p50') -> str:
 
 def _jitter(s: dict) -> dict:
     """|period - 1/60 s| summary in ms from a period summary (p50/p99 of the period, jitter p99 and max)."""
-    return {'count': s.get('count', 0), 'p50': abs(s.get('p50', 0) - 1e3 / 60.0), 'p99': s.get('jitter_p99', 0),
-            'max': s.get('jitter_max', 0)}
+    return {
+        'count': s.get('count', 0),
+        'p50': abs(s.get('p50', 0) - 1e3 / 60.0),
+        'p99': s.get('jitter_p99', 0),
+        'max': s.get('jitter_max', 0),
+    }
 
 
 def main() -> int:
@@ -164,17 +208,19 @@ def main() -> int:
     nodes = {backend: node_alone(backend) for backend in ('onnx', 'torchscript')}
     sim_status, sim_cpu, rally = with_ur5_sim()
     print('## player: period jitter, ball-to-command latency, inference time, CPU share\n')
-    print(f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). '
-          f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole Player policy steps '
-          '(observation, '
-          'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_player player` (enabled, wall clock) fed by '
-          f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '
-          'per backend; the figures are the node\'s own (/player/status): period between policy steps, jitter '
-          '= |period - 16.667 ms|, latency = ball header stamp to the command published, inference = the '
-          'actor call; CPU share of the player process. (3) The same with ur5_sim in the loop (nominal sensing, '
-          f'real_time_factor 1, max_lag_s 0.01, player on /clock, rally_eval serving {RALLY_BALLS} balls of seed 900): '
-          'periods '
-          'and latency on the cell\'s clock (1 ms resolution).\n')
+    print(
+        f'`python3 benchmarks/50_player.py`, the shipped style actor (`models/{ACTOR.name}` / `.onnx`). '
+        f'(1) The actor alone: {CALLS} calls with one observation, and {CALLS} whole Player policy steps '
+        '(observation, '
+        'ONNX actor, decoding, limiter). (2) `ros2 run stylepong_player player` (enabled, wall clock) fed by '
+        f'this script: /joint_states at 500 Hz, /ball/state at 120 Hz stamped on sending, {DURATION_S:.0f} s '
+        "per backend; the figures are the node's own (/player/status): period between policy steps, jitter "
+        '= |period - 16.667 ms|, latency = ball header stamp to the command published, inference = the '
+        'actor call; CPU share of the player process. (3) The same with ur5_sim in the loop (nominal sensing, '
+        f'real_time_factor 1, max_lag_s 0.01, player on /clock, rally_eval serving {RALLY_BALLS} balls of seed 900): '
+        'periods '
+        "and latency on the cell's clock (1 ms resolution).\n"
+    )
     print('| actor alone, no ROS | p50 (us) | p99 (us) | max (us) |')
     print('|---|---|---|---|')
     for name, t in alone.items():
@@ -194,12 +240,14 @@ def main() -> int:
     print(_row('with ur5_sim, onnx: ball message callback -> command (wall)', sim_status['receipt_latency_ms']))
     print(_row('with ur5_sim, onnx: inference', sim_status['inference_ms']))
     shares = ', '.join(f'{backend} {cpu * 100:.1f} %' for backend, (_, cpu) in nodes.items())
-    print(f'\nCPU share of the player process (one core = 100 %): alone {shares}; with ur5_sim {sim_cpu * 100:.1f} % '
-          '(it then also follows /clock at 1 kHz). Policy steps driven by a ball message / fallback steps with '
-          f'ur5_sim: {sim_status["counts"].get("ball_driven_steps", 0)} / '
-          f'{sim_status["counts"].get("fallback_steps", 0)}; '
-          f'rally: {rally["success_rate"]:.2f} success over {rally["balls"]} balls. Load average at the end: '
-          f'{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (a shared machine: other work shows in the p99s).')
+    print(
+        f'\nCPU share of the player process (one core = 100 %): alone {shares}; with ur5_sim {sim_cpu * 100:.1f} % '
+        '(it then also follows /clock at 1 kHz). Policy steps driven by a ball message / fallback steps with '
+        f'ur5_sim: {sim_status["counts"].get("ball_driven_steps", 0)} / '
+        f'{sim_status["counts"].get("fallback_steps", 0)}; '
+        f'rally: {rally["success_rate"]:.2f} success over {rally["balls"]} balls. Load average at the end: '
+        f'{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (a shared machine: other work shows in the p99s).'
+    )
     return 0
 
 

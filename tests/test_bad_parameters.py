@@ -5,6 +5,7 @@ naming the parameter, and at once: the node stops while it is being built instea
 half-understood setting. The package unit tests check each node's table value by value; this checks the
 installed executables end to end, the recorder under its old package name too.
 """
+
 from __future__ import annotations
 
 import subprocess
@@ -18,28 +19,44 @@ from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
 PROMPT_EXIT_S = 30.0
 
 CASES = [
-    pytest.param('stylepong_fdcc', 'drag_teach', ('--ros-args', '-p', 'control_rate_hz:=5.0'), 'control_rate_hz',
-                 id='drag_teach'),
-    pytest.param('stylepong_sim', 'ur5_sim', ('--ros-args', '-p', 'ball_latency_s:=-0.5'), 'ball_latency_s',
-                 id='ur5_sim'),
-    pytest.param('stylepong_sim', 'virtual_teacher', ('--ros-args', '-p', 'swing:=sideways'), 'swing',
-                 id='virtual_teacher'),
-    pytest.param('stylepong_player', 'player', ('--ros-args', '-p', 'status_rate_hz:=0.0'), 'status_rate_hz',
-                 id='player'),
+    pytest.param(
+        'stylepong_fdcc', 'drag_teach', ('--ros-args', '-p', 'control_rate_hz:=5.0'), 'control_rate_hz', id='drag_teach'
+    ),
+    pytest.param(
+        'stylepong_sim', 'ur5_sim', ('--ros-args', '-p', 'ball_latency_s:=-0.5'), 'ball_latency_s', id='ur5_sim'
+    ),
+    pytest.param(
+        'stylepong_sim', 'virtual_teacher', ('--ros-args', '-p', 'swing:=sideways'), 'swing', id='virtual_teacher'
+    ),
+    pytest.param(
+        'stylepong_player', 'player', ('--ros-args', '-p', 'status_rate_hz:=0.0'), 'status_rate_hz', id='player'
+    ),
     pytest.param('stylepong_sim', 'rally_eval', ('--speed', 'fast'), '--speed', id='rally_eval'),
-    pytest.param('stylepong_recording', 'recorder', ('--ros-args', '-p', 'flush_period_s:=-0.1'), 'flush_period_s',
-                 id='recorder'),
-    pytest.param('stylepong_fdcc', 'recorder', ('--ros-args', '-p', 'flush_period_s:=-0.1'), 'flush_period_s',
-                 id='recorder-compatibility-name'),
+    pytest.param(
+        'stylepong_recording', 'recorder', ('--ros-args', '-p', 'flush_period_s:=-0.1'), 'flush_period_s', id='recorder'
+    ),
+    pytest.param(
+        'stylepong_fdcc',
+        'recorder',
+        ('--ros-args', '-p', 'flush_period_s:=-0.1'),
+        'flush_period_s',
+        id='recorder-compatibility-name',
+    ),
 ]
 
 
 @pytest.mark.parametrize('package, executable, args, name', CASES)
-def test_a_bad_parameter_stops_the_program_at_once_with_one_line_and_exit_code_2(ros_env, package, executable,
-                                                                                   args, name):
+def test_a_bad_parameter_stops_the_program_at_once_with_one_line_and_exit_code_2(
+    ros_env, package, executable, args, name
+):
     try:
-        result = subprocess.run(['ros2', 'run', package, executable, *args], capture_output=True, text=True,
-                                env=ros_env, timeout=PROMPT_EXIT_S)
+        result = subprocess.run(
+            ['ros2', 'run', package, executable, *args],
+            capture_output=True,
+            text=True,
+            env=ros_env,
+            timeout=PROMPT_EXIT_S,
+        )
     except subprocess.TimeoutExpired as expired:
         pytest.fail(f'{executable} still running {PROMPT_EXIT_S:.0f} s after a bad {name}: {expired.stderr!r}')
     lines = result.stderr.strip().splitlines()

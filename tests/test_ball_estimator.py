@@ -10,6 +10,7 @@
     the next ball is tracked;
 (c) the player subscribes to the estimate, never to the ground truth.
 """
+
 import math
 import time
 
@@ -36,7 +37,8 @@ VELOCITY_TOLERANCE_M_S = 0.3
 def _tracker_params() -> dict:
     import yaml
     from ament_index_python.packages import get_package_share_directory
-    path = f"{get_package_share_directory('stylepong_sim')}/config/tracker_sensing.yaml"
+
+    path = f'{get_package_share_directory("stylepong_sim")}/config/tracker_sensing.yaml'
     with open(path) as file:
         return yaml.safe_load(file)['ur5_sim']['ros__parameters']
 
@@ -44,8 +46,13 @@ def _tracker_params() -> dict:
 @pytest.mark.slow
 def test_the_estimate_50_ms_after_the_bounce_is_within_0_3_m_s_for_95_percent_of_the_balls(module_ros_domain):
     # The truth at every physics step, so that each estimate has one at its stamp.
-    params = dict(_tracker_params(), real_time_factor=2.0, home_joint_positions_rad=list(PARKED), sensing_seed=7,
-                  ball_state_rate_hz=1000.0)
+    params = dict(
+        _tracker_params(),
+        real_time_factor=2.0,
+        home_joint_positions_rad=list(PARKED),
+        sensing_seed=7,
+        ball_state_rate_hz=1000.0,
+    )
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params=params).start()
     estimator = NodeProcess('stylepong_player', 'ball_estimator').start()
     probe = Ur5SimProbe()
@@ -59,7 +66,7 @@ def test_the_estimate_50_ms_after_the_bounce_is_within_0_3_m_s_for_95_percent_of
     try:
         assert probe.wait_for_sim(60.0), f'ur5_sim did not come up:\n{sim.output()}'
         assert probe.spin_until(lambda: probe.node.count_publishers('/ball/state') > 0, 30.0), estimator.output()
-        probe.spin_for(1.0)    # its /tf_static
+        probe.spin_for(1.0)  # its /tf_static
         errors = []
         for k in range(BALLS):
             probe.reset()
@@ -67,9 +74,10 @@ def test_the_estimate_50_ms_after_the_bounce_is_within_0_3_m_s_for_95_percent_of
             probe.balls.clear()
             estimates.clear()
             assert probe.launch(randomize=True, seed=5000 + k).success
-            assert probe.spin_until(lambda: any(e.type == referee.RALLY_END for e in probe.events), 30.0), \
+            assert probe.spin_until(lambda: any(e.type == referee.RALLY_END for e in probe.events), 30.0), (
                 f'no verdict for ball {k}:\n{sim.output()[-2000:]}'
-            probe.spin_for(0.1)    # the estimator's last messages
+            )
+            probe.spin_for(0.1)  # the estimator's last messages
             bounce_s = next(stamp_s(e.header.stamp) for e in probe.events if e.type == referee.BOUNCE_OWN_SIDE)
             truth = {round(b.stamp_s, 4): b.values[1] for b in probe.balls}
             after = [(t, v) for t, v in estimates if t >= bounce_s + AFTER_BOUNCE_S and round(t, 4) in truth]
@@ -77,8 +85,10 @@ def test_the_estimate_50_ms_after_the_bounce_is_within_0_3_m_s_for_95_percent_of
             t, v = after[0]
             errors.append(float(np.linalg.norm(v - truth[round(t, 4)])))
         errors = np.array(errors)
-        print(f'velocity error 50 ms after the bounce: p50 {np.median(errors):.3f}, p95 '
-              f'{np.percentile(errors, 95):.3f}, max {errors.max():.3f} m/s over {BALLS} balls')
+        print(
+            f'velocity error 50 ms after the bounce: p50 {np.median(errors):.3f}, p95 '
+            f'{np.percentile(errors, 95):.3f}, max {errors.max():.3f} m/s over {BALLS} balls'
+        )
         assert (errors <= VELOCITY_TOLERANCE_M_S).mean() >= 0.95, errors
     finally:
         probe.close()
@@ -96,6 +106,7 @@ class FakeTracker:
 
         from stylepong_description.robot_state import LinkTransform
         from stylepong_sim.nodes.robot_state_publisher_node import LATCHED_QOS, _to_message
+
         self.config = config
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
@@ -151,24 +162,27 @@ def test_bad_detections_never_reach_the_player_the_estimator_says_why_and_the_ne
     estimator = NodeProcess('stylepong_player', 'ball_estimator', env=ros_env).start()
     rig = FakeTracker(TrackerConfig())
     try:
-        assert wait_until(lambda: rig.node.count_subscribers('/ball/detection') > 0, 30.0,
-                          spin=lambda: rig.executor.spin_once(timeout_sec=0.05)), estimator.output()
-        rig.spin_for(0.5)     # /tf_static reaches it
+        assert wait_until(
+            lambda: rig.node.count_subscribers('/ball/detection') > 0,
+            30.0,
+            spin=lambda: rig.executor.spin_once(timeout_sec=0.05),
+        ), estimator.output()
+        rig.spin_for(0.5)  # /tf_static reaches it
         first = _flight((1.2, 0.1, 1.0), (-5.5, -0.2, 0.3), 60, start_s=10.0)
         truth = {round(t, 6): (p, v) for t, p, v in first}
         for k, (t, p, _) in enumerate(first):
             rig.detect(t, p)
             if k == 20:
-                rig.detect(t + 0.0001, (math.nan, 0.0, 1.0))             # NaN
-                rig.detect(t + 0.0002, (math.inf, 0.0, 1.0))             # infinite
-                rig.detect(t + 0.0003, (40.0, 0.0, 1.0))                 # far away
-                rig.detect(t + 0.0004, (-2.5, 0.0, 1.0))                 # behind the robot
+                rig.detect(t + 0.0001, (math.nan, 0.0, 1.0))  # NaN
+                rig.detect(t + 0.0002, (math.inf, 0.0, 1.0))  # infinite
+                rig.detect(t + 0.0003, (40.0, 0.0, 1.0))  # far away
+                rig.detect(t + 0.0004, (-2.5, 0.0, 1.0))  # behind the robot
             if k == 25:
-                rig.detect(t, p + np.array([0.0, 0.6, 0.2]))             # teleporting
+                rig.detect(t, p + np.array([0.0, 0.6, 0.2]))  # teleporting
             if 30 <= k < 40:
-                rig.detect(t, (0.9 - 0.02 * k, -0.5, 1.1))              # a second ball beside the first
+                rig.detect(t, (0.9 - 0.02 * k, -0.5, 1.1))  # a second ball beside the first
             if k == 45:
-                rig.detect(t, p, frame='some_camera')                     # a frame nobody published
+                rig.detect(t, p, frame='some_camera')  # a frame nobody published
         # The tracker stops for 0.5 s, then a new ball comes.
         second = _flight((1.0, -0.3, 1.1), (-6.0, 0.3, 0.0), 30, start_s=first[-1][0] + 0.5)
         truth.update({round(t, 6): (p, v) for t, p, v in second})
@@ -181,15 +195,20 @@ def test_bad_detections_never_reach_the_player_the_estimator_says_why_and_the_ne
         estimator.stop()
     stamps = [t for t, _, _ in rig.states]
     assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
-    for t, p, v in rig.states:    # every published state is the ball's, where it was
+    for t, p, v in rig.states:  # every published state is the ball's, where it was
         true_p, true_v = truth[round(t, 6)]
         assert np.linalg.norm(p - true_p) < 0.01 and np.linalg.norm(v - true_v) < 1.0, (t, p, true_p)
     published = {round(t, 6) for t in stamps}
     assert sum(round(t, 6) in published for t, _, _ in first) >= 50
-    assert sum(round(t, 6) in published for t, _, _ in second) >= 25      # the next ball, once confirmed
+    assert sum(round(t, 6) in published for t, _, _ in second) >= 25  # the next ball, once confirmed
     assert min(t for t in published if t >= second[0][0]) == round(second[3][0], 6)
-    for why in ('NaN or inf', 'outside the play volume', 'behind the robot', 'sigma from the ball',
-                "no transform from 'some_camera'"):
+    for why in (
+        'NaN or inf',
+        'outside the play volume',
+        'behind the robot',
+        'sigma from the ball',
+        "no transform from 'some_camera'",
+    ):
         assert why in log, f'{why!r} not said:\n{log}'
 
 
@@ -199,11 +218,13 @@ def test_the_player_reads_the_estimate_never_the_ground_truth(ros_env):
     rclpy.init(context=context)
     node = rclpy.create_node('graph_probe', context=context)
     try:
+
         def topics():
             try:
                 return {name for name, _ in node.get_subscriber_names_and_types_by_node('player', '/')}
             except Exception:  # noqa: BLE001 - the node is not discovered yet
                 return set()
+
         assert wait_until(lambda: '/ball/state' in topics(), 60.0), player.output()
         assert not any('ground_truth' in name or name.startswith('/sim/') for name in topics()), topics()
     finally:

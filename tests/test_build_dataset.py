@@ -3,6 +3,7 @@ of docs/ACCEPTANCE.md).
 
 Expected values come from the motions the test wrote or from rosbags' own reader, never from the tool.
 """
+
 import math
 import os
 import pathlib
@@ -20,15 +21,21 @@ from stylepong_recording.joint_state_bags import (
 )
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-INTEROP_ARG = '../shared/interop-bags'   # as the README spells it, relative to the repository
+INTEROP_ARG = '../shared/interop-bags'  # as the README spells it, relative to the repository
 INTEROP = (ROOT / INTEROP_ARG).resolve()
 TOOLPATH = 'ur3e-hw-sqlite3-v5-toolpath'
 needs_interop = pytest.mark.skipif(not INTEROP.is_dir(), reason=f'{INTEROP} is absent')
 
 
 def build_dataset(*args, env=None) -> subprocess.CompletedProcess:
-    result = subprocess.run(['ros2', 'run', 'stylepong_policy', 'build_dataset', *map(str, args)], cwd=ROOT,
-                            env=env, capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        ['ros2', 'run', 'stylepong_policy', 'build_dataset', *map(str, args)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert 'Traceback' not in result.stdout + result.stderr, result.stdout + result.stderr
     return result
 
@@ -83,8 +90,8 @@ def test_a_driver_style_recording_from_another_writer_gives_the_true_motion(tmp_
     assert data['label'].tolist() == ['rightward'] * 4
     t, q, qd = clip(data, 0)
     q_true, qd_true = swing(t - truth.stamps_ns[0] / 1e9)
-    assert np.abs(np.diff(q, axis=0)).max() < 0.1   # continuous: no 2 pi jump in wrist_3
-    assert q[:, 5].max() > math.pi + 0.5             # and it does turn past pi
+    assert np.abs(np.diff(q, axis=0)).max() < 0.1  # continuous: no 2 pi jump in wrist_3
+    assert q[:, 5].max() > math.pi + 0.5  # and it does turn past pi
     assert np.abs(q - q_true).max() < 1e-3
     assert np.abs(qd - qd_true).max() < 0.1
     assert_augmented_exactly(data)
@@ -94,8 +101,9 @@ def test_a_folder_with_good_bags_and_a_truncated_mcap(tmp_path, ros_env):
     swing = Swing()
     folder = tmp_path / 'bags'
     write_recorder_bag(folder / 'forward_20251121_101112_123', swing, swing.total_s, label='forward')
-    write_recorder_bag(folder / 'leftward_20251121_101200_004', swing, swing.total_s, label='leftward',
-                       storage='sqlite3')
+    write_recorder_bag(
+        folder / 'leftward_20251121_101200_004', swing, swing.total_s, label='leftward', storage='sqlite3'
+    )
     broken = folder / 'rightward_20251121_101300_000'
     write_recorder_bag(broken, swing, swing.total_s, label='rightward')
     (mcap,) = broken.glob('*.mcap')

@@ -9,6 +9,7 @@ fails here instead of in a reader's shell.
 No ROS graph and no node: each executable's parser is captured the moment its `main` asks it to parse,
 in one child process (`python3 -m tests.test_documented_commands`), so nothing after the parsing runs.
 """
+
 import argparse
 import ast
 import importlib
@@ -22,8 +23,13 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / 'README.md', ROOT / 'docs/DESIGN.md', *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md')),
-             ROOT / 'tools' / 'README.md', ROOT / 'demonstrations' / 'README.md']
+DOCUMENTS = [
+    ROOT / 'README.md',
+    ROOT / 'docs/DESIGN.md',
+    *sorted((ROOT / 'ros2_ws' / 'src').glob('*/README.md')),
+    ROOT / 'tools' / 'README.md',
+    ROOT / 'demonstrations' / 'README.md',
+]
 
 FENCE = re.compile(r'^```[^\n]*\n(.*?)^```', re.M | re.S)
 INLINE = re.compile(r'`([^`]+)`')
@@ -54,14 +60,20 @@ def documented_runs() -> list[tuple[str, str, str, tuple[str, ...]]]:
             for match in re.finditer(r'\bros2 run (.*)', snippet):
                 words = shell_part(match.group(1)).split()
                 if len(words) < 2 or words[0].startswith(('<', '-', '[')):
-                    continue   # the generic form `ros2 run <package> <executable>`, or ros2 run's own options
+                    continue  # the generic form `ros2 run <package> <executable>`, or ros2 run's own options
                 package, executable, rest = words[0], words[1], words[2:]
                 if '--ros-args' in rest:
-                    rest = rest[:rest.index('--ros-args')]
+                    rest = rest[: rest.index('--ros-args')]
                 # `[--speedup 2]` shows an optional flag; `--flag=value` is the flag.
                 flags = [word.strip('[]').split('=')[0] for word in rest]
-                runs.append((str(document.relative_to(ROOT)), package, executable,
-                             tuple(f for f in flags if SHORT_OR_LONG_FLAG.match(f))))
+                runs.append(
+                    (
+                        str(document.relative_to(ROOT)),
+                        package,
+                        executable,
+                        tuple(f for f in flags if SHORT_OR_LONG_FLAG.match(f)),
+                    )
+                )
     return runs
 
 
@@ -145,8 +157,10 @@ def test_the_documents_show_commands():
 @pytest.mark.parametrize('document, package, executable', sorted({(d, p, e) for d, p, e, _ in RUNS}))
 def test_documented_executable_is_a_console_script(document, package, executable):
     scripts = console_scripts(package)
-    assert executable in scripts, (f'{document} shows `ros2 run {package} {executable}`, but '
-                                   f'ros2_ws/src/{package}/setup.py registers {sorted(scripts)}')
+    assert executable in scripts, (
+        f'{document} shows `ros2 run {package} {executable}`, but '
+        f'ros2_ws/src/{package}/setup.py registers {sorted(scripts)}'
+    )
 
 
 @pytest.fixture(scope='module')
@@ -154,8 +168,13 @@ def accepted_flags() -> dict[str, list[str] | None]:
     """{'package executable': flags} for the executables shown with flags, from one child process."""
     wanted = sorted({(p, e) for _, p, e, flags in RUNS if flags and e in console_scripts(p)})
     request = {f'{p} {e}': console_scripts(p)[e] for p, e in wanted}
-    result = subprocess.run([sys.executable, '-m', 'tests.test_documented_commands', json.dumps(request)],
-                            cwd=ROOT, capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [sys.executable, '-m', 'tests.test_documented_commands', json.dumps(request)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout.strip().splitlines()[-1])
 
@@ -167,8 +186,10 @@ def test_documented_flags_are_accepted(document, package, executable, flags, acc
     accepted = accepted_flags[f'{package} {executable}']
     assert accepted is not None, f'{package} {executable} takes no flags, yet {document} shows {flags}'
     unknown = [flag for flag in flags if flag not in accepted]
-    assert not unknown, (f'{document}: `ros2 run {package} {executable}` shows {unknown}, which it does not '
-                         f'accept (it accepts {accepted})')
+    assert not unknown, (
+        f'{document}: `ros2 run {package} {executable}` shows {unknown}, which it does not '
+        f'accept (it accepts {accepted})'
+    )
 
 
 @pytest.mark.parametrize('document, target', sorted(set(documented_make_targets())))
@@ -180,8 +201,10 @@ def test_documented_make_target_exists(document, target):
 def heading_anchors(document: pathlib.Path) -> set[str]:
     """The anchors GitHub gives a document's headings: lower case, punctuation dropped, spaces to '-'."""
     prose = FENCE.sub('', document.read_text())
-    return {re.sub(r'[^\w\- ]', '', heading.strip().lower()).replace(' ', '-')
-            for heading in re.findall(r'^#+\s+(.*)$', prose, re.M)}
+    return {
+        re.sub(r'[^\w\- ]', '', heading.strip().lower()).replace(' ', '-')
+        for heading in re.findall(r'^#+\s+(.*)$', prose, re.M)
+    }
 
 
 LINKED_DOCUMENTS = sorted({*DOCUMENTS, ROOT / 'experiments' / 'README.md', ROOT / 'results' / 'README.md'})
@@ -207,8 +230,11 @@ def test_every_config_file_is_named_in_its_readme(package):
     # A parameter file nobody mentions is one nobody finds: each YAML under config/ appears in the package's
     # README by its path inside config/ (`ppo.yaml`, `styles/compact.yaml`).
     readme = (package / 'README.md').read_text()
-    unnamed = [str(path.relative_to(package / 'config')) for path in sorted((package / 'config').rglob('*.yaml'))
-               if str(path.relative_to(package / 'config')) not in readme]
+    unnamed = [
+        str(path.relative_to(package / 'config'))
+        for path in sorted((package / 'config').rglob('*.yaml'))
+        if str(path.relative_to(package / 'config')) not in readme
+    ]
     assert not unnamed, f'{package.name}/README.md does not name config/{unnamed}'
 
 

@@ -2,6 +2,7 @@
 both with their defaults, driven and watched through their topics (the first three drag_teach checks of
 docs/ACCEPTANCE.md), then its services (enable, tare) and, with stiffness, a target pose
 on ~/target_pose."""
+
 import math
 import subprocess
 import sys
@@ -23,7 +24,7 @@ from stylepong_common.node_process import NodeProcess, wait_until
 from stylepong_description import robot_model
 from stylepong_sim.teaching.teacher import CellKinematics
 
-CONTROL_RATE_HZ = 500.0          # drag_teach's default
+CONTROL_RATE_HZ = 500.0  # drag_teach's default
 LIMITS = robot_model.joint_limits()
 KIN = CellKinematics()
 TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
@@ -51,7 +52,7 @@ class CellProbe:
         while self.context.ok():
             try:
                 self.executor.spin_once(timeout_sec=0.05)
-            except Exception:   # noqa: BLE001 - shutting down
+            except Exception:  # noqa: BLE001 - shutting down
                 return
 
     def _on_joints(self, msg: JointState):
@@ -148,13 +149,15 @@ def test_a_10_n_push_along_x_moves_the_tool_along_x_and_it_stays_where_it_was_le
     left_at = tool_position(recent[-1][1])
     displacement = left_at - before
     distance = float(np.linalg.norm(displacement))
-    print(f'a 10 N push for 1 s moved the tool {distance * 100:.1f} cm, '
-          f'direction {np.round(displacement / distance, 4)}')
+    print(
+        f'a 10 N push for 1 s moved the tool {distance * 100:.1f} cm, direction {np.round(displacement / distance, 4)}'
+    )
     # About 0.3 m (stylepong_fdcc.fdcc_solver: 0.29-0.33 m): the push's impulse over the default damping,
     # 10 N s / 30 N s/m = 0.333 m, less what the cell's transport delays take (measured here: 0.295 m).
     impulse_over_damping_m = 10.0 * 1.0 / 30.0
-    assert 0.8 * impulse_over_damping_m <= distance <= 1.05 * impulse_over_damping_m, \
+    assert 0.8 * impulse_over_damping_m <= distance <= 1.05 * impulse_over_damping_m, (
         f'the tool moved {distance * 100:.1f} cm, not about {impulse_over_damping_m * 100:.0f} cm'
+    )
     assert displacement[0] / distance >= 0.9, f'the tool moved along {displacement / distance}'
     time.sleep(3.0)
     after = probe.joints_between(recent[-1][0], time.monotonic())
@@ -205,12 +208,13 @@ def test_a_flood_of_nan_inf_and_huge_wrenches_never_makes_a_bad_command(cell):
     assert drag.running()
     # Keeps publishing: commands all through the flood (rates on this shared 2-core machine vary too
     # much under a flood to ask for 500 Hz here; the benchmark measures the rate).
-    assert len(commands) > 0.1 * CONTROL_RATE_HZ * (end - start), \
+    assert len(commands) > 0.1 * CONTROL_RATE_HZ * (end - start), (
         f'only {len(commands)} commands in {end - start:.1f} s'
+    )
     assert np.max(np.diff(np.concatenate([[start], times, [end]]))) < 1.0, 'drag_teach stopped publishing'
     assert np.all(np.isfinite(q))
     assert np.all(q >= LIMITS.lower_rad) and np.all(q <= LIMITS.upper_rad)
-    implied_speed = np.abs(np.diff(q, axis=0)) * CONTROL_RATE_HZ   # per control period
+    implied_speed = np.abs(np.diff(q, axis=0)) * CONTROL_RATE_HZ  # per control period
     assert np.all(implied_speed <= 1.1 * LIMITS.velocity_rad_s), implied_speed.max(axis=0)
     # Still there afterwards, and it said why it ignored those wrenches.
     count = len(probe.commands_between(0.0, time.monotonic()))
@@ -231,7 +235,7 @@ def test_disabled_it_publishes_nothing_enabled_it_resumes_where_the_arm_is_and_i
         return future.result()
 
     assert call(enable, SetBool.Request(data=False)).success
-    time.sleep(0.3)                                    # commands already on their way
+    time.sleep(0.3)  # commands already on their way
     quiet_from = time.monotonic()
     time.sleep(1.0)
     assert not probe.commands_between(quiet_from, time.monotonic()), 'commands while disabled'
@@ -239,7 +243,7 @@ def test_disabled_it_publishes_nothing_enabled_it_resumes_where_the_arm_is_and_i
     assert call(enable, SetBool.Request(data=True)).success
     assert wait_until(lambda: len(probe.commands_between(quiet_from + 1.0, time.monotonic())) > 20, 5.0)
     first = probe.commands_between(quiet_from + 1.0, time.monotonic())[0][1]
-    assert np.max(np.abs(first - held)) < 1e-3         # re-synchronised with the arm: no jump
+    assert np.max(np.abs(first - held)) < 1e-3  # re-synchronised with the arm: no jump
     response = call(tare, Trigger.Request())
     assert response.success and 'bias force' in response.message
 
@@ -252,7 +256,7 @@ def test_with_stiffness_it_is_a_compliance_controller_around_the_target_pose(ros
     try:
         assert wait_until(probe.commanding, 60.0), drag.output()[-2000:]
         time.sleep(0.5)
-        start = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))      # tool0 in base_link
+        start = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))  # tool0 in base_link
         target = start.translation + np.array([0.05, -0.03, 0.04])
         publisher = probe.node.create_publisher(PoseStamped, '/drag_teach/target_pose', 10)
         msg = PoseStamped()
@@ -273,6 +277,7 @@ def test_with_stiffness_it_is_a_compliance_controller_around_the_target_pose(ros
                 last_sent[0] = time.monotonic()
             reached = KIN.base.actInv(KIN.pose(probe.latest_q(), TOOL))
             return np.linalg.norm(reached.translation - target) < 0.005
+
         assert wait_until(at_target, 10.0), 'the tool never reached the target pose'
     finally:
         probe.close()

@@ -7,6 +7,7 @@ module-level assignment, class or function definition of one of the names below 
 or when a module-level constant outside the home spells out one of the shared values themselves. Where the
 facts live and why: docs/DESIGN.md, "One source of truth".
 """
+
 from __future__ import annotations
 
 import ast
@@ -25,8 +26,18 @@ EXIT_CODES = SRC + 'stylepong_common/stylepong_common/exit_codes.py'
 NODE_SUPPORT = SRC + 'stylepong_common/stylepong_common/node_support.py'
 
 # The rally events: stylepong_msgs/msg/RallyEvent.msg defines them; the referee binds them for Python.
-EVENT_CODES = ('LAUNCHED', 'BOUNCE_OWN_SIDE', 'PADDLE_HIT', 'BOUNCE_OPPONENT_SIDE', 'NET', 'ROBOT_CONTACT',
-               'TABLE_CONTACT_BY_ROBOT', 'OUT', 'TIMEOUT', 'RALLY_END')
+EVENT_CODES = (
+    'LAUNCHED',
+    'BOUNCE_OWN_SIDE',
+    'PADDLE_HIT',
+    'BOUNCE_OPPONENT_SIDE',
+    'NET',
+    'ROBOT_CONTACT',
+    'TABLE_CONTACT_BY_ROBOT',
+    'OUT',
+    'TIMEOUT',
+    'RALLY_END',
+)
 
 # name -> the one file that may define it.
 HOMES = {
@@ -122,7 +133,7 @@ def literal(value: ast.expr | None):
         result = tuple(result)
     try:
         hash(result)
-    except TypeError:       # a tuple holding a list or a dict: no shared value looks like that
+    except TypeError:  # a tuple holding a list or a dict: no shared value looks like that
         return None
     return result
 
@@ -165,7 +176,8 @@ def test_the_event_codes_are_the_messages():
     for name in EVENT_CODES:
         value = bound[name]
         assert isinstance(value, ast.Attribute) and value.attr == name, (
-            f'{REFEREE}: {name} must be read from stylepong_msgs RallyEvent.{name}, not written out')
+            f'{REFEREE}: {name} must be read from stylepong_msgs RallyEvent.{name}, not written out'
+        )
 
 
 def test_no_shared_fact_is_defined_twice():
@@ -173,15 +185,18 @@ def test_no_shared_fact_is_defined_twice():
     assert not problems, 'a shared fact defined outside its home:\n' + '\n'.join(problems)
 
 
-@pytest.mark.parametrize('source, expected', [
-    ("FRAME_WORLD = 'world'\n", 'copy.py:3: defines FRAME_WORLD'),
-    ("class JointLimits:\n    pass\n", 'copy.py:3: defines JointLimits'),
-    ("if True:\n    EXIT_CONFIG_ERROR = 2\n", 'copy.py:4: defines EXIT_CONFIG_ERROR'),
-    ("ORDER = ['forward', 'leftward', 'rightward']\n", 'copy.py:3: ORDER spells out STROKE_LABELS'),
-    ("CAMERA_PARENT = 'world'\n", 'copy.py:3: CAMERA_PARENT spells out FRAME_WORLD'),
-    ("DIRECTIONS = ('forward', 'leftward', 'rightward')\n", 'copy.py:3: defines DIRECTIONS'),
-    ("RALLY_END = 9\n", 'copy.py:3: RALLY_END = 9 copies a rally event code'),
-])
+@pytest.mark.parametrize(
+    'source, expected',
+    [
+        ("FRAME_WORLD = 'world'\n", 'copy.py:3: defines FRAME_WORLD'),
+        ('class JointLimits:\n    pass\n', 'copy.py:3: defines JointLimits'),
+        ('if True:\n    EXIT_CONFIG_ERROR = 2\n', 'copy.py:4: defines EXIT_CONFIG_ERROR'),
+        ("ORDER = ['forward', 'leftward', 'rightward']\n", 'copy.py:3: ORDER spells out STROKE_LABELS'),
+        ("CAMERA_PARENT = 'world'\n", 'copy.py:3: CAMERA_PARENT spells out FRAME_WORLD'),
+        ("DIRECTIONS = ('forward', 'leftward', 'rightward')\n", 'copy.py:3: defines DIRECTIONS'),
+        ('RALLY_END = 9\n', 'copy.py:3: RALLY_END = 9 copies a rally event code'),
+    ],
+)
 def test_a_copy_is_found_and_named(tmp_path, source, expected):
     """The check itself: a copy in a file of the tree is reported with its file and line."""
     copy = tmp_path / 'copy.py'
@@ -192,7 +207,9 @@ def test_a_copy_is_found_and_named(tmp_path, source, expected):
 
 def test_an_import_is_no_copy(tmp_path):
     copy = tmp_path / 'user.py'
-    copy.write_text('from stylepong_description.robot_cell import FRAME_WORLD, STROKE_LABELS as DIRECTIONS\n'
-                    'NET = "net"\n'
-                    'def frame():\n    FRAME_WORLD = "world"\n    return FRAME_WORLD\n')
+    copy.write_text(
+        'from stylepong_description.robot_cell import FRAME_WORLD, STROKE_LABELS as DIRECTIONS\n'
+        'NET = "net"\n'
+        'def frame():\n    FRAME_WORLD = "world"\n    return FRAME_WORLD\n'
+    )
     assert second_definitions([copy], root=tmp_path) == []

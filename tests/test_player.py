@@ -7,6 +7,7 @@
     with one line on stderr and a non-zero exit;
 (c) ur5_sim + ball_estimator + player + rally_eval for two balls give a result JSON.
 """
+
 from __future__ import annotations
 
 import json
@@ -43,6 +44,7 @@ STAMP_SLACK_S = 0.005
 class Command(NamedTuple):
     """A command as the rig saw it: when it arrived (monotonic clock), when the player published it (the
     middleware's source timestamp, system clock) and its six joint positions."""
+
     received_s: float
     published_s: float
     q: list[float]
@@ -60,10 +62,10 @@ class FuzzRig:
         qos = QoSProfile(depth=1000)
         self.commands: list[Command] = []
         self.status: dict | None = None
-        self.node.create_subscription(Float64MultiArray, '/forward_position_controller/commands',
-                                      self._on_command, qos)
-        self.node.create_subscription(String, '/player/status', lambda m: setattr(self, 'status', json.loads(m.data)),
-                                      qos)
+        self.node.create_subscription(Float64MultiArray, '/forward_position_controller/commands', self._on_command, qos)
+        self.node.create_subscription(
+            String, '/player/status', lambda m: setattr(self, 'status', json.loads(m.data)), qos
+        )
         self.joint_pub = self.node.create_publisher(JointState, '/joint_states', qos)
         self.ball_pub = self.node.create_publisher(BallState, '/ball/state', qos)
         self.enable_pub = self.node.create_publisher(Bool, '/player/enable', qos)
@@ -108,8 +110,14 @@ class FuzzRig:
         rclpy.shutdown(context=self.context)
 
 
-def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: bool, ball_rate_hz: float = 120.0,
-               joint_rate_hz: float = 500.0) -> None:
+def run_stream(
+    rig: FuzzRig,
+    duration_s: float,
+    rng: np.random.Generator,
+    fuzz: bool,
+    ball_rate_hz: float = 120.0,
+    joint_rate_hz: float = 500.0,
+) -> None:
     """Joint states and balls at their rates for duration_s; with fuzz, a share of them are garbage."""
     start = time.monotonic()
     next_joint = next_ball = start
@@ -125,11 +133,11 @@ def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: 
             elif r < 0.08:
                 rig.joints(velocities=[math.inf, 0, 0, 0, 0, 0])
             elif r < 0.11:
-                rig.joints(positions=rig.q[:4])                          # wrong length
+                rig.joints(positions=rig.q[:4])  # wrong length
             elif r < 0.13:
                 rig.joints(names=NAMES[:5], positions=rig.q[:5], velocities=np.zeros(5))
             elif r < 0.16:
-                rig.joints(positions=rig.q + rng.normal(0.0, 2.0, 6))     # a jump of radians
+                rig.joints(positions=rig.q + rng.normal(0.0, 2.0, 6))  # a jump of radians
             else:
                 rig.joints()
         if now >= next_ball:
@@ -145,9 +153,9 @@ def run_stream(rig: FuzzRig, duration_s: float, rng: np.random.Generator, fuzz: 
             elif r < 0.11:
                 rig.ball(ball_p, ball_v, frame='base_link')
             elif r < 0.15:
-                rig.ball(ball_p + rng.normal(0.0, 3.0, 3), ball_v)          # a jump of metres
+                rig.ball(ball_p + rng.normal(0.0, 3.0, 3), ball_v)  # a jump of metres
             elif r < 0.17:
-                rig.ball(ball_p, ball_v, age_s=5.0)                         # a stale stamp
+                rig.ball(ball_p, ball_v, age_s=5.0)  # a stale stamp
             else:
                 rig.ball(ball_p, ball_v)
         rig.spin()
@@ -169,7 +177,7 @@ def check_commands(commands: list[Command], limits: player_core.JointLimits) -> 
     Publish times, not arrival times, since on a loaded machine commands published apart can arrive together.
     (The acceleration limit on the 60 Hz commands is the limiter's, tested in test_player_core.py.)"""
     windows = 0
-    i = 0              # the window's first command: the earliest within 3 periods, after the last gap
+    i = 0  # the window's first command: the earliest within 3 periods, after the last gap
     for k, command in enumerate(commands):
         q = np.asarray(command.q)
         assert q.shape == (6,) and np.isfinite(q).all(), command.q
@@ -190,15 +198,17 @@ def test_the_command_check_judges_windows_by_publish_time():
     """The fuzz test's check: a step too fast between commands published one period apart fails it, even
     when they arrive far apart; the same step after a gap in publishing (a restart) does not, even when
     the two arrive together."""
-    limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
-                                                  player_core.PlayerConfig().acceleration_limit_rad_s2)
+    limits = player_core.JointLimits.for_commands(
+        player_core.PlayerConfig().position_margin_rad, 1.0, player_core.PlayerConfig().acceleration_limit_rad_s2
+    )
     too_fast = HOME + 1.5 * limits.velocity_rad_s * 2 * PERIOD_S
     with pytest.raises(AssertionError):
         check_commands([Command(0.0, 0.0, list(HOME)), Command(0.5, 2 * PERIOD_S, list(too_fast))], limits)
     assert check_commands([Command(0.0, 0.0, list(HOME)), Command(0.001, 4 * PERIOD_S, list(too_fast))], limits) == 0
     # A point a period ahead of the limit, with steps within it around it, fails a longer window.
-    ahead = [Command(0.0, t * PERIOD_S, list(HOME + limits.velocity_rad_s * (t + (t >= 1)) * PERIOD_S))
-             for t in range(3)]
+    ahead = [
+        Command(0.0, t * PERIOD_S, list(HOME + limits.velocity_rad_s * (t + (t >= 1)) * PERIOD_S)) for t in range(3)
+    ]
     with pytest.raises(AssertionError):
         check_commands(ahead, limits)
 
@@ -226,13 +236,17 @@ def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
             run_stream(rig, 1.0, rng, fuzz=False)
             rig.spin(0.5)
             assert player.running(), player.output()
-            limits = player_core.JointLimits.for_commands(player_core.PlayerConfig().position_margin_rad, 1.0,
-                                                          player_core.PlayerConfig().acceleration_limit_rad_s2)
+            limits = player_core.JointLimits.for_commands(
+                player_core.PlayerConfig().position_margin_rad,
+                1.0,
+                player_core.PlayerConfig().acceleration_limit_rad_s2,
+            )
             windows = check_commands(rig.commands, limits)
             assert windows > 300, windows
             status = rig.status
-            assert (status['rejected'].get('ball_not_finite', 0) > 0
-                    and status['rejected'].get('joint_not_finite', 0) > 0)
+            assert (
+                status['rejected'].get('ball_not_finite', 0) > 0 and status['rejected'].get('joint_not_finite', 0) > 0
+            )
             assert status['rejected'].get('joint_length', 0) > 0 and status['rejected'].get('ball_frame', 0) > 0
             assert status['counts'].get('policy_steps', 0) > 100
             print(f'{len(rig.commands)} commands, {windows} windows checked; rejected {status["rejected"]}')
@@ -258,13 +272,21 @@ def _mismatched_actor(tmp_path: pathlib.Path, key: str, value) -> pathlib.Path:
 
 
 def _run_player(*params: str, timeout_s: float = 45.0) -> subprocess.CompletedProcess:
-    return subprocess.run(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', *params],
-                          capture_output=True, text=True, timeout=timeout_s)
+    return subprocess.run(
+        ['ros2', 'run', 'stylepong_player', 'player', '--ros-args', *params],
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+    )
 
 
-@pytest.mark.parametrize('key, value', [('spec_version', spec.SPEC_VERSION + 1),
-                                        ('joint_names', ['joint_a', 'joint_b', 'joint_c', 'joint_d', 'joint_e',
-                                                         'joint_f'])])
+@pytest.mark.parametrize(
+    'key, value',
+    [
+        ('spec_version', spec.SPEC_VERSION + 1),
+        ('joint_names', ['joint_a', 'joint_b', 'joint_c', 'joint_d', 'joint_e', 'joint_f']),
+    ],
+)
 @pytest.mark.parametrize('backend', ['onnx', 'torchscript'])
 def test_a_mismatched_actor_is_refused_at_start(ros_env, tmp_path, key, value, backend):
     actor = _mismatched_actor(tmp_path, key, value)
@@ -274,9 +296,15 @@ def test_a_mismatched_actor_is_refused_at_start(ros_env, tmp_path, key, value, b
     assert len(lines) == 1 and lines[0].startswith('player: ') and key in lines[0], result.stderr
 
 
-@pytest.mark.parametrize('param, words', [('backend:=tensorrt', 'backend'), ('ball_timeout_s:=-1.0', 'ball_timeout_s'),
-                                          ('acceleration_limit_rad_s2:=[1.0,2.0]', 'acceleration_limit_rad_s2'),
-                                          ('goal_xy_m:=[-0.5,0.0]', "opponent's half")])
+@pytest.mark.parametrize(
+    'param, words',
+    [
+        ('backend:=tensorrt', 'backend'),
+        ('ball_timeout_s:=-1.0', 'ball_timeout_s'),
+        ('acceleration_limit_rad_s2:=[1.0,2.0]', 'acceleration_limit_rad_s2'),
+        ('goal_xy_m:=[-0.5,0.0]', "opponent's half"),
+    ],
+)
 def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
     result = _run_player('-p', param)
     assert result.returncode == EXIT_CONFIG_ERROR
@@ -284,14 +312,33 @@ def test_a_bad_parameter_is_refused_with_exit_code_2(ros_env, param, words):
     assert len(lines) == 1 and words in lines[0], result.stderr
 
 
-@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_player_and_rally_eval_return_balls_in_ur5_sim(ros_env, tmp_path):
     out = tmp_path / 'rally.json'
-    with NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim, \
-            NodeProcess('stylepong_player', 'ball_estimator'), \
-            NodeProcess('stylepong_policy', 'player', params={'use_sim_time': True}) as player:
-        result = subprocess.run(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', '2', '--first-seed', '900',
-                                 '--seeds', '1', '--json', str(out)], capture_output=True, text=True, timeout=50)
+    with (
+        NodeProcess('stylepong_sim', 'ur5_sim', params={'max_lag_s': 0.01}) as sim,
+        NodeProcess('stylepong_player', 'ball_estimator'),
+        NodeProcess('stylepong_policy', 'player', params={'use_sim_time': True}) as player,
+    ):
+        result = subprocess.run(
+            [
+                'ros2',
+                'run',
+                'stylepong_sim',
+                'rally_eval',
+                '--balls',
+                '2',
+                '--first-seed',
+                '900',
+                '--seeds',
+                '1',
+                '--json',
+                str(out),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=50,
+        )
         assert result.returncode == 0, result.stderr + sim.output() + player.output()
     summary = json.loads(out.read_text())
     for key in ('success_rate', 'success_rate_std', 'per_seed', 'hit_rate', 'failures', 'balls', 'seeds'):

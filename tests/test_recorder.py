@@ -5,6 +5,7 @@ joint_state_broadcaster and ur5_sim offer), each message named by a unique heade
 when it published which; then it reads the bag back with rosbags and with the mcap + mcap-ros2-support
 readers and compares stamps.
 """
+
 import random
 import shutil
 import signal
@@ -45,8 +46,9 @@ class JointStatePublisher:
     """Publishes JointState at RATE_HZ from a thread; records (stamp_ns, monotonic publish time)."""
 
     def __init__(self, node: Node):
-        self._pub = node.create_publisher(JointState, JOINT_STATES,
-                                          QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self._pub = node.create_publisher(
+            JointState, JOINT_STATES, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        )
         self.published: list[tuple[int, float]] = []
         self._lock = threading.Lock()
         self._running = True
@@ -117,8 +119,9 @@ class Harness:
         return publisher, response, time.monotonic()
 
     def wait_for_subscriber(self, recorder: NodeProcess, timeout_s=30.0):
-        assert wait_until(lambda: self.node.count_subscribers(JOINT_STATES) > 0 or not recorder.running(),
-                          timeout_s), 'the recorder never subscribed to /joint_states'
+        assert wait_until(lambda: self.node.count_subscribers(JOINT_STATES) > 0 or not recorder.running(), timeout_s), (
+            'the recorder never subscribed to /joint_states'
+        )
         assert recorder.running(), recorder.output()
 
 
@@ -188,8 +191,7 @@ def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path
 
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
-def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_the_kill(harness, tmp_path,
-                                                                                        storage):
+def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_the_kill(harness, tmp_path, storage):
     recorder = start_recorder(tmp_path / 'bags', storage=storage)
     try:
         publisher, response, started_s = harness.begin_clip(recorder, 'leftward')
@@ -203,10 +205,11 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_th
     finally:
         recorder.stop()
     bag_dir = Path(response.bag_path)
-    assert not (bag_dir / 'metadata.yaml').exists()     # the kill really left an unfinished bag
+    assert not (bag_dir / 'metadata.yaml').exists()  # the kill really left an unfinished bag
 
-    result = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        ['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert 'recovered' in result.stdout
 
@@ -217,9 +220,11 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_th
     missing = [s for s in must_have if s not in recorded]
     published = publisher.published_between(started_s, killed_s)
     first_lost_s = next((t for stamp, t in published if stamp not in recorded), killed_s)
-    print(f'{storage}: {len(recorded)} joint states recovered; {len(missing)} of the {len(must_have)} '
-          f'published up to {FLUSH_PERIOD_S + DELIVERY_S:.2f} s before the kill are missing; '
-          f'lost: what was published in the last {killed_s - first_lost_s:.3f} s')
+    print(
+        f'{storage}: {len(recorded)} joint states recovered; {len(missing)} of the {len(must_have)} '
+        f'published up to {FLUSH_PERIOD_S + DELIVERY_S:.2f} s before the kill are missing; '
+        f'lost: what was published in the last {killed_s - first_lost_s:.3f} s'
+    )
     assert len(must_have) > 2.0 * RATE_HZ
     assert not missing
     if storage == 'mcap':
@@ -230,8 +235,9 @@ def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_th
         assert sql.custom_data == {'label': 'leftward'}
         assert_published_payloads(joint_states)
 
-    again = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)],
-                           capture_output=True, text=True, timeout=120)
+    again = subprocess.run(
+        ['ros2', 'run', 'stylepong_recording', 'recover_bag', str(bag_dir)], capture_output=True, text=True, timeout=120
+    )
     assert again.returncode == 0 and 'healthy, left unchanged' in again.stdout, again.stdout + again.stderr
 
 
@@ -261,16 +267,32 @@ def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(h
     a_file.write_text('not a directory')
     recorder = start_recorder(tmp_path / 'bags')
     # Two more recorders in their own namespaces: one whose output_dir cannot exist, one on a "full" disk.
-    unwritable = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-r', '__ns:=/unwritable',
-                             params={'output_dir': str(a_file / 'bags')}).start()
-    full = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-r', '__ns:=/full',
-                       params={'output_dir': str(tmp_path / 'full'), 'min_free_space_mb': 1e9}).start()
+    unwritable = NodeProcess(
+        'stylepong_recording',
+        'recorder',
+        '--ros-args',
+        '-r',
+        '__ns:=/unwritable',
+        params={'output_dir': str(a_file / 'bags')},
+    ).start()
+    full = NodeProcess(
+        'stylepong_recording',
+        'recorder',
+        '--ros-args',
+        '-r',
+        '__ns:=/full',
+        params={'output_dir': str(tmp_path / 'full'), 'min_free_space_mb': 1e9},
+    ).start()
     try:
         harness.wait_for_subscriber(recorder)
         stop = harness.stop()
         assert not stop.success and 'not recording' in stop.message
-        for label, reason in [('', 'empty'), ('../escape', 'path separator'), ('a/b', 'path separator'),
-                              ('.hidden', 'starts with')]:
+        for label, reason in [
+            ('', 'empty'),
+            ('../escape', 'path separator'),
+            ('a/b', 'path separator'),
+            ('.hidden', 'starts with'),
+        ]:
             response = harness.start(label)
             assert not response.success and reason in response.message, response.message
 
@@ -297,8 +319,14 @@ def test_bad_requests_are_refused_with_the_reason_and_the_node_keeps_recording(h
 def test_best_effort_publishers_and_extra_topics_of_project_types_are_recorded(harness, tmp_path):
     """A sensor-QoS /joint_states (a reliable reader would never match it) and a /ball/state of the
     project's own message type, listed in `topics` and published only after the recorder started."""
-    recorder = NodeProcess('stylepong_recording', 'recorder', '--ros-args', '-p', 'topics:=[/ball/state]',
-                           params={'output_dir': str(tmp_path / 'bags')}).start()
+    recorder = NodeProcess(
+        'stylepong_recording',
+        'recorder',
+        '--ros-args',
+        '-p',
+        'topics:=[/ball/state]',
+        params={'output_dir': str(tmp_path / 'bags')},
+    ).start()
     node = harness.node
     try:
         harness.wait_for_subscriber(recorder)
@@ -307,14 +335,18 @@ def test_best_effort_publishers_and_extra_topics_of_project_types_are_recorded(h
 
         def recorder_adapted():
             infos = node.get_subscriptions_info_by_topic(JOINT_STATES)
-            return (node.count_subscribers('/ball/state') > 0 and len(infos) == 1
-                    and infos[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT)
+            return (
+                node.count_subscribers('/ball/state') > 0
+                and len(infos) == 1
+                and infos[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+            )
+
         assert wait_until(recorder_adapted, 30.0), recorder.output()
         time.sleep(0.3)
         response = harness.start('forward')
         assert response.success, response.message
         published = []
-        for i in range(1, 301):                       # 1.5 s: joint states at 200 Hz, balls at 100 Hz
+        for i in range(1, 301):  # 1.5 s: joint states at 200 Hz, balls at 100 Hz
             msg = JointState(name=list(JOINT_NAMES), position=[i * 1e-3] * 6)
             msg.header.stamp.sec, msg.header.stamp.nanosec = 7, i
             joints.publish(msg)
@@ -350,8 +382,9 @@ def tiny_disk(tmp_path):
     """A 256 KiB file system (tmpfs), where a 500 Hz clip fills the disk within about a second."""
     mount_point = tmp_path / 'tiny_disk'
     mount_point.mkdir()
-    mounted = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=256k', 'tmpfs', str(mount_point)],
-                             capture_output=True, text=True)
+    mounted = subprocess.run(
+        ['mount', '-t', 'tmpfs', '-o', 'size=256k', 'tmpfs', str(mount_point)], capture_output=True, text=True
+    )
     if mounted.returncode != 0:
         pytest.skip(f'cannot mount a small tmpfs here (needs root): {mounted.stderr.strip()}')
     yield mount_point
@@ -380,8 +413,9 @@ def test_a_full_disk_stops_the_clip_with_the_reason_and_the_node_keeps_running(h
         recorder.stop()
     # What reached the disk is kept; recovering needs room for a copy, so move the bag off the tiny disk.
     rescued = shutil.copytree(bag_dir, tiny_disk.parent / bag_dir.name)
-    result = subprocess.run(['ros2', 'run', 'stylepong_recording', 'recover_bag', str(rescued)],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        ['ros2', 'run', 'stylepong_recording', 'recover_bag', str(rescued)], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     content = read_with_rosbags(rescued)
     assert content.custom_data == {'label': 'forward'} and len(content.stamps[JOINT_STATES]) > 100

@@ -8,6 +8,7 @@ discovered. These tests check that decision on synthetic GIDs, the wait itself w
 faked (it must outlast a quiet graph that is still incomplete), and the reader against a node running in
 another process (the GIDs it names must be those the graph reports, byte for byte).
 """
+
 import subprocess
 import sys
 import time
@@ -22,6 +23,7 @@ from stylepong_common.node_process import wait_until
 def helper():
     """The helper's module, as tools/ros2 runs it."""
     from stylepong_ros2cli import helper
+
     return helper
 
 
@@ -42,11 +44,15 @@ CELL_READERS = {_gid(CELL, entity, 0x04) for entity in (5, 24, 25)}
 
 
 def _info(participant: int, readers: set, writers: set) -> ParticipantEntitiesInfo:
-    node = NodeEntitiesInfo(node_namespace='/', node_name='ur5_sim',
-                            reader_gid_seq=[Gid(data=list(g)) for g in sorted(readers)],
-                            writer_gid_seq=[Gid(data=list(g)) for g in sorted(writers)])
-    return ParticipantEntitiesInfo(gid=Gid(data=list(_prefix(participant) + b'\x00\x00\x01\xc1')),
-                                   node_entities_info_seq=[node])
+    node = NodeEntitiesInfo(
+        node_namespace='/',
+        node_name='ur5_sim',
+        reader_gid_seq=[Gid(data=list(g)) for g in sorted(readers)],
+        writer_gid_seq=[Gid(data=list(g)) for g in sorted(writers)],
+    )
+    return ParticipantEntitiesInfo(
+        gid=Gid(data=list(_prefix(participant) + b'\x00\x00\x01\xc1')), node_entities_info_seq=[node]
+    )
 
 
 def test_a_participant_is_undiscovered_until_every_endpoint_its_info_names_is_discovered(helper):
@@ -120,7 +126,7 @@ def test_the_wait_gives_up_on_an_incomplete_graph_after_the_hard_cap(helper, ros
 
 
 # A node in another process, with a publisher, a subscription and a service.
-PROBE_NODE = '''
+PROBE_NODE = """
 import rclpy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
@@ -131,7 +137,7 @@ node.create_subscription(String, 'probe_in', lambda _msg: None, 10)
 node.create_service(Trigger, 'probe_service', lambda _request, response: response)
 print('ready', flush=True)
 rclpy.spin(node)
-'''
+"""
 
 
 @pytest.fixture
@@ -149,7 +155,7 @@ def test_the_reader_gets_the_info_of_a_node_in_another_process(helper, probe_nod
     rclpy, node = helper._start_node('_ros2_helper_reader_test')
     reader = helper._open_discovery_info_reader(node)
     try:
-        assert reader is not None   # rmw reached through ctypes
+        assert reader is not None  # rmw reached through ctypes
         infos = {}
 
         def spin():
@@ -172,8 +178,9 @@ def test_the_reader_gets_the_info_of_a_node_in_another_process(helper, probe_nod
 
         def complete():
             endpoints, discovery_info_writers = helper._discovered_endpoints(node)
-            return (probe_prefix in {g[:12] for g in discovery_info_writers}
-                    and not helper._undiscovered_participants(discovery_info_writers, named_by_prefix, endpoints))
+            return probe_prefix in {g[:12] for g in discovery_info_writers} and not helper._undiscovered_participants(
+                discovery_info_writers, named_by_prefix, endpoints
+            )
 
         assert wait_until(complete, 30.0, spin=spin)
         # Its publisher, subscription, service and parameter services: request readers and reply writers too.
@@ -199,8 +206,9 @@ def test_an_error_after_a_stop_signal_ends_the_verb_quietly(helper, monkeypatch)
     # SIGTERM while rclpy converts a received message surfaces as pybind11's RuntimeError, not _Stopped.
     def interrupted(_argv):
         raise RuntimeError('Unable to convert call argument')
+
     monkeypatch.setattr(helper, '_stop_signal', None)
-    with pytest.raises(RuntimeError):                 # without a stop signal, an error is an error
+    with pytest.raises(RuntimeError):  # without a stop signal, an error is an error
         helper._run_graph_verb(interrupted, [])
     monkeypatch.setattr(helper, '_stop_signal', 'SIGTERM')
     assert helper._run_graph_verb(interrupted, []) == 0

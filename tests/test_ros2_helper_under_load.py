@@ -8,6 +8,7 @@ own /parameter_events. These tests start the cell, load every core with a busy l
 and `hz` stopped by `timeout` (SIGTERM) or Ctrl-C (SIGINT) end without a traceback. About 30 s: each
 `topic list` waits for discovery to settle (at least its --spin-time, 3.5 s).
 """
+
 import os
 import signal
 import subprocess
@@ -19,9 +20,15 @@ import pytest
 from stylepong_common.node_process import NodeProcess, wait_until
 
 # The cell's own topics (docs/DESIGN.md, "Topics").
-CELL_TOPICS = {'/joint_states', '/force_torque_sensor_broadcaster/wrench', '/clock', '/rally/events',
-               '/forward_position_controller/commands', '/sim/hand_wrench'}
-LIST_RUNS = 4     # each a fresh participant discovering the cell on busy cores
+CELL_TOPICS = {
+    '/joint_states',
+    '/force_torque_sensor_broadcaster/wrench',
+    '/clock',
+    '/rally/events',
+    '/forward_position_controller/commands',
+    '/sim/hand_wrench',
+}
+LIST_RUNS = 4  # each a fresh participant discovering the cell on busy cores
 
 
 @pytest.fixture(scope='module')
@@ -31,8 +38,7 @@ def loaded_cell(module_ros_domain):
     try:
         assert wait_until(lambda: 'UR5 cell ready' in sim.output() or not sim.running(), 60.0), sim.output()
         assert sim.running(), sim.output()
-        busy = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
-                for _ in range(os.cpu_count() or 2)]
+        busy = [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(os.cpu_count() or 2)]
         time.sleep(1.0)
         yield sim
     finally:
@@ -46,7 +52,7 @@ def _ros2(*args: str) -> subprocess.Popen:
     return subprocess.Popen(['ros2', *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_topic_list_shows_the_cells_topics_every_time(loaded_cell):
     # One at a time, as a user types them (several new participants at once discover each other faster).
     failures, durations = [], []
@@ -66,15 +72,17 @@ ECHO = ('topic', 'echo', '/clock')
 HZ = ('topic', 'hz', '/joint_states')
 
 
-@pytest.mark.parametrize('command, stop', [(ECHO, 'timeout_3s'), (HZ, 'timeout_3s'),
-                                           (ECHO, 'sigterm_while_discovering'), (HZ, 'sigint_while_printing')],
-                         ids=['echo-timeout_3s', 'hz-timeout_3s', 'echo-sigterm_early', 'hz-sigint'])
+@pytest.mark.parametrize(
+    'command, stop',
+    [(ECHO, 'timeout_3s'), (HZ, 'timeout_3s'), (ECHO, 'sigterm_while_discovering'), (HZ, 'sigint_while_printing')],
+    ids=['echo-timeout_3s', 'hz-timeout_3s', 'echo-sigterm_early', 'hz-sigint'],
+)
 def test_echo_and_hz_stop_quietly(loaded_cell, command, stop):
     if stop == 'timeout_3s':
         # What a user types; timeout sends SIGTERM after 3 s.
         run = subprocess.run(['timeout', '3', 'ros2', *command], capture_output=True, text=True, timeout=30)
         out, err, returncode = run.stdout, run.stderr, run.returncode
-        assert returncode == 124, (returncode, err)   # timeout's status: the helper itself was stopped
+        assert returncode == 124, (returncode, err)  # timeout's status: the helper itself was stopped
     else:
         run = _ros2(*command)
         if stop == 'sigterm_while_discovering':

@@ -1,5 +1,6 @@
 """ship_run (stylepong_policy.shipping.ship_run): what it copies into models/ and the summary it writes
 (no training, no evaluation)."""
+
 import json
 import lzma
 import pathlib
@@ -13,8 +14,14 @@ from stylepong_policy.shipping import ship_run
 
 PROGRESS = 'iteration,success_rate\n1,0.25\n2,0.5\n'
 # A chart's pixels as train leaves them: RGBA, more colours than a palette holds.
-CURVE = np.dstack([np.arange(48 * 64).reshape(48, 64) % 251, np.arange(48 * 64).reshape(48, 64) // 251,
-                   np.full((48, 64), 7), np.full((48, 64), 255)]).astype(np.uint8)
+CURVE = np.dstack(
+    [
+        np.arange(48 * 64).reshape(48, 64) % 251,
+        np.arange(48 * 64).reshape(48, 64) // 251,
+        np.full((48, 64), 7),
+        np.full((48, 64), 255),
+    ]
+).astype(np.uint8)
 
 
 @pytest.fixture
@@ -39,8 +46,16 @@ def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, 
     models.mkdir()
     written = ship_run.ship(run_dir, 'ppo', models)
     assert {p.name for p in written} == {
-        'ppo_actor.pt', 'ppo_actor.json', 'ppo_actor.onnx', 'ppo_config.yaml', 'ppo_progress.csv.xz',
-        'ppo_learning_curve.png', 'ppo_validation.csv', 'ppo_validation_curve.png', 'ppo_summary.json'}
+        'ppo_actor.pt',
+        'ppo_actor.json',
+        'ppo_actor.onnx',
+        'ppo_config.yaml',
+        'ppo_progress.csv.xz',
+        'ppo_learning_curve.png',
+        'ppo_validation.csv',
+        'ppo_validation_curve.png',
+        'ppo_summary.json',
+    }
     assert (models / 'ppo_validation.csv').read_text() == 'contents of validation.csv'
     assert (models / 'ppo_actor.onnx').read_text() == 'actor .onnx'
     # The training log shipped compressed, read as it was; shipping it again gives the same bytes (no time in it).
@@ -56,8 +71,9 @@ def test_ship_copies_the_run_and_merges_the_selection_into_the_summary(run_dir, 
     assert summary['iterations'] == 1700 and summary['seed'] == 1
     assert summary['selection'] == {'iteration': 1650, 'val_success_all': 0.95}
     # Every file the summary names lies beside it.
-    named = [summary[key] for key in ('actor', 'config', 'progress', 'learning_curve', 'validation',
-                                      'validation_curve')]
+    named = [
+        summary[key] for key in ('actor', 'config', 'progress', 'learning_curve', 'validation', 'validation_curve')
+    ]
     assert all((models / name).is_file() for name in named)
 
 
@@ -74,6 +90,7 @@ def test_evaluations_call_run_evaluation_and_record_the_command_that_repeats_the
     """evaluate_shipped evaluates in this process (no `ros2 run`): one run_evaluation per protocol entry,
     its summary written with the actor as the record names it and the `evaluate` command line."""
     from stylepong_policy.evaluation import evaluate
+
     calls = []
 
     def fake_run_evaluation(actor, **arguments):
@@ -87,5 +104,7 @@ def test_evaluations_call_run_evaluation_and_record_the_command_that_repeats_the
     record = json.loads((tmp_path / 'ppo_eval_high.json').read_text())
     # Outside the repository only the file name is kept: no folder of this machine in a shipped record.
     assert record['actor'] == 'ppo_actor.pt'
-    assert record['command'] == ('ros2 run stylepong_policy evaluate --actor ppo_actor.pt --seeds 10 --first-seed 2000 '
-                                 '--balls 200 --speed high --json ppo_eval_high.json')
+    assert record['command'] == (
+        'ros2 run stylepong_policy evaluate --actor ppo_actor.pt --seeds 10 --first-seed 2000 '
+        '--balls 200 --speed high --json ppo_eval_high.json'
+    )

@@ -1,6 +1,7 @@
 """ship_skill (stylepong_policy.shipping.ship_skill): a learn_style run's network into the skill library, with
 the demonstrations behind it (through the runs it started from) and how its config differed from the recipe
 (no training)."""
+
 import json
 import pathlib
 
@@ -18,17 +19,26 @@ from stylepong_policy.training.train import default_config_path
 def fake_run(run: pathlib.Path, start: pathlib.Path, swing_rad: float, config: dict) -> pathlib.Path:
     """A finished learn_style run as its files leave it: state, dataset (one forward clip), config, network."""
     from stylepong_description.robot_model import JOINT_NAMES
+
     t = np.arange(60) / 60.0
     q = np.zeros((60, 6)) + swing_rad * np.sin(np.pi * t)[:, None]
-    dataset = assemble_dataset([SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), 'forward', 'fake')],
-                               (2,), JOINT_NAMES, 60.0)
+    dataset = assemble_dataset(
+        [SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), 'forward', 'fake')], (2,), JOINT_NAMES, 60.0
+    )
     paths = learn_style.paths_of(run)
     paths.train.mkdir(parents=True)
     dataset.save(paths.dataset)
     (paths.train / 'config.yaml').write_text(yaml.safe_dump(config))
     torch.save({'model': {}, 'architecture': {}, 'optimizer': None}, paths.actor_checkpoint)
-    learn_style.write_state(paths, {'source': str(run / 'bags'), 'skill': str(start), 'command': 'learn_style ...',
-                                    'stages': {'train': {'iterations': 3}, 'export': {}}})
+    learn_style.write_state(
+        paths,
+        {
+            'source': str(run / 'bags'),
+            'skill': str(start),
+            'command': 'learn_style ...',
+            'stages': {'train': {'iterations': 3}, 'export': {}},
+        },
+    )
     return run
 
 

@@ -5,6 +5,7 @@ models/ppo_eval_all.json holds `evaluate`'s per-seed success rates of models/ppo
 compares: a change to the world, the task, the spec or the actor that changes what the actor does shows
 up here. A few seconds.
 """
+
 import json
 import pathlib
 import subprocess
@@ -22,9 +23,27 @@ def test_the_shipped_actor_scores_its_shipped_figure_on_seed_1000(tmp_path):
     assert shipped['balls_per_seed'] == BALLS and shipped['speed'] == 'all' and not shipped['randomize']
     expected = shipped['per_seed'][shipped['seeds'].index(SEED)]
     out = tmp_path / 'eval.json'
-    result = subprocess.run(['ros2', 'run', 'stylepong_policy', 'evaluate', '--actor', str(MODELS / 'ppo_actor.pt'),
-                             '--seeds', '1', '--first-seed', str(SEED), '--balls', str(BALLS), '--json', str(out)],
-                            capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [
+            'ros2',
+            'run',
+            'stylepong_policy',
+            'evaluate',
+            '--actor',
+            str(MODELS / 'ppo_actor.pt'),
+            '--seeds',
+            '1',
+            '--first-seed',
+            str(SEED),
+            '--balls',
+            str(BALLS),
+            '--json',
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     measured = json.loads(out.read_text())
     assert measured['seeds'] == [SEED] and measured['balls'] == BALLS

@@ -6,6 +6,7 @@ A style is learned from a distribution of takes, so two clips of one label must 
 are compared on normalised time (each clip resampled to the same number of frames from its first to its
 last), which aligns takes of different lengths; what is left is the difference in path and pacing.
 """
+
 import itertools
 import json
 import pathlib
@@ -37,8 +38,13 @@ SWING_SPEED_RAD_S = 0.5
 @pytest.fixture(scope='module')
 def shipped_path(tmp_path_factory) -> pathlib.Path:
     out = tmp_path_factory.mktemp('shipped') / 'dataset.npz'
-    result = subprocess.run(['ros2', 'run', 'stylepong_policy', 'build_dataset', str(BAGS), '-o', str(out)],
-                            cwd=ROOT, capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        ['ros2', 'run', 'stylepong_policy', 'build_dataset', str(BAGS), '-o', str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     return out
 
@@ -64,7 +70,7 @@ def longest_stall_s(qd: np.ndarray, rate_hz: float) -> float:
     swinging = np.flatnonzero(speed > SWING_SPEED_RAD_S)
     if len(swinging) == 0:
         return len(qd) / rate_hz
-    inside = speed[swinging[0]:swinging[-1] + 1] < REST_SPEED_RAD_S
+    inside = speed[swinging[0] : swinging[-1] + 1] < REST_SPEED_RAD_S
     longest = run = 0
     for frame_rests in inside:
         run = run + 1 if frame_rests else 0
@@ -92,9 +98,10 @@ def test_same_label_clips_are_not_near_copies(shipped):
         if shipped.label[a] != shipped.label[b]:
             continue
         difference = on_normalised_time(shipped.clip(a).q) - on_normalised_time(shipped.clip(b).q)
-        rms_rad = float(np.sqrt(np.mean(difference ** 2)))
-        assert rms_rad > MIN_SAME_LABEL_RMS_RAD, \
+        rms_rad = float(np.sqrt(np.mean(difference**2)))
+        assert rms_rad > MIN_SAME_LABEL_RMS_RAD, (
             f'{shipped.label[a]} clips {a} and {b} differ by only {rms_rad:.4f} rad RMS: near-copies'
+        )
 
 
 def bag_names(sources: np.ndarray) -> list[str]:

@@ -3,6 +3,7 @@ file): each is seven clips, 3 forward / 2 leftward / 2 rightward, joint states a
 publishes them, dragged slowly, and a style of its own: its clips are nearer one another than to the shipped
 clips (ros2_ws/bags) and to another set's, label by label (mean DTW, style_metrics).
 """
+
 import contextlib
 import io
 import itertools
@@ -43,8 +44,9 @@ def datasets(tmp_path_factory) -> dict[str, ReferenceDataset]:
 
 
 def _originals(dataset: ReferenceDataset, label: str | None = None) -> list[np.ndarray]:
-    return [dataset.clip(int(i)).q for i in dataset.select(labels=None if label is None else [label],
-                                                           speed_factors=[1])]
+    return [
+        dataset.clip(int(i)).q for i in dataset.select(labels=None if label is None else [label], speed_factors=[1])
+    ]
 
 
 def _mean_dtw_rad(a: list[np.ndarray], b: list[np.ndarray] | None = None) -> float:

@@ -1,5 +1,6 @@
 """`ros2 run stylepong_policy train` and `evaluate` end to end, as a user runs them (the checks of
 docs/ACCEPTANCE.md, for train and evaluate)."""
+
 import json
 import signal
 import subprocess
@@ -9,34 +10,74 @@ import pytest
 
 from stylepong_common.node_process import NodeProcess, wait_until
 
-TRAIN_LIMIT_S = 120.0   # the bound for `train --iterations 2 --num-envs 256` (docs/ACCEPTANCE.md)
+TRAIN_LIMIT_S = 120.0  # the bound for `train --iterations 2 --num-envs 256` (docs/ACCEPTANCE.md)
 
 
 def ros2_run(executable: str, *args: str, env: dict, timeout_s: float) -> subprocess.CompletedProcess:
-    return subprocess.run(['ros2', 'run', 'stylepong_policy', executable, *args], env=env, capture_output=True,
-                          text=True, timeout=timeout_s)
+    return subprocess.run(
+        ['ros2', 'run', 'stylepong_policy', executable, *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+    )
 
 
-@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_train_two_iterations_then_evaluate_and_resume(tmp_path, ros_env):
     run_dir = tmp_path / 'run'
     started = time.monotonic()
-    train = ros2_run('train', '--iterations', '2', '--num-envs', '256', '--out', str(run_dir), '--no-progress',
-                     env=ros_env, timeout_s=TRAIN_LIMIT_S + 60)
+    train = ros2_run(
+        'train',
+        '--iterations',
+        '2',
+        '--num-envs',
+        '256',
+        '--out',
+        str(run_dir),
+        '--no-progress',
+        env=ros_env,
+        timeout_s=TRAIN_LIMIT_S + 60,
+    )
     elapsed_s = time.monotonic() - started
     assert train.returncode == 0, train.stdout + train.stderr
     assert elapsed_s < TRAIN_LIMIT_S, f'train took {elapsed_s:.1f} s'
-    for name in ('ppo_actor.pt', 'ppo_actor.json', 'config.yaml', 'summary.json', 'learning_curve.png',
-                 'progress.csv', 'checkpoints/last.pt'):
+    for name in (
+        'ppo_actor.pt',
+        'ppo_actor.json',
+        'config.yaml',
+        'summary.json',
+        'learning_curve.png',
+        'progress.csv',
+        'checkpoints/last.pt',
+    ):
         assert (run_dir / name).is_file(), name
     summary = json.loads((run_dir / 'summary.json').read_text())
     assert summary['iterations'] == 2 and summary['samples'] == 2 * 24 * 256
     assert summary['wall_time_s'] > 0 and summary['devices'][0].startswith('cpu')
 
     out_json = tmp_path / 'eval.json'
-    evaluate = ros2_run('evaluate', '--actor', str(run_dir / 'ppo_actor.pt'), '--seeds', '2', '--first-seed', '1000',
-                        '--balls', '16', '--speed', 'high', '--json', str(out_json),
-                        '--video', str(tmp_path / 'strokes.mp4'), '--video-strokes', '1', env=ros_env, timeout_s=180)
+    evaluate = ros2_run(
+        'evaluate',
+        '--actor',
+        str(run_dir / 'ppo_actor.pt'),
+        '--seeds',
+        '2',
+        '--first-seed',
+        '1000',
+        '--balls',
+        '16',
+        '--speed',
+        'high',
+        '--json',
+        str(out_json),
+        '--video',
+        str(tmp_path / 'strokes.mp4'),
+        '--video-strokes',
+        '1',
+        env=ros_env,
+        timeout_s=180,
+    )
     assert evaluate.returncode == 0, evaluate.stdout + evaluate.stderr
     result = json.loads(out_json.read_text())
     assert result['seeds'] == [1000, 1001] and result['balls'] == 32 and len(result['per_seed']) == 2
@@ -47,8 +88,19 @@ def test_train_two_iterations_then_evaluate_and_resume(tmp_path, ros_env):
     assert result['video']['frames'] > 30 and (tmp_path / 'strokes.mp4').stat().st_size > 10_000
 
     # A second command continues the same run (its own config, from the last checkpoint) to 3 iterations.
-    resume = ros2_run('train', '--out', str(run_dir), '--resume', '--iterations', '3', '--num-envs', '256',
-                      '--no-progress', env=ros_env, timeout_s=TRAIN_LIMIT_S + 60)
+    resume = ros2_run(
+        'train',
+        '--out',
+        str(run_dir),
+        '--resume',
+        '--iterations',
+        '3',
+        '--num-envs',
+        '256',
+        '--no-progress',
+        env=ros_env,
+        timeout_s=TRAIN_LIMIT_S + 60,
+    )
     assert resume.returncode == 0, resume.stdout + resume.stderr
     assert 'resumed' in resume.stdout
     summary = json.loads((run_dir / 'summary.json').read_text())
@@ -75,8 +127,19 @@ def test_train_rejects_an_evaluation_seed(tmp_path, ros_env):
 
 def test_ctrl_c_saves_a_checkpoint_and_exports(tmp_path, ros_env):
     run_dir = tmp_path / 'run'
-    train = NodeProcess('stylepong_policy', 'train', '--iterations', '1000', '--num-envs', '64', '--out', str(run_dir),
-                        '--no-progress', '--no-tensorboard', env=ros_env).start()
+    train = NodeProcess(
+        'stylepong_policy',
+        'train',
+        '--iterations',
+        '1000',
+        '--num-envs',
+        '64',
+        '--out',
+        str(run_dir),
+        '--no-progress',
+        '--no-tensorboard',
+        env=ros_env,
+    ).start()
     try:
         assert wait_until(lambda: _iterations_logged(run_dir) >= 2, timeout_s=120, period_s=0.2), train.output()
         train.signal(signal.SIGINT)

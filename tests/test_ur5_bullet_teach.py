@@ -2,6 +2,7 @@
 `ros2 run`, as tools/record_demos.sh runs them on ur5_sim. The teacher's hand wrench reaches Bullet's arm
 through /sim/hand_wrench, drag_teach reads it from the cell's F/T topic and moves the arm, and the recorder
 writes the clip: it starts and ends at rest and the paddle passes the take's hitting point."""
+
 import numpy as np
 import pytest
 
@@ -11,15 +12,16 @@ from stylepong_sim.teaching.teacher import StrokePath, TeacherConfig, sample_var
 from tests.test_virtual_teacher import CENTRE, HOME_CENTRE, KIN, SEED, read_clip, tool_speeds
 
 
-@pytest.mark.slow   # 21 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # 21 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_the_teacher_records_a_stroke_on_the_pybullet_cell(ros_env, tmp_path):
     swing = 'forward'
     sim = NodeProcess('stylepong_sim', 'ur5_bullet', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
     recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
     try:
-        teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
-                              params={'swing': swing, 'seed': SEED, 'use_sim_time': True}).start()
+        teacher = NodeProcess(
+            'stylepong_sim', 'virtual_teacher', params={'swing': swing, 'seed': SEED, 'use_sim_time': True}
+        ).start()
         try:
             assert wait_until(lambda: not teacher.running(), 120.0), 'the teacher never finished'
         finally:

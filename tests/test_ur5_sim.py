@@ -4,6 +4,7 @@ One node serves the whole module (it starts in a few seconds; each test resets w
 the ur5_sim checks of docs/ACCEPTANCE.md, except the real_time_factor 0 one
 (test_ur5_sim_fast.py).
 """
+
 import math
 import signal
 
@@ -18,7 +19,7 @@ from stylepong_sim import world_spec
 from stylepong_sim.testing.ur5_sim_probe import Ur5SimProbe, stamp_s
 
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
-PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])   # turned away from the table
+PARKED = HOME + np.array([math.pi, 0.0, 0.0, 0.0, 0.0, 0.0])  # turned away from the table
 
 
 @pytest.fixture(scope='module')
@@ -41,8 +42,12 @@ def _move_and_settle(probe: Ur5SimProbe, target, timeout_s: float = 10.0) -> Non
 def test_joint_states_and_wrench_at_500_hz_and_a_clock(sim):
     node, probe = sim
     probe.spin_for(0.5)
-    start, n_joint, n_wrench, n_clock = probe.joint_states[-1].received_s, len(probe.joint_states), \
-        len(probe.wrenches), len(probe.clock)
+    start, n_joint, n_wrench, n_clock = (
+        probe.joint_states[-1].received_s,
+        len(probe.joint_states),
+        len(probe.wrenches),
+        len(probe.clock),
+    )
     probe.spin_for(4.0)
     window_s = probe.joint_states[-1].received_s - start
     joint_rate_hz = (len(probe.joint_states) - n_joint) / window_s
@@ -81,7 +86,7 @@ def test_a_03_rad_step_is_tracked_and_bad_commands_are_held_off(sim):
     probe.command([math.nan] * 6)
     probe.command([0.1] * 5)
     probe.command(list(target[:5]) + [math.inf])
-    probe.command(list(target[:5]) + [100.0])   # outside wrist_3's limits
+    probe.command(list(target[:5]) + [100.0])  # outside wrist_3's limits
     probe.spin_for(1.5)
     held = probe.joint_states[count:]
     assert len(held) > 300
@@ -107,6 +112,7 @@ def test_a_30_cm_drop_rebounds_to_an_ittf_height(sim):
 
 def _point(x, y, z):
     from geometry_msgs.msg import Point
+
     return Point(x=float(x), y=float(y), z=float(z))
 
 
@@ -132,8 +138,9 @@ def _events_of(probe: Ur5SimProbe, ball_id: int) -> list:
 def _first_bounce_and_apex(probe: Ur5SimProbe, ball_id: int):
     """The ball's first table bounce (event) and its centre at the top of the rebound (first /ball/state
     sample stamped after the bounce that no longer rises), or None while not yet seen."""
-    bounces = [e for e in _events_of(probe, ball_id)
-               if e.type in (RallyEvent.BOUNCE_OWN_SIDE, RallyEvent.BOUNCE_OPPONENT_SIDE)]
+    bounces = [
+        e for e in _events_of(probe, ball_id) if e.type in (RallyEvent.BOUNCE_OWN_SIDE, RallyEvent.BOUNCE_OPPONENT_SIDE)
+    ]
     if not bounces:
         return None
     bounce_s = stamp_s(bounces[0].header.stamp)
@@ -143,25 +150,29 @@ def _first_bounce_and_apex(probe: Ur5SimProbe, ball_id: int):
     return None
 
 
-@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_randomized_balls_need_every_stroke(sim):
     _, probe = sim
     probe.reset()
-    _move_and_settle(probe, PARKED)   # the arm out of the balls' way: the distribution alone is measured
+    _move_and_settle(probe, PARKED)  # the arm out of the balls' way: the distribution alone is measured
     speeds, lateral_m = [], []
     for seed in range(100, 116):
         response = probe.launch(randomize=True, seed=seed, speed_min=0.0, speed_max=0.0)
         assert response.success, response.message
-        speeds.append(math.sqrt(response.velocity.x ** 2 + response.velocity.y ** 2 + response.velocity.z ** 2))
-        assert probe.spin_until(lambda: _first_bounce_and_apex(probe, response.ball_id) is not None, 10.0), \
-            (seed, [(e.type, e.reason) for e in _events_of(probe, response.ball_id)])
+        speeds.append(math.sqrt(response.velocity.x**2 + response.velocity.y**2 + response.velocity.z**2))
+        assert probe.spin_until(lambda: _first_bounce_and_apex(probe, response.ball_id) is not None, 10.0), (
+            seed,
+            [(e.type, e.reason) for e in _events_of(probe, response.ball_id)],
+        )
         bounce, apex = _first_bounce_and_apex(probe, response.ball_id)
         assert bounce.type == RallyEvent.BOUNCE_OWN_SIDE, seed
         assert -world_spec.HALF_LENGTH_M <= bounce.position.x < 0.0, seed
         assert abs(bounce.position.y) <= world_spec.HALF_WIDTH_M, seed
         lateral_m.append(apex[1])
-    print(f'{len(speeds)} balls: speeds {min(speeds):.2f}-{max(speeds):.2f} m/s, apex y {min(lateral_m):.2f} to '
-          f'{max(lateral_m):.2f} m (span {max(lateral_m) - min(lateral_m):.2f} m)')
+    print(
+        f'{len(speeds)} balls: speeds {min(speeds):.2f}-{max(speeds):.2f} m/s, apex y {min(lateral_m):.2f} to '
+        f'{max(lateral_m):.2f} m (span {max(lateral_m) - min(lateral_m):.2f} m)'
+    )
     assert min(speeds) >= 4.0 and max(speeds) <= 6.6
     assert max(speeds) - min(speeds) >= 2.0
     assert max(lateral_m) - min(lateral_m) >= 0.8
@@ -173,8 +184,9 @@ def test_seed_7_against_a_motionless_arm_is_no_return(sim):
     probe.spin_for(0.3)
     response = probe.launch(randomize=True, seed=7)
     assert response.success, response.message
-    assert probe.spin_until(lambda: any(e.type == RallyEvent.RALLY_END for e in _events_of(probe, response.ball_id)),
-                            8.0)
+    assert probe.spin_until(
+        lambda: any(e.type == RallyEvent.RALLY_END for e in _events_of(probe, response.ball_id)), 8.0
+    )
     events = _events_of(probe, response.ball_id)
     assert [e.type for e in events] == [RallyEvent.LAUNCHED, RallyEvent.BOUNCE_OWN_SIDE, RallyEvent.RALLY_END]
     assert not events[-1].success and events[-1].reason
@@ -207,18 +219,20 @@ def test_a_10_n_push_in_world_x_shows_on_the_wrist_sensor_in_tool0(sim):
 
     pushing_from = len(probe.wrenches)
     joints_from = len(probe.joint_states)
-    for _ in range(60):   # a hand pushing for 0.6 s, refreshed well inside the 0.1 s timeout
+    for _ in range(60):  # a hand pushing for 0.6 s, refreshed well inside the 0.1 s timeout
         probe.push([10.0, 0.0, 0.0], frame='world')
         probe.spin_for(0.01)
     pushed = _mean_force(probe.wrenches[pushing_from:][-100:])
     change = pushed - baseline
-    print(f'10 N world +x: F/T change {np.round(change, 3)} N, expected {np.round(expected, 3)} N, '
-          f'error {np.linalg.norm(change - expected):.3f} N')
+    print(
+        f'10 N world +x: F/T change {np.round(change, 3)} N, expected {np.round(expected, 3)} N, '
+        f'error {np.linalg.norm(change - expected):.3f} N'
+    )
     assert np.linalg.norm(change - expected) <= 0.05 * 10.0, (change, expected)
     deflection = max(np.abs(s.values[0] - q_before).max() for s in probe.joint_states[joints_from:])
-    assert deflection < 0.01   # the arm holds its pose
+    assert deflection < 0.01  # the arm holds its pose
 
-    probe.spin_for(0.4)   # the hand let go: after 0.1 s its wrench is dropped
+    probe.spin_for(0.4)  # the hand let go: after 0.1 s its wrench is dropped
     released = _mean_force(probe.wrenches[-50:])
     assert np.linalg.norm(released - baseline) < 0.2
 

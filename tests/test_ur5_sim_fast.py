@@ -1,4 +1,5 @@
 """System tests of `ros2 run stylepong_sim ur5_sim` with non-default parameters: real_time_factor 0, video."""
+
 import imageio_ffmpeg
 
 from stylepong_common.node_process import NodeProcess
@@ -26,8 +27,13 @@ def test_real_time_factor_0_runs_faster_than_the_wall_clock(ros_env):
 
 def test_record_video_writes_a_playable_mp4(ros_env, tmp_path):
     path = tmp_path / 'cell.mp4'
-    params = {'real_time_factor': 0.0, 'record_video': str(path), 'video_fps': 25.0, 'video_width': 320,
-              'video_height': 240}
+    params = {
+        'real_time_factor': 0.0,
+        'record_video': str(path),
+        'video_fps': 25.0,
+        'video_width': 320,
+        'video_height': 240,
+    }
     with NodeProcess('stylepong_sim', 'ur5_sim', params=params) as node:
         probe = Ur5SimProbe()
         try:
@@ -36,7 +42,7 @@ def test_record_video_writes_a_playable_mp4(ros_env, tmp_path):
             assert probe.spin_until(lambda: probe.clock and probe.clock[-1].stamp_s > 3.0, 60.0)
         finally:
             probe.close()
-        assert node.stop(timeout_s=20.0) == 0   # Ctrl-C finishes the file
+        assert node.stop(timeout_s=20.0) == 0  # Ctrl-C finishes the file
     reader = imageio_ffmpeg.read_frames(str(path))
     meta = next(reader)
     assert meta['size'] == (320, 240)

@@ -1,5 +1,6 @@
 """System test of the ROS conventions the viewers (RViz, Foxglove, ours) rely on, with ur5_sim up:
 /robot_description (latched), /tf_static, /tf with the six joint transforms at >= 50 Hz, /cell/markers."""
+
 import os
 import subprocess
 import time
@@ -20,8 +21,9 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability
 def test_ur5_sim_publishes_description_static_and_joint_transforms(ros_env):
     with NodeProcess('stylepong_sim', 'ur5_sim') as sim:
         # The command a person types: the description arrives although it was published before they asked.
-        echo = subprocess.run(['ros2', 'topic', 'echo', '/robot_description', '--once'], capture_output=True,
-                              text=True, timeout=60)
+        echo = subprocess.run(
+            ['ros2', 'topic', 'echo', '/robot_description', '--once'], capture_output=True, text=True, timeout=60
+        )
         assert echo.returncode == 0 and '<robot name=\\"ur5_paddle\\">' in echo.stdout, echo.stdout[:500] + echo.stderr
         context = rclpy.Context()
         rclpy.init(context=context)
@@ -34,9 +36,10 @@ def test_ur5_sim_publishes_description_static_and_joint_transforms(ros_env):
         node.create_subscription(MarkerArray, '/cell/markers', got['markers'].append, LATCHED)
         node.create_subscription(TFMessage, '/tf', lambda m: got['tf'].append((time.monotonic(), m)), 100)
         try:
-            spin = lambda: executor.spin_once(timeout_sec=0.01)   # noqa: E731
-            assert wait_until(lambda: got['tf'] and got['static'] and got['description'] and got['markers'], 30.0,
-                              spin=spin), sim.output()
+            spin = lambda: executor.spin_once(timeout_sec=0.01)  # noqa: E731
+            assert wait_until(
+                lambda: got['tf'] and got['static'] and got['description'] and got['markers'], 30.0, spin=spin
+            ), sim.output()
             got['tf'].clear()
             window_end = time.monotonic() + 3.0
             while time.monotonic() < window_end:
@@ -55,7 +58,7 @@ def test_ur5_sim_publishes_description_static_and_joint_transforms(ros_env):
     stamps = [m.transforms[0].header.stamp.sec + m.transforms[0].header.stamp.nanosec * 1e-9 for _, m in complete]
     stamp_rate_hz = (len(stamps) - 1) / (stamps[-1] - stamps[0])
     wall_rate_hz = len(complete) / 3.0
-    print(f'/tf: {stamp_rate_hz:.1f} Hz of the cell\'s time, {wall_rate_hz:.1f} messages per wall second')
+    print(f"/tf: {stamp_rate_hz:.1f} Hz of the cell's time, {wall_rate_hz:.1f} messages per wall second")
     assert stamp_rate_hz >= 50.0
-    if os.getloadavg()[0] <= 2.0 * os.cpu_count():   # a saturated machine slows the whole simulation down
+    if os.getloadavg()[0] <= 2.0 * os.cpu_count():  # a saturated machine slows the whole simulation down
         assert wall_rate_hz >= 50.0

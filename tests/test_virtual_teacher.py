@@ -4,6 +4,7 @@ cell at a quarter of real time, drag_teach and the teacher on its clock, so that
 (at half of real time a loaded machine let the arm lag and catch up: a forward take peaked at 1.02 m/s, its
 recording 0.55).
 The recorded clip is checked against the take the teacher's seed gives (teacher.sample_variation)."""
+
 import pathlib
 
 import numpy as np
@@ -19,7 +20,7 @@ KIN = CellKinematics()
 CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
 TOOL = KIN.frame_id(robot_model.TOOL_FRAME)
 HOME_CENTRE = KIN.pose(np.array(world_spec.HOME_JOINT_POSITIONS_RAD), CENTRE).translation
-SEED = 0   # the node's default take
+SEED = 0  # the node's default take
 # The fastest take: the chain (teacher, drag_teach, cell, recorder) is the same for every swing, all three are
 # dragged through the FDCC without ROS in stylepong_fdcc's test_teacher_drags_fdcc.py, and test_teacher.py
 # tells them apart. Each take here costs the suite 18 s.
@@ -34,8 +35,13 @@ def read_clip(bag: pathlib.Path):
         for connection, _, raw in reader.messages(connections=connections):
             msg = reader.deserialize(raw, connection.msgtype)
             index = [list(msg.name).index(n) for n in robot_model.JOINT_NAMES]
-            rows.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-                         np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
+            rows.append(
+                (
+                    msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+                    np.asarray(msg.position)[index],
+                    np.asarray(msg.velocity)[index],
+                )
+            )
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
 
 
@@ -44,19 +50,19 @@ def tool_speeds(times_s: np.ndarray, q: np.ndarray, window_s: float = 0.02) -> n
     positions = np.array([KIN.pose(a, TOOL).translation for a in q])
     ahead = np.searchsorted(times_s, times_s + window_s)
     valid = ahead < len(times_s)
-    return (np.linalg.norm(positions[ahead[valid]] - positions[valid], axis=1)
-            / (times_s[ahead[valid]] - times_s[valid]))
+    return np.linalg.norm(positions[ahead[valid]] - positions[valid], axis=1) / (times_s[ahead[valid]] - times_s[valid])
 
 
-@pytest.mark.slow   # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
+@pytest.mark.slow  # over 20 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_the_teacher_drags_and_records_a_stroke(ros_env, tmp_path):
     sim = NodeProcess('stylepong_sim', 'ur5_sim', params={'real_time_factor': 0.25}).start()
     drag = NodeProcess('stylepong_fdcc', 'drag_teach', params={'use_sim_time': True}).start()
     recorder = NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(tmp_path)}).start()
     limits = robot_model.joint_limits()
     try:
-        teacher = NodeProcess('stylepong_sim', 'virtual_teacher',
-                              params={'swing': SWING, 'seed': SEED, 'use_sim_time': True}).start()
+        teacher = NodeProcess(
+            'stylepong_sim', 'virtual_teacher', params={'swing': SWING, 'seed': SEED, 'use_sim_time': True}
+        ).start()
         try:
             assert wait_until(lambda: not teacher.running(), 90.0), f'{SWING}: the teacher never finished'
         finally:

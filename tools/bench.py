@@ -4,6 +4,7 @@
 Each benchmark script measures one thing on this machine and prints a Markdown section (a `## ` title,
 what was run and how, the figures). A failing script is reported in the file, the others still run.
 """
+
 import argparse
 import datetime
 import os
@@ -25,8 +26,9 @@ def machine_summary() -> str:
                 break
     except OSError:
         pass
-    return (f'{os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, '
-            f'{platform.system()} {platform.release()}')
+    return (
+        f'{os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, {platform.system()} {platform.release()}'
+    )
 
 
 def title_of(section: str) -> str:
@@ -51,8 +53,12 @@ def main() -> int:
     """Run the benchmarks and write their sections to --out."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--out', default='BENCHMARKS.md')
-    parser.add_argument('only', nargs='*', help='run only benchmarks whose file name contains one of these; '
-                        'their sections replace those of the same title in --out, the others are kept')
+    parser.add_argument(
+        'only',
+        nargs='*',
+        help='run only benchmarks whose file name contains one of these; '
+        'their sections replace those of the same title in --out, the others are kept',
+    )
     args = parser.parse_args()
     scripts = sorted((ROOT / 'benchmarks').glob('*.py'))
     if args.only:
@@ -64,12 +70,15 @@ def main() -> int:
         if result.returncode == 0:
             sections.append(result.stdout.strip())
         else:
-            sections.append(f'## {script.stem}\n\nFAILED (exit {result.returncode}):\n\n```\n'
-                            f'{result.stderr.strip()[-2000:]}\n```')
+            sections.append(
+                f'## {script.stem}\n\nFAILED (exit {result.returncode}):\n\n```\n{result.stderr.strip()[-2000:]}\n```'
+            )
         print(sections[-1], flush=True)
     today = datetime.date.today().isoformat()
-    header = (f'# Benchmarks\n\nWritten by `make bench` on {today}: '
-              f'{machine_summary()}.\nEach section says what it ran; figures are from that single run.\n')
+    header = (
+        f'# Benchmarks\n\nWritten by `make bench` on {today}: '
+        f'{machine_summary()}.\nEach section says what it ran; figures are from that single run.\n'
+    )
     out = ROOT / args.out
     if args.only and out.is_file():
         # A partial run replaces its own sections and keeps the others, saying which were re-run when.

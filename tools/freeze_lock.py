@@ -6,6 +6,7 @@ egg-info of the inner package (action_msgs), which freeze lists as a second dist
 index serves. Only real installed distributions (.dist-info) are pinned; the torch local version
 suffix (+cpu) is dropped so `torch==2.13.0` picks the local CPU build.
 """
+
 import importlib.metadata
 import pathlib
 import sys
@@ -27,7 +28,7 @@ def main() -> int:
         if path is None or pathlib.Path(path).suffix != '.dist-info':
             continue
         name = dist.metadata['Name']
-        pins[name.lower()] = f"{name}=={dist.version.split('+')[0]}"
+        pins[name.lower()] = f'{name}=={dist.version.split("+")[0]}'
     sys.stdout.write(HEADER + ''.join(line + '\n' for _, line in sorted(pins.items())))
     return 0
 

@@ -9,6 +9,7 @@
    generate message packages ("includes non-existent path").
 Idempotent.
 """
+
 import pathlib
 import re
 import sys
@@ -41,9 +42,12 @@ def fix_cmake_exports(prefix: pathlib.Path) -> int:
     for path in prefix.glob('share/*/cmake/*__rosidl_generator_pyExport.cmake'):
         text = path.read_text()
         # The builder's paths: /opt/python/cp311-cp311/include/python3.11 and a numpy include below it.
-        new = re.sub(r'/opt/python/cp311-cp311/[^;"]*?/numpy/_core/include'
-                     r'|/opt/python/cp311-cp311/[^;"]*?/numpy/core/include',
-                     numpy_include, text)
+        new = re.sub(
+            r'/opt/python/cp311-cp311/[^;"]*?/numpy/_core/include'
+            r'|/opt/python/cp311-cp311/[^;"]*?/numpy/core/include',
+            numpy_include,
+            text,
+        )
         new = new.replace('/opt/python/cp311-cp311/include/python3.11', include_dir)
         if new != text:
             path.write_text(new)

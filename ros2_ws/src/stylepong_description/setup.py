@@ -20,7 +20,6 @@ setup(
     description='The one UR5 + table-tennis paddle model, loaded by Pinocchio and MuJoCo alike.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -18,7 +18,7 @@ setup(
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
     description='The trained actor on the robot: the observation/action contract, the exported actor checks, '
-                'the ball estimator and the 60 Hz player node, without torch or the simulator.',
+    'the ball estimator and the 60 Hz player node, without torch or the simulator.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -18,7 +18,7 @@ setup(
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
     description='Labelled demonstration clips from any joint-state source: the recorder node, crash-safe rosbag2 '
-                'writing, bag recovery and the bag layout readers share.',
+    'writing, bag recovery and the bag layout readers share.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

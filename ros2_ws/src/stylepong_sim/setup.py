@@ -18,8 +18,10 @@ setup(
     zip_safe=True,
     maintainer='StylePong developers',
     maintainer_email='dev@stylepong.org',
-    description=('MuJoCo UR5 table-tennis cell standing in for the hardware, world spec, referee, virtual teacher, '
-                 'batched training world.'),
+    description=(
+        'MuJoCo UR5 table-tennis cell standing in for the hardware, world spec, referee, virtual teacher, '
+        'batched training world.'
+    ),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

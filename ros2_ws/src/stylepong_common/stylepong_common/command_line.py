@@ -1,5 +1,6 @@
 """What the workspace's command-line tools share (no rclpy): how Ctrl-C ends them, their JSON summary and the
 command line a result records."""
+
 from __future__ import annotations
 
 import argparse
@@ -13,8 +14,12 @@ from typing import NoReturn
 from stylepong_common.exit_codes import EXIT_INTERRUPTED
 
 
-def exit_with_run(program: str, run: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None = None,
-                  on_interrupt: str = 'nothing written') -> NoReturn:
+def exit_with_run(
+    program: str,
+    run: Callable[[Sequence[str] | None], int],
+    argv: Sequence[str] | None = None,
+    on_interrupt: str = 'nothing written',
+) -> NoReturn:
     """Exit with `run(argv)`'s status; Ctrl-C exits with EXIT_INTERRUPTED and one line saying what was kept."""
     try:
         code = run(argv)

@@ -1,4 +1,5 @@
 """Markdown that the workspace's reports and benchmark sections write (no rclpy): tables of text cells."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence

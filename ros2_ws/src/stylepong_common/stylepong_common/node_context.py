@@ -7,6 +7,7 @@ default context between tests).
     with ros_context('-p', 'seed:=-1') as context, pytest.raises(ParameterError):
         VirtualTeacherNode(context=context)
 """
+
 from __future__ import annotations
 
 import contextlib

@@ -1,5 +1,6 @@
 """Start real nodes with `ros2 run` for system tests and benchmarks, and stop them the way a person would
 (Ctrl-C); what such runs need around them: a ROS domain of their own, free ports, a process's CPU time."""
+
 from __future__ import annotations
 
 import os
@@ -15,14 +16,18 @@ import time
 def isolated_ros_env() -> dict[str, str]:
     """This process's environment with a random ROS domain (1-101: DDS ports clear of Linux's ephemeral
     range) on the loopback only, so that a run never meets another graph; output unbuffered for logs."""
-    return dict(os.environ, ROS_DOMAIN_ID=str(random.randint(1, 101)), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-                PYTHONUNBUFFERED='1')
+    return dict(
+        os.environ,
+        ROS_DOMAIN_ID=str(random.randint(1, 101)),
+        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+        PYTHONUNBUFFERED='1',
+    )
 
 
 def start_logged(command: list[str], env: dict, log_path: pathlib.Path) -> subprocess.Popen:
     """`command` with its output in log_path, in a session of its own: a Ctrl-C sent to its group also
     reaches the node that `ros2 run` starts as its child."""
-    with open(log_path, 'w') as log:       # the child holds its own copy of the descriptor
+    with open(log_path, 'w') as log:  # the child holds its own copy of the descriptor
         return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
 
 
@@ -57,8 +62,7 @@ def free_port() -> int:
 class NodeProcess:
     """`ros2 run <package> <executable> [args]` as a child process with its output in a log file."""
 
-    def __init__(self, package: str, executable: str, *args: str, params: dict | None = None,
-                 env: dict | None = None):
+    def __init__(self, package: str, executable: str, *args: str, params: dict | None = None, env: dict | None = None):
         self.command = ['ros2', 'run', package, executable, *args]
         if params:
             self.command += ['--ros-args'] + [a for k, v in params.items() for a in ('-p', f'{k}:={_param(v)}')]

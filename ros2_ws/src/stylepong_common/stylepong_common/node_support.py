@@ -12,6 +12,7 @@ wrong length or a name not among its choices raises ParameterError with one line
 `run_node` turns that (and any error class the node adds) into that line on stderr and exit code 2, so a
 mistyped launch file fails loudly at start instead of running a robot with a half-understood setting.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,6 +50,7 @@ class Param:
     low/high bound numbers (and every element of a numeric list); length fixes a list's length;
     choices lists the strings a str parameter may take.
     """
+
     name: str
     default: ParameterValue
     description: str
@@ -61,8 +63,9 @@ class Param:
     def describe(self) -> str:
         text = self.description
         if self.low is not None or self.high is not None:
-            text += (f' [{self.low if self.low is not None else "-inf"}, '
-                     f'{self.high if self.high is not None else "inf"}]')
+            text += (
+                f' [{self.low if self.low is not None else "-inf"}, {self.high if self.high is not None else "inf"}]'
+            )
         if self.choices:
             text += f' (one of {", ".join(self.choices)})'
         return text
@@ -191,9 +194,13 @@ def one_line(error: BaseException) -> str:
     return ' '.join(str(error).split()) or type(error).__name__
 
 
-def run_node(program: str, make_node: Callable[[], Node], args: list[str] | None = None,
-             config_errors: tuple[type[BaseException], ...] = (),
-             make_executor: Callable[[], Executor] = EventsExecutor) -> int:
+def run_node(
+    program: str,
+    make_node: Callable[[], Node],
+    args: list[str] | None = None,
+    config_errors: tuple[type[BaseException], ...] = (),
+    make_executor: Callable[[], Executor] = EventsExecutor,
+) -> int:
     """Build the node and spin it until Ctrl-C or SIGTERM; returns the process exit code.
 
     A ParameterError, rclpy's parameter exceptions or any of `config_errors` raised while building the

@@ -1,6 +1,7 @@
 """A node's shipped parameter file (config/<node>.yaml) held against its parameter table (node_support.Param
 rows): what the nodes' tests check, so that the file a launch passes runs the node exactly as its defaults do.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -23,6 +24,9 @@ def differences_from_defaults(table: Sequence[Param], values: Mapping[str, Any])
     type); [] when they agree."""
     names = [row.name for row in table]
     if list(values) != names:
-        return [f'the names {list(values)} are not the table\'s {names}']
-    return [f'{row.name}: {values[row.name]!r} is not the default {row.default!r}' for row in table
-            if values[row.name] != row.default or type(values[row.name]) is not type(row.default)]
+        return [f"the names {list(values)} are not the table's {names}"]
+    return [
+        f'{row.name}: {values[row.name]!r} is not the default {row.default!r}'
+        for row in table
+        if values[row.name] != row.default or type(values[row.name]) is not type(row.default)
+    ]

@@ -12,6 +12,7 @@ A field made by positive, non_negative, at_least or within must hold a finite nu
 check_ranges reads the ranges back from the fields, so a setting is checked by being declared, and its
 rule stands beside its default instead of in a list elsewhere that a new setting could miss.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,14 +25,15 @@ _RANGE_KEY = 'stylepong_common.settings.range'
 @dataclasses.dataclass(frozen=True)
 class Range:
     """The values a setting may take: finite numbers from low to high, low itself only if low_included."""
+
     low: float
     low_included: bool
     high: float = math.inf
-    text: str = ''          # what check_ranges says the setting must be
+    text: str = ''  # what check_ranges says the setting must be
 
     def admits(self, value: Any) -> bool:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            return False   # a YAML typo ('1e-4' is a string to YAML 1.1) is refused here, not deep in training
+            return False  # a YAML typo ('1e-4' is a string to YAML 1.1) is refused here, not deep in training
         above_low = value > self.low or (self.low_included and value == self.low)
         return above_low and value <= self.high
 

@@ -1,4 +1,5 @@
 """command_line: how a tool ends on Ctrl-C, its count checks and its JSON summary (no ROS)."""
+
 import argparse
 import json
 
@@ -17,10 +18,13 @@ def interrupted(argv):
     raise KeyboardInterrupt
 
 
-@pytest.mark.parametrize('run, status, error', [
-    (lambda argv: len(argv), 2, ''),
-    (interrupted, EXIT_INTERRUPTED, 'tool: interrupted, nothing written\n'),
-])
+@pytest.mark.parametrize(
+    'run, status, error',
+    [
+        (lambda argv: len(argv), 2, ''),
+        (interrupted, EXIT_INTERRUPTED, 'tool: interrupted, nothing written\n'),
+    ],
+)
 def test_the_exit_status_is_the_run_s_or_130_on_ctrl_c(capsys, run, status, error):
     with pytest.raises(SystemExit) as exited:
         exit_with_run('tool', run, ['a', 'b'])

@@ -1,4 +1,5 @@
 """markdown: tables as the reports and benchmarks print them."""
+
 from stylepong_common.markdown import table
 
 

@@ -1,4 +1,5 @@
 """node_context: a node in a context of its own, its --ros-args applied, everything shut down on leaving."""
+
 import functools
 
 import pytest
@@ -25,6 +26,7 @@ def test_a_node_that_fails_to_start_leaves_no_context_behind():
     def refuse(context):
         contexts.append(context)
         raise ValueError('bad parameter')
+
     with pytest.raises(ValueError, match='bad parameter'):
         with node_in_context(refuse):
             pass

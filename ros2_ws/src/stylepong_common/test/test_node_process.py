@@ -1,4 +1,5 @@
 """node_process's helpers on plain processes (no ROS): logged start, Ctrl-C then SIGKILL, CPU time, ports."""
+
 import os
 import signal
 import socket
@@ -10,7 +11,7 @@ from stylepong_common.node_process import free_port, isolated_ros_env, process_c
 
 def test_a_started_command_logs_and_stops_on_ctrl_c(tmp_path):
     process = start_logged(['sh', '-c', 'echo started; exec sleep 30'], dict(os.environ), tmp_path / 'log')
-    assert os.getpgid(process.pid) == process.pid            # a session of its own: the group gets the Ctrl-C
+    assert os.getpgid(process.pid) == process.pid  # a session of its own: the group gets the Ctrl-C
     deadline = time.monotonic() + 10.0
     while 'started' not in (tmp_path / 'log').read_text() and time.monotonic() < deadline:
         time.sleep(0.02)
@@ -19,8 +20,16 @@ def test_a_started_command_logs_and_stops_on_ctrl_c(tmp_path):
 
 
 def test_a_command_deaf_to_ctrl_c_is_killed_after_the_timeout(tmp_path):
-    process = start_logged(['python3', '-c', 'import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
-                            'print("deaf", flush=True); time.sleep(30)'], dict(os.environ), tmp_path / 'log')
+    process = start_logged(
+        [
+            'python3',
+            '-c',
+            'import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+            'print("deaf", flush=True); time.sleep(30)',
+        ],
+        dict(os.environ),
+        tmp_path / 'log',
+    )
     deadline = time.monotonic() + 10.0
     while 'deaf' not in (tmp_path / 'log').read_text() and time.monotonic() < deadline:
         time.sleep(0.02)
@@ -35,7 +44,7 @@ def test_cpu_time_grows_with_work_and_is_nan_for_a_process_gone():
     assert process_cpu_s(os.getpid()) > before
     child = subprocess.Popen(['true'])
     child.wait()
-    assert process_cpu_s(child.pid) != process_cpu_s(child.pid)     # NaN
+    assert process_cpu_s(child.pid) != process_cpu_s(child.pid)  # NaN
 
 
 def test_a_free_port_can_be_bound_and_each_run_gets_its_own_domain():

@@ -1,5 +1,6 @@
 """Parameter tables: types, bounds, lengths and choices, each refused in one line naming the parameter;
 throttled warnings; run_node's exit codes and the end of its loop (finished, Ctrl-C, wind_down)."""
+
 import math
 import os
 import signal
@@ -17,34 +18,40 @@ from stylepong_common.node_support import (
 )
 
 
-@pytest.mark.parametrize('param, value, expected', [
-    (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 60, 60.0),
-    (Param('count', 3, '', low=0, high=10), 4, 4),
-    (Param('on', False, ''), True, True),
-    (Param('backend', 'onnx', '', choices=('onnx', 'torchscript')), 'torchscript', 'torchscript'),
-    (Param('goal', [0.5, 0.0], '', length=2), [1, 0.25], [1.0, 0.25]),
-    (Param('names', ['a'], ''), ['b', 'c'], ['b', 'c']),
-])
+@pytest.mark.parametrize(
+    'param, value, expected',
+    [
+        (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 60, 60.0),
+        (Param('count', 3, '', low=0, high=10), 4, 4),
+        (Param('on', False, ''), True, True),
+        (Param('backend', 'onnx', '', choices=('onnx', 'torchscript')), 'torchscript', 'torchscript'),
+        (Param('goal', [0.5, 0.0], '', length=2), [1, 0.25], [1.0, 0.25]),
+        (Param('names', ['a'], ''), ['b', 'c'], ['b', 'c']),
+    ],
+)
 def test_good_values_come_back_in_the_default_type(param, value, expected):
     got = typed_value(param, value)
     assert got == expected and type(got) is type(expected)
 
 
-@pytest.mark.parametrize('param, value, words', [
-    (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 'fast', 'a number'),
-    (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 500.0, 'within'),
-    (Param('rate_hz', 60.0, ''), math.nan, 'finite'),
-    (Param('rate_hz', 60.0, ''), True, 'a number'),
-    (Param('count', 3, ''), 2.5, 'an integer'),
-    (Param('on', False, ''), 1, 'true or false'),
-    (Param('backend', 'onnx', '', choices=('onnx', 'torchscript')), 'tensorrt', 'one of'),
-    (Param('goal', [0.5, 0.0], '', length=2), [1.0], '2 elements'),
-    (Param('goal', [0.5, 0.0], '', length=2, high=1.0), [1.0, 2.0], 'at most 1.0'),
-    (Param('goal', [0.5, 0.0], '', low=-1.0, high=1.0), [1.0, 2.0], 'within [-1.0, 1.0]'),
-    (Param('goal', [0.5, 0.0], ''), ['x', 1.0], 'numbers'),
-    (Param('seed', 0, '', low=0), -1, 'at least 0'),
-    (Param('gain', 1.0, '', high=2.0), 3.0, 'at most 2.0'),
-])
+@pytest.mark.parametrize(
+    'param, value, words',
+    [
+        (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 'fast', 'a number'),
+        (Param('rate_hz', 60.0, '', low=1.0, high=100.0), 500.0, 'within'),
+        (Param('rate_hz', 60.0, ''), math.nan, 'finite'),
+        (Param('rate_hz', 60.0, ''), True, 'a number'),
+        (Param('count', 3, ''), 2.5, 'an integer'),
+        (Param('on', False, ''), 1, 'true or false'),
+        (Param('backend', 'onnx', '', choices=('onnx', 'torchscript')), 'tensorrt', 'one of'),
+        (Param('goal', [0.5, 0.0], '', length=2), [1.0], '2 elements'),
+        (Param('goal', [0.5, 0.0], '', length=2, high=1.0), [1.0, 2.0], 'at most 1.0'),
+        (Param('goal', [0.5, 0.0], '', low=-1.0, high=1.0), [1.0, 2.0], 'within [-1.0, 1.0]'),
+        (Param('goal', [0.5, 0.0], ''), ['x', 1.0], 'numbers'),
+        (Param('seed', 0, '', low=0), -1, 'at least 0'),
+        (Param('gain', 1.0, '', high=2.0), 3.0, 'at most 2.0'),
+    ],
+)
 def test_bad_values_are_refused_in_one_line_naming_the_parameter(param, value, words):
     with pytest.raises(ParameterError) as error:
         typed_value(param, value)
@@ -69,7 +76,7 @@ def test_throttled_log_holds_back_floods_and_says_how_many():
     log.warn('ball', 'bad ball')
     log.warn('joints', 'bad joints')
     assert lines == ['bad ball', 'bad ball (99 more since the last such message)', 'bad joints']
-    assert len(built) == 1   # the text of held-back messages is never built
+    assert len(built) == 1  # the text of held-back messages is never built
 
 
 def test_a_one_sided_bound_is_said_without_the_missing_side():
@@ -95,7 +102,7 @@ class _ScriptedNode(Node):
             self.finished = True
 
     def wind_down(self, executor, interrupted: bool) -> None:
-        executor.spin_once(timeout_sec=0.01)   # the executor still serves the node here
+        executor.spin_once(timeout_sec=0.01)  # the executor still serves the node here
         self.calls.append(('wind_down', interrupted))
         self.exit_code = 130 if interrupted else 7
 

@@ -1,4 +1,5 @@
 """parameter_files: a parameter file read for one node, and how it differs from the node's table."""
+
 from stylepong_common.node_support import Param
 from stylepong_common.parameter_files import differences_from_defaults, file_parameters
 
@@ -22,4 +23,6 @@ def test_missing_or_reordered_names_are_one_difference():
 
 def test_another_value_or_type_is_named():
     assert differences_from_defaults(TABLE, {'rate_hz': 60, 'name': 'b'}) == [
-        'rate_hz: 60 is not the default 60.0', "name: 'b' is not the default 'a'"]
+        'rate_hz: 60 is not the default 60.0',
+        "name: 'b' is not the default 'a'",
+    ]

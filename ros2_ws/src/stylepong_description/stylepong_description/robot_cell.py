@@ -8,6 +8,7 @@ The player carries the measured ball forward over its sensing delay with the sam
 Frame `world`: origin on the floor under the table centre, x along the table from the robot's end (x < 0)
 to the opponent's end, y to the robot's left, z up.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,7 +51,7 @@ BALL_MASS_KG = 0.0027
 BALL_RADIUS_M = 0.020
 AIR_DENSITY_KG_M3 = 1.18
 DRAG_COEFFICIENT = 0.47
-BALL_AREA_M2 = math.pi * BALL_RADIUS_M ** 2
+BALL_AREA_M2 = math.pi * BALL_RADIUS_M**2
 # About 0.129 1/m (Koc's fitted 0.1414).
 DRAG_K_PER_M = 0.5 * AIR_DENSITY_KG_M3 * DRAG_COEFFICIENT * BALL_AREA_M2 / BALL_MASS_KG
 # Where the ball's centre is when its bottom touches the table top.

@@ -10,6 +10,7 @@ Frames added to the upstream model:
                  is tool0 -y and its x axis points along the handle, away from the flange (tool0 +z).
 All lengths are metres, masses kilograms, angles radians.
 """
+
 from __future__ import annotations
 
 import functools
@@ -22,8 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 JOINT_NAMES: tuple[str, ...] = (
-    'shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint',
-    'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint',
+    'shoulder_pan_joint',
+    'shoulder_lift_joint',
+    'elbow_joint',
+    'wrist_1_joint',
+    'wrist_2_joint',
+    'wrist_3_joint',
 )
 NUM_JOINTS = len(JOINT_NAMES)
 BASE_FRAME = 'base_link'
@@ -35,10 +40,11 @@ PADDLE_CENTRE_FRAME = 'paddle_centre'
 @dataclass(frozen=True)
 class PaddleSpec:
     """A standard table-tennis bat on a short adapter handle, clamped to the tool flange."""
+
     blade_radius_m: float = 0.075
-    blade_thickness_m: float = 0.015   # wood plus both rubbers and sponge
+    blade_thickness_m: float = 0.015  # wood plus both rubbers and sponge
     blade_mass_kg: float = 0.12
-    handle_length_m: float = 0.10      # flange to the blade's edge
+    handle_length_m: float = 0.10  # flange to the blade's edge
     handle_radius_m: float = 0.015
     handle_mass_kg: float = 0.05
 
@@ -63,14 +69,16 @@ def example_robot_data_dir() -> pathlib.Path:
     for path in candidates:
         if (path / 'robots/ur_description/urdf/ur5_robot.urdf').is_file():
             return path
-    raise FileNotFoundError('example-robot-data is not installed (pip install example-robot-data); looked in '
-                            + ', '.join(dict.fromkeys(str(c) for c in candidates)))
+    raise FileNotFoundError(
+        'example-robot-data is not installed (pip install example-robot-data); looked in '
+        + ', '.join(dict.fromkeys(str(c) for c in candidates))
+    )
 
 
 def _cylinder_inertia(mass_kg: float, radius_m: float, length_m: float) -> tuple[float, float]:
     """(about the axis, about a diameter through the centre) of a solid cylinder."""
-    axial = 0.5 * mass_kg * radius_m ** 2
-    transverse = mass_kg * (3.0 * radius_m ** 2 + length_m ** 2) / 12.0
+    axial = 0.5 * mass_kg * radius_m**2
+    transverse = mass_kg * (3.0 * radius_m**2 + length_m**2) / 12.0
     return axial, transverse
 
 
@@ -104,8 +112,13 @@ def _add_paddle(robot: ET.Element, p: PaddleSpec) -> None:
     shapes = (
         ('paddle_handle', _fmt([0, 0, p.handle_length_m / 2]), '0 0 0', p.handle_radius_m, p.handle_length_m),
         # URDF cylinders lie along their z axis: turn the blade's axis onto tool0 x.
-        ('paddle_blade', _fmt([0, 0, p.centre_offset_m]), _fmt([0, np.pi / 2, 0]), p.blade_radius_m,
-         p.blade_thickness_m),
+        (
+            'paddle_blade',
+            _fmt([0, 0, p.centre_offset_m]),
+            _fmt([0, np.pi / 2, 0]),
+            p.blade_radius_m,
+            p.blade_thickness_m,
+        ),
     )
     for tag in ('visual', 'collision'):
         for name, xyz, rpy, radius, length in shapes:
@@ -138,15 +151,23 @@ def urdf_xml(paddle: PaddleSpec = PADDLE) -> str:
             robot.remove(element)
     # The upstream "world" root link and its joint: the cell places the base itself (world spec).
     for element in list(robot):
-        if (element.tag == 'link' and element.get('name') == 'world') or \
-                (element.tag == 'joint' and element.get('name') == 'world_joint'):
+        if (element.tag == 'link' and element.get('name') == 'world') or (
+            element.tag == 'joint' and element.get('name') == 'world_joint'
+        ):
             robot.remove(element)
     _add_paddle(robot, paddle)
     mujoco = ET.SubElement(robot, 'mujoco')
     # Keep every URDF link as a body (paddle_centre must exist), take inertials as written, and load
     # only the STL collision meshes (MuJoCo cannot read the .dae visuals).
-    ET.SubElement(mujoco, 'compiler', meshdir=str(share / 'robots/ur_description/meshes/ur5/collision'),
-                  discardvisual='true', fusestatic='false', balanceinertia='false', strippath='true')
+    ET.SubElement(
+        mujoco,
+        'compiler',
+        meshdir=str(share / 'robots/ur_description/meshes/ur5/collision'),
+        discardvisual='true',
+        fusestatic='false',
+        balanceinertia='false',
+        strippath='true',
+    )
     ET.indent(tree)
     return ET.tostring(robot, encoding='unicode')
 
@@ -168,6 +189,7 @@ def urdf_xml_for_display(paddle: PaddleSpec = PADDLE) -> str:
 def pinocchio_model():
     """A fresh Pinocchio model of the UR5 + paddle (joint order = JOINT_NAMES), gravity as URDF default."""
     import pinocchio as pin
+
     model = pin.buildModelFromXML(urdf_xml())
     names = tuple(model.names[1:])
     if names != JOINT_NAMES:
@@ -178,6 +200,7 @@ def pinocchio_model():
 def mujoco_model():
     """The robot alone as a compiled MuJoCo model, from the same URDF."""
     import mujoco
+
     return mujoco.MjModel.from_xml_string(urdf_xml())
 
 
@@ -189,6 +212,7 @@ class JointLimits:
     One type for both, so that every side reads the same fields; the URDF states no acceleration limit,
     so `acceleration_rad_s2` is None in its limits and set in a controller's.
     """
+
     lower_rad: np.ndarray
     upper_rad: np.ndarray
     velocity_rad_s: np.ndarray
@@ -196,17 +220,20 @@ class JointLimits:
     acceleration_rad_s2: np.ndarray | None = None
 
     @classmethod
-    def for_commands(cls, position_margin_rad: float, velocity_scale: float,
-                     acceleration_rad_s2) -> JointLimits:
+    def for_commands(cls, position_margin_rad: float, velocity_scale: float, acceleration_rad_s2) -> JointLimits:
         """The URDF's limits narrowed for commands: positions by a margin on each side, velocities by a
         scale, plus per-joint acceleration limits (a sequence of NUM_JOINTS values)."""
         urdf = joint_limits()
         acceleration = np.asarray(acceleration_rad_s2, dtype=float)
         if acceleration.shape != (NUM_JOINTS,):
             raise ValueError(f'acceleration limits need {NUM_JOINTS} values, got shape {acceleration.shape}')
-        return cls(lower_rad=urdf.lower_rad + position_margin_rad, upper_rad=urdf.upper_rad - position_margin_rad,
-                   velocity_rad_s=urdf.velocity_rad_s * velocity_scale, effort_nm=urdf.effort_nm.copy(),
-                   acceleration_rad_s2=acceleration)
+        return cls(
+            lower_rad=urdf.lower_rad + position_margin_rad,
+            upper_rad=urdf.upper_rad - position_margin_rad,
+            velocity_rad_s=urdf.velocity_rad_s * velocity_scale,
+            effort_nm=urdf.effort_nm.copy(),
+            acceleration_rad_s2=acceleration,
+        )
 
 
 @dataclass(frozen=True)
@@ -214,6 +241,7 @@ class ToolLoad:
     """What hangs on the wrist's F/T sensor: total mass (kg) and centre of mass (m, tool0 frame) of the links
     fixed below tool0 (the paddle). drag_teach reads it from Pinocchio's model, the viewer from the URDF text
     it is sent; both compensate the sensor reading for the same load."""
+
     mass_kg: float
     com_m: np.ndarray
 
@@ -222,5 +250,9 @@ class ToolLoad:
 def joint_limits() -> JointLimits:
     """The URDF's limits, in JOINT_NAMES order."""
     model = pinocchio_model()
-    return JointLimits(lower_rad=np.array(model.lowerPositionLimit), upper_rad=np.array(model.upperPositionLimit),
-                       velocity_rad_s=np.array(model.velocityLimit), effort_nm=np.array(model.effortLimit))
+    return JointLimits(
+        lower_rad=np.array(model.lowerPositionLimit),
+        upper_rad=np.array(model.upperPositionLimit),
+        velocity_rad_s=np.array(model.velocityLimit),
+        effort_nm=np.array(model.effortLimit),
+    )

@@ -6,6 +6,7 @@ change. A joint's transform is its <origin> followed by the motion about (revolu
 (prismatic) its <axis>. This module holds that computation; stylepong_sim's nodes only put the results
 into TransformStamped messages. Quaternions are (x, y, z, w), as in geometry_msgs; lengths metres.
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -21,20 +22,28 @@ def quaternion_from_rpy(roll_rad: float, pitch_rad: float, yaw_rad: float) -> np
     cr, sr = np.cos(roll_rad / 2.0), np.sin(roll_rad / 2.0)
     cp, sp = np.cos(pitch_rad / 2.0), np.sin(pitch_rad / 2.0)
     cy, sy = np.cos(yaw_rad / 2.0), np.sin(yaw_rad / 2.0)
-    return np.array([sr * cp * cy - cr * sp * sy,
-                     cr * sp * cy + sr * cp * sy,
-                     cr * cp * sy - sr * sp * cy,
-                     cr * cp * cy + sr * sp * sy])
+    return np.array(
+        [
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        ]
+    )
 
 
 def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The rotation a then b in a's frame (a * b), both (x, y, z, w)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 def quaternion_from_matrix(rotation: np.ndarray) -> np.ndarray:
@@ -57,6 +66,7 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class LinkTransform:
     """The pose of `child` in `parent`: translation (m) and rotation (x, y, z, w)."""
+
     parent: str
     child: str
     translation_m: np.ndarray
@@ -66,6 +76,7 @@ class LinkTransform:
 @dataclass(frozen=True)
 class UrdfJoint:
     """One <joint>: its links, origin (translation and rotation) and unit axis."""
+
     name: str
     type: str
     parent: str
@@ -73,15 +84,16 @@ class UrdfJoint:
     origin_xyz_m: np.ndarray
     origin_xyzw: np.ndarray
     axis: np.ndarray
-    velocity_limit: float = float('inf')   # <limit velocity>: rad/s (m/s prismatic); inf when absent
+    velocity_limit: float = float('inf')  # <limit velocity>: rad/s (m/s prismatic); inf when absent
 
     def transform(self, position: float = 0.0) -> LinkTransform:
         """Parent link to child link at this joint position (rad, or m for prismatic; ignored when fixed)."""
         if self.type in ('revolute', 'continuous'):
             half = position / 2.0
             motion = np.concatenate([self.axis * np.sin(half), [np.cos(half)]])
-            return LinkTransform(self.parent, self.child, self.origin_xyz_m,
-                                 quaternion_multiply(self.origin_xyzw, motion))
+            return LinkTransform(
+                self.parent, self.child, self.origin_xyz_m, quaternion_multiply(self.origin_xyzw, motion)
+            )
         if self.type == 'prismatic':
             shift = rotate(self.origin_xyzw, self.axis * position)
             return LinkTransform(self.parent, self.child, self.origin_xyz_m + shift, self.origin_xyzw)
@@ -107,9 +119,18 @@ def parse_joints(urdf_xml: str) -> tuple[UrdfJoint, ...]:
         axis = _floats(axis_element.get('xyz') if axis_element is not None else None, (1.0, 0.0, 0.0))
         limit = element.find('limit')
         velocity_limit = float(limit.get('velocity', 'inf')) if limit is not None else float('inf')
-        joints.append(UrdfJoint(name=name, type=kind, parent=parent.get('link'), child=child.get('link'),
-                                origin_xyz_m=xyz, origin_xyzw=quaternion_from_rpy(*rpy),
-                                axis=axis / np.linalg.norm(axis), velocity_limit=velocity_limit))
+        joints.append(
+            UrdfJoint(
+                name=name,
+                type=kind,
+                parent=parent.get('link'),
+                child=child.get('link'),
+                origin_xyz_m=xyz,
+                origin_xyzw=quaternion_from_rpy(*rpy),
+                axis=axis / np.linalg.norm(axis),
+                velocity_limit=velocity_limit,
+            )
+        )
     return tuple(joints)
 
 

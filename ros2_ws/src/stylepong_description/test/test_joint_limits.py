@@ -1,4 +1,5 @@
 """The one JointLimits type: the URDF's limits, and the narrower ones a controller commands within."""
+
 import numpy as np
 import pytest
 
@@ -8,8 +9,10 @@ from stylepong_description import robot_model
 def test_the_urdf_states_no_acceleration_limit():
     limits = robot_model.joint_limits()
     assert limits.acceleration_rad_s2 is None
-    assert all(len(v) == robot_model.NUM_JOINTS for v in (limits.lower_rad, limits.upper_rad,
-                                                          limits.velocity_rad_s, limits.effort_nm))
+    assert all(
+        len(v) == robot_model.NUM_JOINTS
+        for v in (limits.lower_rad, limits.upper_rad, limits.velocity_rad_s, limits.effort_nm)
+    )
 
 
 def test_command_limits_narrow_the_urdfs_and_leave_them_alone():
@@ -21,7 +24,7 @@ def test_command_limits_narrow_the_urdfs_and_leave_them_alone():
     np.testing.assert_allclose(narrowed.velocity_rad_s, urdf.velocity_rad_s * 0.5)
     np.testing.assert_array_equal(narrowed.effort_nm, urdf.effort_nm)
     np.testing.assert_array_equal(narrowed.acceleration_rad_s2, [8.0, 8.0, 8.0, 12.0, 12.0, 12.0])
-    np.testing.assert_array_equal(urdf.lower_rad, before)      # the cached URDF limits are not changed
+    np.testing.assert_array_equal(urdf.lower_rad, before)  # the cached URDF limits are not changed
 
 
 def test_command_limits_need_an_acceleration_per_joint():

@@ -1,4 +1,5 @@
 """Pinocchio and MuJoCo load the one UR5 + paddle description and agree on it."""
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -33,8 +34,10 @@ def test_joint_order_is_the_urdf_order(models):
 def test_paddle_mass_and_frames(models):
     model, _, mj_model, _ = models
     assert model.existFrame(robot_model.PADDLE_CENTRE_FRAME) and model.existFrame(robot_model.TOOL_FRAME)
-    paddle_mass = model.inertias[model.frames[model.getFrameId(robot_model.PADDLE_BODY)].parentJoint].mass \
+    paddle_mass = (
+        model.inertias[model.frames[model.getFrameId(robot_model.PADDLE_BODY)].parentJoint].mass
         - _upstream_wrist_3_mass()
+    )
     assert paddle_mass == pytest.approx(0.17, abs=1e-9)
     assert mj_model.body(robot_model.PADDLE_BODY).mass[0] == pytest.approx(0.17, abs=1e-12)
 

@@ -1,4 +1,5 @@
 """robot_state's joint transforms (what /tf carries) against Pinocchio's forward kinematics of the same URDF."""
+
 import pathlib
 import re
 
@@ -29,10 +30,19 @@ def test_link_poses_match_pinocchio(seed):
 def test_fixed_and_moving_transforms_cover_every_joint():
     state = RobotState(robot_model.urdf_xml())
     moving = state.moving_transforms(np.zeros(robot_model.NUM_JOINTS))
-    assert [t.child for t in moving] == ['shoulder_link', 'upper_arm_link', 'forearm_link', 'wrist_1_link',
-                                         'wrist_2_link', 'wrist_3_link']
-    assert {t.child for t in state.fixed_transforms()} >= {robot_model.TOOL_FRAME, robot_model.PADDLE_BODY,
-                                                           robot_model.PADDLE_CENTRE_FRAME}
+    assert [t.child for t in moving] == [
+        'shoulder_link',
+        'upper_arm_link',
+        'forearm_link',
+        'wrist_1_link',
+        'wrist_2_link',
+        'wrist_3_link',
+    ]
+    assert {t.child for t in state.fixed_transforms()} >= {
+        robot_model.TOOL_FRAME,
+        robot_model.PADDLE_BODY,
+        robot_model.PADDLE_CENTRE_FRAME,
+    }
     named = state.moving_transforms_by_name(['elbow_joint', 'not_a_joint'], [0.5, 1.0])
     assert [t.child for t in named] == ['forearm_link']
 

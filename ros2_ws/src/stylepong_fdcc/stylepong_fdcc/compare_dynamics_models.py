@@ -1,6 +1,7 @@
 """Developer tool: `python3 -m stylepong_fdcc.compare_dynamics_models` prints how the two dynamics models
 answer a 10 N push (the figures in `fdcc_solver`'s docstring and docs/DESIGN.md, "FDCC: the virtual
 dynamics model")."""
+
 from __future__ import annotations
 
 import time
@@ -12,8 +13,9 @@ from stylepong_fdcc.fdcc_config import DYNAMICS_MODELS, FdccConfig
 from stylepong_fdcc.fdcc_solver import FdccSolver
 
 
-def simulate_push(config: FdccConfig, q0: np.ndarray, force_base_n: np.ndarray, push_s: float, total_s: float,
-                  rate_hz: float) -> dict:
+def simulate_push(
+    config: FdccConfig, q0: np.ndarray, force_base_n: np.ndarray, push_s: float, total_s: float, rate_hz: float
+) -> dict:
     """Drive the solver alone (a perfect servo) with a constant force at tool0, then nothing."""
     solver = FdccSolver(config)
     solver.reset(q0)
@@ -37,25 +39,32 @@ def simulate_push(config: FdccConfig, q0: np.ndarray, force_base_n: np.ndarray, 
     rise = int(np.argmax(along >= 0.9 * steady)) + 1
     push_disp = positions[push_steps - 1] - start
     rest = next((k for k in range(push_steps, steps) if joint_speeds[k] < 0.05), steps)
-    return {'rise_s': rise * dt, 'push_displacement_m': float(np.linalg.norm(push_disp)),
-            'direction_cosine': float(push_disp @ direction / np.linalg.norm(push_disp)),
-            'coast_m': float(np.linalg.norm(positions[-1] - positions[push_steps - 1])),
-            'rest_after_s': (rest - push_steps + 1) * dt,
-            'final_displacement_m': float(np.linalg.norm(positions[-1] - start)),
-            'push_rotation_rad': float(np.linalg.norm(pin.log3(rotations[push_steps - 1] @ rotations[0].T)))}
+    return {
+        'rise_s': rise * dt,
+        'push_displacement_m': float(np.linalg.norm(push_disp)),
+        'direction_cosine': float(push_disp @ direction / np.linalg.norm(push_disp)),
+        'coast_m': float(np.linalg.norm(positions[-1] - positions[push_steps - 1])),
+        'rest_after_s': (rest - push_steps + 1) * dt,
+        'final_displacement_m': float(np.linalg.norm(positions[-1] - start)),
+        'push_rotation_rad': float(np.linalg.norm(pin.log3(rotations[push_steps - 1] @ rotations[0].T))),
+    }
 
 
 def main() -> None:
     """Print the solver's response to a 10 N push at the home pose for each dynamics model."""
     from stylepong_sim.world_spec import HOME_JOINT_POSITIONS_RAD  # a developer tool: the cell's home pose
+
     home = np.array(HOME_JOINT_POSITIONS_RAD)
     print('10 N push along +x of base_link for 1 s at 500 Hz, solver alone, home pose')
     for kind in DYNAMICS_MODELS:
         config = FdccConfig(dynamics_model=kind)
         started = time.perf_counter()
         result = simulate_push(config, home, np.array([10.0, 0.0, 0.0]), 1.0, 4.0, 500.0)
-        print(f'{kind:8s} ' + ', '.join(f'{k} {v:.3f}' for k, v in result.items())
-              + f'  ({time.perf_counter() - started:.1f} s)')
+        print(
+            f'{kind:8s} '
+            + ', '.join(f'{k} {v:.3f}' for k, v in result.items())
+            + f'  ({time.perf_counter() - started:.1f} s)'
+        )
 
 
 if __name__ == '__main__':

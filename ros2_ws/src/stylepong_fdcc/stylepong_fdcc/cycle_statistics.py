@@ -1,5 +1,6 @@
 """Timing of the control cycles: the node keeps one `CycleStatistics` and reports it at exit; the
 benchmark (benchmarks/40_drag_teach.py) reads that report."""
+
 from __future__ import annotations
 
 import collections
@@ -27,8 +28,12 @@ class CycleStatistics:
         periods = np.diff(ticks)
         missed = int(np.sum(np.maximum(np.round(periods / self.nominal_period_s) - 1, 0)))
         compute = np.asarray(self.compute_s)
-        return {'ticks': len(ticks), 'duration_s': float(ticks[-1] - ticks[0]),
-                'rate_hz': float((len(ticks) - 1) / (ticks[-1] - ticks[0])), 'missed_ticks': missed,
-                'compute_mean_s': float(compute.mean()), 'compute_p99_s': float(np.percentile(compute, 99)),
-                'period_p99_s': float(np.percentile(periods, 99))}
-
+        return {
+            'ticks': len(ticks),
+            'duration_s': float(ticks[-1] - ticks[0]),
+            'rate_hz': float((len(ticks) - 1) / (ticks[-1] - ticks[0])),
+            'missed_ticks': missed,
+            'compute_mean_s': float(compute.mean()),
+            'compute_p99_s': float(np.percentile(compute, 99)),
+            'period_p99_s': float(np.percentile(periods, 99)),
+        }

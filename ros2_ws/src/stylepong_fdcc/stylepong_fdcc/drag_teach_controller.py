@@ -12,6 +12,7 @@ No ROS in here: `drag_teach_node` only wires topics, services and a timer to `Dr
   never each cycle: re-syncing would feed the servo's tracking error back in as motion (drift,
   spring-back). While enabled the command is the simulated arm, which is at rest unless pushed.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,8 +29,9 @@ from stylepong_fdcc.wrench_conditioning import WrenchConditioner, tool_load_from
 @dataclass
 class TickResult:
     """One control cycle's outcome: the joint command to publish (if any) and the controller state."""
-    command: np.ndarray | None     # joint positions to publish, None = publish nothing
-    state: str                     # 'disabled', 'waiting', 'running', 'holding'
+
+    command: np.ndarray | None  # joint positions to publish, None = publish nothing
+    state: str  # 'disabled', 'waiting', 'running', 'holding'
 
 
 class DragTeachController:
@@ -45,8 +47,9 @@ class DragTeachController:
         kinematics = robot_model.pinocchio_model()
         self._kin_model, self._kin_data = kinematics, kinematics.createData()
         self._tool_id = kinematics.getFrameId(robot_model.TOOL_FRAME)
-        self.conditioner = WrenchConditioner(config, tool_load_from_model(kinematics),
-                                             np.array(kinematics.gravity.linear))
+        self.conditioner = WrenchConditioner(
+            config, tool_load_from_model(kinematics), np.array(kinematics.gravity.linear)
+        )
         self.enabled = enabled
         self.tare_on_enable = tare_on_enable
         self.synced = False
@@ -56,7 +59,7 @@ class DragTeachController:
         self._joint_time_s: float | None = None
         self._wrench_time_s: float | None = None
         self._tick_time_s: float | None = None
-        self._resumed_s: float | None = 0.0     # when the inputs last became fresh again
+        self._resumed_s: float | None = 0.0  # when the inputs last became fresh again
         self.rejected_wrenches = 0
         self.rejected_joint_states = 0
 
@@ -89,7 +92,7 @@ class DragTeachController:
     # --- commands from outside ---
     def set_enabled(self, enabled: bool) -> None:
         if enabled and not self.enabled:
-            self.synced = False               # re-synchronise from the measured joints at the next tick
+            self.synced = False  # re-synchronise from the measured joints at the next tick
             self._tare_pending = self.tare_on_enable
         self.enabled = enabled
 
@@ -105,8 +108,12 @@ class DragTeachController:
     # --- the control cycle ---
     def inputs_fresh(self, time_s: float) -> bool:
         timeout = self.config.watchdog_timeout_s
-        return (self._joint_time_s is not None and self._wrench_time_s is not None
-                and time_s - self._joint_time_s <= timeout and time_s - self._wrench_time_s <= timeout)
+        return (
+            self._joint_time_s is not None
+            and self._wrench_time_s is not None
+            and time_s - self._joint_time_s <= timeout
+            and time_s - self._wrench_time_s <= timeout
+        )
 
     def tick(self, time_s: float) -> TickResult:
         last, self._tick_time_s = self._tick_time_s, time_s
@@ -132,4 +139,3 @@ class DragTeachController:
         # After a hold the hand may be pushing hard against the stopped arm: fade the wrench back in.
         ramp = min(1.0, (time_s - self._resumed_s) / self.config.resume_ramp_s)
         return TickResult(self.solver.step(ramp * self.conditioner.output(), dt), 'running')
-

@@ -13,6 +13,7 @@ the controller is kept small (benchmarks/40_drag_teach.py): joint states and wre
 serialized bytes (`sensor_messages`), the clock is read without building a Time object, and the command
 message is built once and refilled.
 """
+
 from __future__ import annotations
 
 import array
@@ -46,24 +47,43 @@ CONTROL_RATE_RANGE_HZ = (10.0, 2000.0)
 _DEFAULTS = FdccConfig()
 
 
-def _setting(name: str, description: str, low: float | None = None, high: float | None = None,
-             length: int | None = None, choices: tuple[str, ...] = ()) -> Param:
+def _setting(
+    name: str,
+    description: str,
+    low: float | None = None,
+    high: float | None = None,
+    length: int | None = None,
+    choices: tuple[str, ...] = (),
+) -> Param:
     """The parameter that sets FdccConfig's field `name`, with the field's default (a vector as a list)."""
     default = getattr(_DEFAULTS, name)
-    return Param(name, list(default) if isinstance(default, tuple) else default, description,
-                 low=low, high=high, length=length, choices=choices)
+    return Param(
+        name,
+        list(default) if isinstance(default, tuple) else default,
+        description,
+        low=low,
+        high=high,
+        length=length,
+        choices=choices,
+    )
 
 
 PARAMETERS = (
-    Param('control_rate_hz', 500.0, 'control cycle rate; commands are published at this rate',
-          low=CONTROL_RATE_RANGE_HZ[0], high=CONTROL_RATE_RANGE_HZ[1]),
+    Param(
+        'control_rate_hz',
+        500.0,
+        'control cycle rate; commands are published at this rate',
+        low=CONTROL_RATE_RANGE_HZ[0],
+        high=CONTROL_RATE_RANGE_HZ[1],
+    ),
     Param('start_enabled', True, 'publish commands from start-up (else wait for /drag_teach/enable)'),
     Param('tare_on_enable', True, 'take the sensor bias when control is enabled (and at start-up)'),
     _setting('damping', 'K_D: x, y, z in N s/m, rx, ry, rz in N m s/rad (base_link axes)', low=0.0, length=6),
     _setting('stiffness', 'K_P: x, y, z in N/m, rx, ry, rz in N m/rad; 0 = free dragging', low=0.0, length=6),
     _setting('joint_damping_nms_per_rad', 'joint-space damping, N m s/rad', low=0.0),
-    _setting('dynamics_model', "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)",
-             choices=DYNAMICS_MODELS),
+    _setting(
+        'dynamics_model', "'virtual' (light FZI-style links) or 'urdf' (the URDF's inertias)", choices=DYNAMICS_MODELS
+    ),
     _setting('virtual_link_mass_kg', 'virtual model: mass of each link but the last', low=0.0),
     _setting('virtual_link_inertia_kg_m2', 'virtual model: their rotational inertia', low=0.0),
     _setting('virtual_end_mass_kg', 'virtual model: mass of the last link', low=0.0),
@@ -85,17 +105,21 @@ PARAMETERS = (
     _setting('resume_ramp_s', 'after a hold, the wrench fades back in over this time', low=0.0),
 )
 
-STATE_MESSAGES = {'waiting': 'waiting for joint states and wrenches (and a tare window) before publishing',
-                  'running': 'running: following the sensor wrench',
-                  'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
-                  'disabled': 'disabled'}
+STATE_MESSAGES = {
+    'waiting': 'waiting for joint states and wrenches (and a tare window) before publishing',
+    'running': 'running: following the sensor wrench',
+    'holding': 'holding: no fresh wrench or joint state, decelerating to rest',
+    'disabled': 'disabled',
+}
 
 
 def fdcc_config(values: dict[str, Any]) -> FdccConfig:
     """The solver's settings from the checked parameter values; ParameterError names a bad combination."""
     fields = set(FdccConfig.__dataclass_fields__)
-    config = FdccConfig(nominal_period_s=1.0 / values['control_rate_hz'],
-                        **{k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in fields})
+    config = FdccConfig(
+        nominal_period_s=1.0 / values['control_rate_hz'],
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in fields},
+    )
     try:
         config.validate()
     except ValueError as error:
@@ -110,9 +134,13 @@ def quaternion_to_rotation(x: float, y: float, z: float, w: float) -> np.ndarray
     if not math.isfinite(norm) or norm < 1e-6:
         return None
     w, x, y, z = q / norm
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def float64_array(values: np.ndarray) -> array.array:
@@ -125,12 +153,14 @@ def float64_array(values: np.ndarray) -> array.array:
 
 class DragTeachNode(Node):
     """The drag_teach node: FDCC on the wrench and joint-state topics, joint position commands out."""
+
     def __init__(self, **kwargs):
         super().__init__(PROGRAM, **kwargs)
         values = declare_parameters(self, PARAMETERS)
         config = fdcc_config(values)
-        self.controller = DragTeachController(config, enabled=values['start_enabled'],
-                                              tare_on_enable=values['tare_on_enable'])
+        self.controller = DragTeachController(
+            config, enabled=values['start_enabled'], tare_on_enable=values['tare_on_enable']
+        )
         self.stats = CycleStatistics(config.nominal_period_s)
         self.warnings = ThrottledLog(self.get_logger())
         self._joint_reader = JointStateReader(robot_model.JOINT_NAMES)
@@ -141,15 +171,17 @@ class DragTeachNode(Node):
         self.command_pub = self.create_publisher(Float64MultiArray, '/forward_position_controller/commands', 10)
         # raw: the callbacks read the few numbers they need from the bytes (sensor_messages).
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data, raw=True)
-        self.create_subscription(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', self._on_wrench,
-                                 qos_profile_sensor_data, raw=True)
+        self.create_subscription(
+            WrenchStamped, '/force_torque_sensor_broadcaster/wrench', self._on_wrench, qos_profile_sensor_data, raw=True
+        )
         self.create_subscription(PoseStamped, '~/target_pose', self._on_target_pose, 10)
         self.create_service(Trigger, '/drag_teach/tare', self._on_tare)
         self.create_service(SetBool, '/drag_teach/enable', self._on_enable)
         self.create_timer(config.nominal_period_s, self._on_tick)
         self.get_logger().info(
             f'FDCC at {values["control_rate_hz"]:g} Hz, {config.dynamics_model} model, damping {list(config.damping)}, '
-            f'stiffness {list(config.stiffness)}; {"enabled" if values["start_enabled"] else "disabled"}')
+            f'stiffness {list(config.stiffness)}; {"enabled" if values["start_enabled"] else "disabled"}'
+        )
         # Everything built so far lives as long as the node: taking it out of the collector's full passes
         # keeps those passes (tens of milliseconds over rclpy, numpy and Pinocchio) out of the control cycle.
         gc.collect()
@@ -165,9 +197,10 @@ class DragTeachNode(Node):
     def _on_joint_state(self, raw: bytes) -> None:
         positions, _, _ = self._joint_reader.positions(raw)
         if positions is None:
-            self.warnings.warn('joint names',
-                               f'joint state rejected: it must name every joint of {robot_model.JOINT_NAMES} '
-                               'with a position')
+            self.warnings.warn(
+                'joint names',
+                f'joint state rejected: it must name every joint of {robot_model.JOINT_NAMES} with a position',
+            )
             return
         fault = self.controller.on_joint_positions(positions, self._now_s())
         if fault:
@@ -176,14 +209,16 @@ class DragTeachNode(Node):
     def _on_wrench(self, raw: bytes) -> None:
         fault = self.controller.on_wrench(wrench_from_cdr(raw), self._now_s())
         if fault:
-            self.warnings.warn('wrench',
-                               lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}')
+            self.warnings.warn(
+                'wrench', lambda: f'wrench rejected ({self.controller.rejected_wrenches} so far): {fault}'
+            )
 
     def _on_target_pose(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in BASE_FRAMES:
-            self.warnings.warn('target frame',
-                               f'target pose rejected: frame {msg.header.frame_id!r}, '
-                               f'expected {robot_model.BASE_FRAME!r}')
+            self.warnings.warn(
+                'target frame',
+                f'target pose rejected: frame {msg.header.frame_id!r}, expected {robot_model.BASE_FRAME!r}',
+            )
             return
         p, o = msg.pose.position, msg.pose.orientation
         rotation = quaternion_to_rotation(o.x, o.y, o.z, o.w)
@@ -201,16 +236,18 @@ class DragTeachNode(Node):
             response.success, response.message = False, str(error)
         else:
             response.success = True
-            response.message = (f'bias force {np.round(bias[:3], 3).tolist()} N, '
-                                f'torque {np.round(bias[3:], 4).tolist()} N m (tool0)')
+            response.message = (
+                f'bias force {np.round(bias[:3], 3).tolist()} N, torque {np.round(bias[3:], 4).tolist()} N m (tool0)'
+            )
             self.get_logger().info(f'tared: {response.message}')
         return response
 
     def _on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         self.controller.set_enabled(bool(request.data))
         response.success = True
-        response.message = 'enabled: synchronising with the measured joints' if request.data else \
-            'disabled: no commands are published'
+        response.message = (
+            'enabled: synchronising with the measured joints' if request.data else 'disabled: no commands are published'
+        )
         self.get_logger().info(response.message)
         return response
 
@@ -237,7 +274,8 @@ class DragTeachNode(Node):
             f'{s["ticks"]} cycles in {s["duration_s"]:.1f} s: {s["rate_hz"]:.1f} Hz, {s["missed_ticks"]} missed, '
             f'compute mean {s["compute_mean_s"] * 1e6:.0f} us, p99 {s["compute_p99_s"] * 1e6:.0f} us; '
             f'{self.controller.rejected_wrenches} wrenches and {self.controller.rejected_joint_states} '
-            'joint states rejected')
+            'joint states rejected'
+        )
 
     def close(self) -> None:
         """On the way out (stylepong_common.node_support.run_node): what the cycles achieved."""

@@ -3,6 +3,7 @@
 `drag_teach_node` fills one from its parameters; `fdcc_solver` explains the gains and the dynamics
 models, `wrench_conditioning`, `joint_limits` and `drag_teach_controller` the safety settings.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,16 +22,17 @@ DYNAMICS_MODELS = ('virtual', 'urdf')
 class FdccConfig:
     """All settings of the solver and its safety layer; the node fills it from its parameters. A number's
     range is declared with its default (stylepong_common.settings); validate checks those and the rest."""
+
     # Gains: (x, y, z) in N s/m resp. N/m, then (rx, ry, rz) in N m s/rad resp. N m/rad, base_link axes.
     damping: tuple[float, ...] = (30.0, 30.0, 30.0, 3.0, 3.0, 3.0)
     stiffness: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    joint_damping_nms_per_rad: float = non_negative(0.05)   # keeps motions J cannot see (singularities) damped
+    joint_damping_nms_per_rad: float = non_negative(0.05)  # keeps motions J cannot see (singularities) damped
     dynamics_model: str = 'virtual'
     virtual_link_mass_kg: float = positive(0.1)
     virtual_link_inertia_kg_m2: float = positive(1e-6)
     virtual_end_mass_kg: float = positive(1.0)
     virtual_end_inertia_kg_m2: float = positive(0.01)
-    nominal_period_s: float = positive(0.002)           # 1 / control rate
+    nominal_period_s: float = positive(0.002)  # 1 / control rate
     # A gap between cycles longer than this many nominal periods (a stalled process, not a skipped tick)
     # is integrated as this many: after a stall the arm carries on instead of jumping to catch up.
     max_late_periods: float = at_least(2.0, 1.0)
@@ -51,16 +53,20 @@ class FdccConfig:
     acceleration_limit_rad_s2: tuple[float, ...] = (8.0, 8.0, 8.0, 12.0, 12.0, 12.0)
     # Watchdog.
     watchdog_timeout_s: float = positive(0.05)
-    resume_ramp_s: float = positive(0.2)                # after a hold the wrench fades back in over this time
+    resume_ramp_s: float = positive(0.2)  # after a hold the wrench fades back in over this time
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad setting."""
+
         # The vectors and the choice are checked here: settings' fields hold single numbers.
         def vec(name, n=6, above_zero=False):
             v = np.asarray(getattr(self, name), dtype=float)
             if v.shape != (n,) or not np.all(np.isfinite(v)) or np.any(v < 0) or (above_zero and np.any(v == 0)):
-                raise ValueError(f'{name} must be {n} finite {"positive" if above_zero else "non-negative"} '
-                                 f'numbers, got {getattr(self, name)!r}')
+                raise ValueError(
+                    f'{name} must be {n} finite {"positive" if above_zero else "non-negative"} '
+                    f'numbers, got {getattr(self, name)!r}'
+                )
+
         vec('damping', above_zero=True)
         vec('stiffness')
         vec('acceleration_limit_rad_s2', above_zero=True)
@@ -71,4 +77,3 @@ class FdccConfig:
             raise ValueError(f'velocity_limit_scale must be in (0, 1], got {self.velocity_limit_scale!r}')
         if self.max_force_n >= self.reject_force_n or self.max_torque_nm >= self.reject_torque_nm:
             raise ValueError('the clamp (max_force_n, max_torque_nm) must lie below the rejection thresholds')
-

@@ -54,6 +54,7 @@ one, even after a late tick (the command then catches up with the simulated arm 
 a stall longer than `max_late_periods` control periods is integrated as that many, so the arm carries
 on instead of jumping.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -71,11 +72,13 @@ def dynamics_model(config: FdccConfig) -> pin.Model:
     if config.dynamics_model == 'virtual':
         last = model.njoints - 1
         for joint in range(1, model.njoints):
-            mass, inertia = ((config.virtual_end_mass_kg, config.virtual_end_inertia_kg_m2) if joint == last
-                             else (config.virtual_link_mass_kg, config.virtual_link_inertia_kg_m2))
+            mass, inertia = (
+                (config.virtual_end_mass_kg, config.virtual_end_inertia_kg_m2)
+                if joint == last
+                else (config.virtual_link_mass_kg, config.virtual_link_inertia_kg_m2)
+            )
             model.inertias[joint] = pin.Inertia(mass, np.zeros(3), inertia * np.eye(3))
     return model
-
 
 
 class FdccSolver:
@@ -115,8 +118,13 @@ class FdccSolver:
     def set_target(self, position_m: np.ndarray, rotation: np.ndarray) -> None:
         """Pose of the control frame (base_link) the stiffness K_P pulls towards."""
         position_m, rotation = np.asarray(position_m, float), np.asarray(rotation, float)
-        if position_m.shape != (3,) or rotation.shape != (3, 3) or not np.all(np.isfinite(position_m)) \
-                or not np.all(np.isfinite(rotation)) or not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6):
+        if (
+            position_m.shape != (3,)
+            or rotation.shape != (3, 3)
+            or not np.all(np.isfinite(position_m))
+            or not np.all(np.isfinite(rotation))
+            or not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6)
+        ):
             raise ValueError('target must be a finite position and a proper rotation')
         self.target_position_m, self.target_rotation = position_m.copy(), rotation.copy()
 
@@ -147,8 +155,9 @@ class FdccSolver:
         pose = data.oMf[self.frame_id]
         mass_matrix = pin.crba(model, data, q)
         bias_torque = pin.nonLinearEffects(model, data, q, qdot)  # Coriolis and centrifugal; gravity is off
-        error = np.concatenate([self.target_position_m - pose.translation,
-                                pin.log3(self.target_rotation @ pose.rotation.T)])
+        error = np.concatenate(
+            [self.target_position_m - pose.translation, pin.log3(self.target_rotation @ pose.rotation.T)]
+        )
         force = np.asarray(external_wrench_base, dtype=float) + self.stiffness * error
         damping_joint = jacobian.T @ (self.damping[:, None] * jacobian)
         stiffness_joint = jacobian.T @ (self.stiffness[:, None] * jacobian)
@@ -178,4 +187,3 @@ class FdccSolver:
         step = self._command_step_rad
         self.command = self.command + np.clip(self.q - self.command, -step, step)
         return self.command.copy()
-

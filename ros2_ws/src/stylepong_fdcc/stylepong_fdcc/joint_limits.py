@@ -5,6 +5,7 @@ reaching them), velocities within `velocity_limit_scale` x the URDF's and accele
 `acceleration_limit_rad_s2`. Velocity and acceleration are limited by scaling the whole joint vector, so
 the tool keeps its direction.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,8 +16,9 @@ from stylepong_fdcc.fdcc_config import FdccConfig
 
 def command_limits(config: FdccConfig) -> JointLimits:
     """The limits drag_teach's commands keep: the URDF's narrowed by the config's margin, scale and accelerations."""
-    return JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
-                                    config.acceleration_limit_rad_s2)
+    return JointLimits.for_commands(
+        config.position_margin_rad, config.velocity_limit_scale, config.acceleration_limit_rad_s2
+    )
 
 
 def uniform_scale(vector: np.ndarray, bound: np.ndarray) -> float:
@@ -28,8 +30,9 @@ def uniform_scale(vector: np.ndarray, bound: np.ndarray) -> float:
     return float(np.min(bound[over] / magnitude[over]))
 
 
-def limit_motion(q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s: float,
-                 limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
+def limit_motion(
+    q: np.ndarray, qdot: np.ndarray, qdot_wanted: np.ndarray, dt_s: float, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray]:
     """Next (q, qdot) from the wanted velocity, within acceleration, velocity and position limits."""
     delta = qdot_wanted - qdot
     new_qdot = qdot + uniform_scale(delta, limits.acceleration_rad_s2 * dt_s) * delta
@@ -50,4 +53,3 @@ def decelerate(qdot: np.ndarray, dt_s: float, limits: JointLimits) -> np.ndarray
     if time_to_stop_s <= dt_s:
         return np.zeros_like(qdot)
     return qdot * (1.0 - dt_s / time_to_stop_s)
-

@@ -9,6 +9,7 @@ body (8 for doubles). Anything else (big endian, a truncated buffer) is handed t
 so the readers below only ever take a shortcut, never a different answer. JointState is walked by the
 bag reader's decoder (stylepong_recording.joint_state_cdr); the wrench, six doubles after a header, here.
 """
+
 from __future__ import annotations
 
 import struct
@@ -20,9 +21,9 @@ from sensor_msgs.msg import JointState
 
 from stylepong_recording.joint_state_cdr import CdrLayoutError, JointStateCdrReader
 
-_HEADER_BYTES = 4            # encapsulation: representation id (2 bytes), options (2 bytes)
+_HEADER_BYTES = 4  # encapsulation: representation id (2 bytes), options (2 bytes)
 _LITTLE_ENDIAN_CDR = (0x00, 0x01)
-_STAMP_BYTES = 8             # builtin_interfaces/Time: int32 sec, uint32 nanosec
+_STAMP_BYTES = 8  # builtin_interfaces/Time: int32 sec, uint32 nanosec
 _UINT32 = struct.Struct('<I')
 
 
@@ -70,14 +71,13 @@ class JointStateReader:
         try:
             layout = self._cdr.layout(raw)
         except CdrLayoutError:
-            msg = deserialize_message(raw, JointState)   # not the standard little-endian layout: rclpy reads it
+            msg = deserialize_message(raw, JointState)  # not the standard little-endian layout: rclpy reads it
             return self._select(tuple(msg.name), np.asarray(msg.position, dtype=float), len(msg.position))
         name_count, position_count = len(self._cdr.name_lists[layout.name_id]), layout.position_count
         indices = self._indices_for(layout.name_id)
         if indices is None or position_count != name_count:
             return None, name_count, position_count
-        return (np.frombuffer(raw, '<f8', position_count, layout.position_offset)[indices], name_count,
-                position_count)
+        return (np.frombuffer(raw, '<f8', position_count, layout.position_offset)[indices], name_count, position_count)
 
     def _indices_for(self, name_id: int) -> np.ndarray | None:
         if name_id not in self._indices:

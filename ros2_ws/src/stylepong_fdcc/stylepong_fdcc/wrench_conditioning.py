@@ -12,6 +12,7 @@ same point, which is what the solver takes.
 - Low-pass (first order, cutoff in Hz, discretised with the real sample interval), a deadband (the
   magnitude is reduced by the deadband, so the response stays continuous), a magnitude clamp.
 """
+
 from __future__ import annotations
 
 import collections
@@ -55,9 +56,11 @@ def wrench_fault(wrench: np.ndarray, reject_force_n: float, reject_torque_nm: fl
     if wrench.shape != (6,) or not np.all(np.isfinite(wrench)):
         return 'non-finite wrench'
     if np.linalg.norm(wrench[:3]) > reject_force_n or np.linalg.norm(wrench[3:]) > reject_torque_nm:
-        return (f'implausible wrench |F| = {np.linalg.norm(wrench[:3]):.3g} N, '
-                f'|T| = {np.linalg.norm(wrench[3:]):.3g} N m '
-                f'(rejected above {reject_force_n} N / {reject_torque_nm} N m)')
+        return (
+            f'implausible wrench |F| = {np.linalg.norm(wrench[:3]):.3g} N, '
+            f'|T| = {np.linalg.norm(wrench[3:]):.3g} N m '
+            f'(rejected above {reject_force_n} N / {reject_torque_nm} N m)'
+        )
     return None
 
 
@@ -85,7 +88,7 @@ class WrenchConditioner:
         self.load = load
         self.gravity_base = np.asarray(gravity_base_m_s2, dtype=float)
         self.bias_tool = np.zeros(6)
-        self._recent = collections.deque()    # (time s, gravity-compensated tool wrench)
+        self._recent = collections.deque()  # (time s, gravity-compensated tool wrench)
         self._filtered_base: np.ndarray | None = None
         self._last_sample_time_s: float | None = None
 
@@ -127,6 +130,9 @@ class WrenchConditioner:
         if self._filtered_base is None:
             return np.zeros(6)
         c = self.config
-        return np.concatenate([deadband_and_clamp(self._filtered_base[:3], c.force_deadband_n, c.max_force_n),
-                               deadband_and_clamp(self._filtered_base[3:], c.torque_deadband_nm, c.max_torque_nm)])
-
+        return np.concatenate(
+            [
+                deadband_and_clamp(self._filtered_base[:3], c.force_deadband_n, c.max_force_n),
+                deadband_and_clamp(self._filtered_base[3:], c.torque_deadband_nm, c.max_torque_nm),
+            ]
+        )

@@ -7,6 +7,7 @@ machine (seen in CI), while a change of behaviour moves a command by far more th
 When a change of behaviour is intended, regenerate the file with `python3 test_fdcc_regression.py` and
 say so in the change.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,7 +25,7 @@ from stylepong_fdcc.wrench_conditioning import gravity_wrench_on_tool, tool_load
 
 PINNED = pathlib.Path(__file__).resolve().parent / 'data' / 'fdcc_regression.npz'
 STATES = ('disabled', 'waiting', 'running', 'holding')
-HOME = np.array([0.0, -1.7, 1.9, -1.8, -1.5708, 0.0])   # near the cell's home pose, fixed here on purpose
+HOME = np.array([0.0, -1.7, 1.9, -1.8, -1.5708, 0.0])  # near the cell's home pose, fixed here on purpose
 # Rounding differences between machines are about 4e-16 rad (measured against the pinned file); changing
 # by 0.1 % any FdccConfig constant the sequence reaches moves some command by 1.5e-9 rad (the virtual
 # links' inertia) to 1.4e-3 rad (the watchdog timeout).
@@ -32,20 +33,27 @@ COMMAND_TOLERANCE_RAD = 1e-9
 
 SCENARIOS = {
     'default': dict(config=dict(), cycles=420),
-    'stiff_urdf': dict(config=dict(stiffness=(200.0, 200.0, 200.0, 20.0, 20.0, 20.0), dynamics_model='urdf',
-                                   lowpass_cutoff_hz=10.0, max_late_periods=3.0), cycles=300),
+    'stiff_urdf': dict(
+        config=dict(
+            stiffness=(200.0, 200.0, 200.0, 20.0, 20.0, 20.0),
+            dynamics_model='urdf',
+            lowpass_cutoff_hz=10.0,
+            max_late_periods=3.0,
+        ),
+        cycles=300,
+    ),
 }
 
 
 def sensor_reading(model, data, q: np.ndarray, t_s: float, k: int) -> np.ndarray | None:
     """The wrist sensor at step k: the paddle's weight, a bias, a changing push, and every kind of fault."""
     if 250 <= k < 290:
-        return None                                           # the wrench goes stale: hold
+        return None  # the wrench goes stale: hold
     pin.framesForwardKinematics(model, data, q)
     rotation = data.oMf[model.getFrameId(robot_model.TOOL_FRAME)].rotation
     push_n = np.array([9.0 * math.sin(2.0 * t_s), 7.0 * math.cos(1.3 * t_s), 3.0])
     if 330 <= k < 360:
-        push_n *= 8.0                                          # beyond the clamp
+        push_n *= 8.0  # beyond the clamp
     reading = gravity_wrench_on_tool(tool_load_from_model(model), rotation, np.array(model.gravity.linear))
     reading[:3] += rotation.T @ push_n
     reading += np.array([1.5, -0.7, 2.0, 0.05, -0.02, 0.01])  # sensor bias, removed by the tare
@@ -65,8 +73,8 @@ def run_sequence(config: dict, cycles: int) -> tuple[np.ndarray, np.ndarray]:
     t_s = 0.0
     commands, states = [], []
     for k in range(cycles):
-        t_s += 0.03 if k == 200 else 0.004 if k % 37 == 20 else 0.002   # a stall, skipped ticks
-        if not 120 <= k < 150:                                         # joint states go stale
+        t_s += 0.03 if k == 200 else 0.004 if k % 37 == 20 else 0.002  # a stall, skipped ticks
+        if not 120 <= k < 150:  # joint states go stale
             measured = q.copy()
             if k % 29 == 4:
                 measured[k % 6] = math.nan
@@ -80,7 +88,7 @@ def run_sequence(config: dict, cycles: int) -> tuple[np.ndarray, np.ndarray]:
         commands.append(np.full(6, np.nan) if result.command is None else result.command)
         states.append(STATES.index(result.state))
         if result.command is not None:
-            q = result.command + 1e-4                                   # the servo lags a little
+            q = result.command + 1e-4  # the servo lags a little
     return np.array(commands), np.array(states)
 
 

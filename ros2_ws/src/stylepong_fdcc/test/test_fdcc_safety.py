@@ -1,4 +1,5 @@
 """The safety layer: wrench rejection and conditioning, tool gravity, joint limits, watchdog, enable."""
+
 import math
 
 import numpy as np
@@ -40,8 +41,17 @@ def weight_reading(q, extra_force_base=np.zeros(3)):
 
 
 # --- rejection ---
-@pytest.mark.parametrize('wrench', [[math.nan, 0, 0, 0, 0, 0], [0, 0, 0, math.inf, 0, 0], [0, -math.inf, 0, 0, 0, 0],
-                                    [1e6, 0, 0, 0, 0, 0], [0, 0, -1e6, 0, 0, 0], [0, 0, 0, 0, 0, 1e6]])
+@pytest.mark.parametrize(
+    'wrench',
+    [
+        [math.nan, 0, 0, 0, 0, 0],
+        [0, 0, 0, math.inf, 0, 0],
+        [0, -math.inf, 0, 0, 0, 0],
+        [1e6, 0, 0, 0, 0, 0],
+        [0, 0, -1e6, 0, 0, 0],
+        [0, 0, 0, 0, 0, 1e6],
+    ],
+)
 def test_non_finite_and_implausible_wrenches_are_rejected(wrench):
     assert wrench_fault(np.array(wrench, dtype=float), 500.0, 50.0) is not None
 
@@ -138,11 +148,11 @@ def test_commands_step_no_further_than_the_velocity_limit_per_nominal_period_and
     step_limit = solver.limits.velocity_rad_s * config.nominal_period_s
     wrench = np.array([40.0, 0, 0, 0, 0, 0])
     commands = [solver.step(wrench, 0.002) for _ in range(50)]
-    commands += [solver.step(wrench, 0.004) for _ in range(20)]      # every other tick skipped: still integrated
+    commands += [solver.step(wrench, 0.004) for _ in range(20)]  # every other tick skipped: still integrated
     commands += [solver.step(np.zeros(6), 0.002) for _ in range(500)]
     steps = np.abs(np.diff(np.array(commands), axis=0))
     assert np.all(steps <= step_limit + 1e-12)
-    np.testing.assert_allclose(commands[-1], solver.q)             # caught up once at rest
+    np.testing.assert_allclose(commands[-1], solver.q)  # caught up once at rest
     # and skipped ticks cost no displacement: the same push at a steady rate ends at the same place
     steady = FdccSolver(config)
     steady.reset(HOME)
@@ -162,7 +172,7 @@ def test_after_a_stall_the_arm_carries_on_instead_of_jumping():
         solver.step(wrench, 0.002)
     before = solver.pose().translation.copy()
     speed = np.linalg.norm(solver.twist()[:3])
-    solver.step(wrench, 0.05)                                      # 50 ms without a cycle
+    solver.step(wrench, 0.05)  # 50 ms without a cycle
     jump = np.linalg.norm(solver.pose().translation - before)
     assert jump <= speed * config.max_late_periods * config.nominal_period_s * 1.05
 
@@ -178,7 +188,7 @@ def test_a_strong_push_stops_the_elbow_inside_its_limit_with_margin():
     config = FdccConfig()
     solver = FdccSolver(config)
     q0 = HOME.copy()
-    q0[2] = math.pi - 0.3   # elbow close to its +pi limit
+    q0[2] = math.pi - 0.3  # elbow close to its +pi limit
     solver.reset(q0)
     upper = robot_model.joint_limits().upper_rad - config.position_margin_rad
     for _ in range(1000):
@@ -188,7 +198,7 @@ def test_a_strong_push_stops_the_elbow_inside_its_limit_with_margin():
         wrench = np.linalg.solve(jacobian.T, 5.0 * np.eye(6)[2])
         q = solver.step(wrench, 0.002)
         assert np.all(q <= upper + 1e-12)
-    assert q[2] > upper[2] - 0.05   # it did go there
+    assert q[2] > upper[2] - 0.05  # it did go there
 
 
 # --- controller: waiting, watchdog, enable ---
@@ -214,7 +224,7 @@ def test_no_command_before_joint_states_wrenches_and_a_tare():
     t = 0.0
     while t < 0.05:
         feed(controller, t)
-        assert controller.tick(t).command is None   # the tare window is not full yet
+        assert controller.tick(t).command is None  # the tare window is not full yet
         t += 0.002
     while controller.tick(t).command is None:
         feed(controller, t)
@@ -227,18 +237,18 @@ def test_stale_wrench_decelerates_and_holds_then_resumes():
     config = FdccConfig()
     controller = DragTeachController(config)
     t = 0.0
-    for _ in range(150):                                   # at rest: tare
+    for _ in range(150):  # at rest: tare
         feed(controller, t)
         controller.tick(t)
         t += 0.002
-    for _ in range(400):                                   # 0.8 s pushing: moving
+    for _ in range(400):  # 0.8 s pushing: moving
         feed(controller, t, hand=np.array([6.0, 0.0, 0.0]))
         result = controller.tick(t)
         t += 0.002
     assert result.state == 'running' and np.max(np.abs(controller.solver.qdot)) > 0.05
     previous = result.command
     states, steps = [], []
-    for _ in range(500):                                   # only joint states: the wrench goes stale
+    for _ in range(500):  # only joint states: the wrench goes stale
         controller.on_joint_positions(HOME, t)
         result = controller.tick(t)
         states.append(result.state)
@@ -246,8 +256,8 @@ def test_stale_wrench_decelerates_and_holds_then_resumes():
         previous = result.command
         t += 0.002
     assert states[10] == 'running' and states[-1] == 'holding'
-    assert 'holding' in states[:int(0.06 / 0.002)]
-    assert steps[-1] == 0.0                               # at rest, holding
+    assert 'holding' in states[: int(0.06 / 0.002)]
+    assert steps[-1] == 0.0  # at rest, holding
     assert np.all(np.abs(controller.solver.qdot) == 0.0)
     speeds = []
     for _ in range(300):

@@ -1,4 +1,5 @@
 """The FDCC solver alone: admittance, rate independence, stiffness, the two dynamics models."""
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -40,7 +41,7 @@ def test_a_push_moves_the_tool_along_it_by_impulse_over_damping(force):
     # Linear damping: a 1 s push of |F| comes to rest |F| * 1 s / K_D further on.
     expected_m = np.linalg.norm(force) * 1.0 / config.damping[0]
     assert np.linalg.norm(displacement) == pytest.approx(expected_m, rel=0.1)
-    assert np.max(np.abs(solver.qdot)) < 1e-3   # at rest again
+    assert np.max(np.abs(solver.qdot)) < 1e-3  # at rest again
 
 
 def test_without_a_push_the_arm_does_not_move_at_all():
@@ -87,10 +88,18 @@ def test_the_urdf_model_has_the_robots_mass_and_no_gravity():
     assert np.all(urdf.gravity.linear == 0) and np.all(virtual.gravity.linear == 0)
 
 
-@pytest.mark.parametrize('bad', [dict(damping=(30.0, 30.0, 30.0, 3.0, 3.0)), dict(damping=(0.0,) * 6),
-                                 dict(stiffness=(-1.0,) * 6), dict(dynamics_model='heavy'),
-                                 dict(velocity_limit_scale=1.5), dict(lowpass_cutoff_hz=float('nan')),
-                                 dict(max_force_n=600.0)])
+@pytest.mark.parametrize(
+    'bad',
+    [
+        dict(damping=(30.0, 30.0, 30.0, 3.0, 3.0)),
+        dict(damping=(0.0,) * 6),
+        dict(stiffness=(-1.0,) * 6),
+        dict(dynamics_model='heavy'),
+        dict(velocity_limit_scale=1.5),
+        dict(lowpass_cutoff_hz=float('nan')),
+        dict(max_force_n=600.0),
+    ],
+)
 def test_bad_settings_are_refused_with_the_name(bad):
     with pytest.raises(ValueError, match=next(iter(bad)).split('_')[0]):
         FdccSolver(FdccConfig(**bad))

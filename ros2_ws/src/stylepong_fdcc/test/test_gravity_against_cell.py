@@ -5,6 +5,7 @@ paddle mass and centre of mass (Pinocchio). The reference here is independent of
 MuJoCo force/torque sensor between wrist_3 and the tool (`Cell.tool_wrench(include_inertia=True)`, the
 physical sensor's reading) with the arm held still at several poses, with and without a hand pushing.
 """
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -58,8 +59,9 @@ def test_the_compensated_weight_is_what_the_cells_sensor_reads_at_rest(name):
     cell = held_still(POSES[name])
     measured = sensor_reading(cell)
     # The cell's base_link is not rotated in the world (ROBOT_BASE_YAW_RAD = 0), so base axes = world axes.
-    predicted = gravity_wrench_on_tool(tool_load_from_model(MODEL), tool_rotation_base(cell.joint_positions_rad),
-                                       GRAVITY)
+    predicted = gravity_wrench_on_tool(
+        tool_load_from_model(MODEL), tool_rotation_base(cell.joint_positions_rad), GRAVITY
+    )
     # The paddle weighs a few newtons; a wrong rotation or lever shows up far above the tolerance.
     assert np.linalg.norm(measured[:3]) > 1.0
     np.testing.assert_allclose(predicted[:3], measured[:3], atol=FORCE_TOLERANCE_N)
@@ -71,8 +73,9 @@ def test_drag_teachs_conditioner_turns_the_cells_sensor_into_the_hand_force(name
     """The whole path drag_teach uses: the sensor reading in, gravity out, the hand's force in base axes."""
     hand = np.array([4.0, -3.0, 2.0])
     cell = held_still(POSES[name], hand_force_world=hand)
-    conditioner = WrenchConditioner(FdccConfig(force_deadband_n=0.0, torque_deadband_nm=0.0),
-                                    tool_load_from_model(MODEL), GRAVITY)
+    conditioner = WrenchConditioner(
+        FdccConfig(force_deadband_n=0.0, torque_deadband_nm=0.0), tool_load_from_model(MODEL), GRAVITY
+    )
     rotation = tool_rotation_base(cell.joint_positions_rad)
     for k in range(50):
         cell.step()

@@ -1,4 +1,5 @@
 """The virtual teacher dragging drag_teach's FDCC controller on a perfect servo (no ROS, no MuJoCo)."""
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -33,7 +34,7 @@ class DragLoop:
         self.load = tool_load_from_model(KIN.model)
         self.controller = DragTeachController(FdccConfig(nominal_period_s=dt_s))
         self.q, self.qdot, self.t, self.dt = HOME.copy(), np.zeros(6), 0.0, dt_s
-        for _ in range(100):   # drag_teach runs (and tares) before the teacher takes the paddle
+        for _ in range(100):  # drag_teach runs (and tares) before the teacher takes the paddle
             self.step(np.zeros(6))
 
     def step(self, hand_world: np.ndarray) -> None:
@@ -62,8 +63,13 @@ class DragLoop:
                 return teacher, record, self.t - start
             self.step(wrench)
             if teacher.phase == 'stroke':
-                record.append((self.q.copy(), teacher.via_point(self.t), np.linalg.norm(
-                    self.kin.twist(self.q, self.qdot, self.tool)[:3])))
+                record.append(
+                    (
+                        self.q.copy(),
+                        teacher.via_point(self.t),
+                        np.linalg.norm(self.kin.twist(self.q, self.qdot, self.tool)[:3]),
+                    )
+                )
         raise AssertionError(f'the {swing} stroke did not finish (phase {teacher.phase})')
 
 
@@ -74,13 +80,14 @@ class DragLoop:
 # there (docs/DESIGN.md, Known limits). Tracked without a flip, as the other checks show, but with little
 # to spare.
 @pytest.mark.parametrize('blade_pitch_rad, tracking_m, wrist_clearance_m', [(0.0, 0.03, 0.1), (0.6, 0.045, 0.01)])
-def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits(blade_pitch_rad, tracking_m,
-                                                                         wrist_clearance_m):
+def test_the_teacher_drags_the_fdcc_arm_through_each_stroke_within_limits(
+    blade_pitch_rad, tracking_m, wrist_clearance_m
+):
     loop = DragLoop()
     config = TeacherConfig(blade_pitch_rad=blade_pitch_rad)
     centre_id = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
     limits = robot_model.joint_limits()
-    for swing in ('forward', 'leftward', 'rightward', 'forward'):   # each starts where the last one ended
+    for swing in ('forward', 'leftward', 'rightward', 'forward'):  # each starts where the last one ended
         teacher, record, duration_s = loop.teach(swing, config)
         assert 1.5 <= duration_s <= 3.5
         errors = [np.linalg.norm(KIN.pose(q, centre_id).translation - via.position_m) for q, via, _ in record]

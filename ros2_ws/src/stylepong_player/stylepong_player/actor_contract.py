@@ -9,6 +9,7 @@ for another robot, another joint order or another observation is never fed the w
 This module needs only the standard library and the spec's constants: the robot computer checks and runs
 the ONNX actor without torch. ONNX metadata values are JSON text, one property per key.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -19,8 +20,15 @@ from typing import Any
 SIDECAR_FORMAT = 'stylepong-actor'
 SIDECAR_VERSION = 1
 # All of these must match exactly for an actor to load.
-CONTRACT_KEYS = ('spec_version', 'action_rate_hz', 'joint_names', 'obs_layout', 'num_obs', 'num_actions',
-                 'action_decoding')
+CONTRACT_KEYS = (
+    'spec_version',
+    'action_rate_hz',
+    'joint_names',
+    'obs_layout',
+    'num_obs',
+    'num_actions',
+    'action_decoding',
+)
 ONNX_INPUT = 'observation'
 ONNX_OUTPUT = 'action'
 
@@ -43,33 +51,47 @@ def jsonable(value: Any) -> Any:
 def current_spec_contract() -> dict[str, Any]:
     """The running code's observation/action contract, read from `stylepong_player.spec`."""
     from stylepong_player import spec
+
     layout = [[str(name), int(size)] for name, size in spec.OBS_LAYOUT]
-    return jsonable({'spec_version': spec.SPEC_VERSION, 'action_rate_hz': float(spec.ACTION_RATE_HZ),
-                     'joint_names': list(spec.JOINT_NAMES), 'obs_layout': layout,
-                     'num_obs': spec.NUM_OBS, 'num_actions': spec.NUM_ACTIONS,
-                     'action_decoding': spec.action_decoding()})
+    return jsonable(
+        {
+            'spec_version': spec.SPEC_VERSION,
+            'action_rate_hz': float(spec.ACTION_RATE_HZ),
+            'joint_names': list(spec.JOINT_NAMES),
+            'obs_layout': layout,
+            'num_obs': spec.NUM_OBS,
+            'num_actions': spec.NUM_ACTIONS,
+            'action_decoding': spec.action_decoding(),
+        }
+    )
 
 
 def contract_differences(metadata: dict[str, Any], expected: dict[str, Any]) -> list[str]:
     """'key: actor has X, this code has Y' for every contract key on which the two disagree."""
     expected = jsonable(expected)
-    return [f'{key}: actor has {metadata.get(key)!r}, this code has {expected[key]!r}'
-            for key in CONTRACT_KEYS if key in expected and metadata.get(key) != expected[key]]
+    return [
+        f'{key}: actor has {metadata.get(key)!r}, this code has {expected[key]!r}'
+        for key in CONTRACT_KEYS
+        if key in expected and metadata.get(key) != expected[key]
+    ]
 
 
-def check_contract(metadata: dict[str, Any], source: str | pathlib.Path, expected: dict[str, Any] | None = None
-                   ) -> None:
+def check_contract(
+    metadata: dict[str, Any], source: str | pathlib.Path, expected: dict[str, Any] | None = None
+) -> None:
     """ActorMismatchError (one line) unless `metadata` is a StylePong actor's and fits `expected`
     (default: the running code's spec)."""
     if metadata.get('format') != SIDECAR_FORMAT:
         raise ActorMismatchError(f'{source} is not a StylePong actor (format {metadata.get("format")!r})')
     if metadata.get('format_version') != SIDECAR_VERSION:
-        raise ActorMismatchError(f'{source} has format version {metadata.get("format_version")!r}, '
-                                 f'this code reads {SIDECAR_VERSION}')
+        raise ActorMismatchError(
+            f'{source} has format version {metadata.get("format_version")!r}, this code reads {SIDECAR_VERSION}'
+        )
     differences = contract_differences(metadata, current_spec_contract() if expected is None else expected)
     if differences:
-        raise ActorMismatchError(f'actor {source} was trained for a different observation/action spec: '
-                                 + '; '.join(differences))
+        raise ActorMismatchError(
+            f'actor {source} was trained for a different observation/action spec: ' + '; '.join(differences)
+        )
 
 
 def file_sha256(path: str | pathlib.Path) -> str:
@@ -106,8 +128,9 @@ def read_sidecar(actor_path: str | pathlib.Path, expected: dict[str, Any] | None
     if not isinstance(metadata, dict):
         raise ActorMismatchError(f'sidecar {json_path} is not a JSON object')
     if metadata.get('format') == SIDECAR_FORMAT and metadata.get('actor_sha256') != file_sha256(path):
-        raise ActorMismatchError(f'{path.name} does not match the SHA-256 in {json_path.name}: '
-                                 'the actor file was replaced or damaged')
+        raise ActorMismatchError(
+            f'{path.name} does not match the SHA-256 in {json_path.name}: the actor file was replaced or damaged'
+        )
     check_contract(metadata, path, expected)
     return metadata
 

@@ -25,6 +25,7 @@ Why filterpy: it is the maintained Python Kalman library (EKF, UKF, helpers for 
 EKF lets the state prediction be any function, which is what a flight with a bounce needs; the
 measurement (the position) is linear. Plain numpy around it: a few 6x6 products per detection.
 """
+
 from __future__ import annotations
 
 import enum
@@ -38,16 +39,17 @@ from filterpy.kalman import ExtendedKalmanFilter
 from stylepong_description import robot_cell
 from stylepong_player.ball_prediction import over_table, predict_ball
 
-H = np.hstack([np.eye(3), np.zeros((3, 3))])    # the tracker measures the position
+H = np.hstack([np.eye(3), np.zeros((3, 3))])  # the tracker measures the position
 
 
 @dataclass(frozen=True)
 class EstimatorConfig:
     """The filter's noise model, its gate and track rules, and the volume where a ball may be."""
+
     measurement_noise_std_m: float = 0.003
-    acceleration_noise_std_m_s2: float = 0.5    # the simulated balls do not spin (config/ball_estimator.yaml)
-    initial_velocity_std_m_s: float = 8.0       # a new ball may come at any speed the launcher has
-    bounce_velocity_std_m_s: float = 0.2        # the bounce model's error per axis (spin, the table's spot)
+    acceleration_noise_std_m_s2: float = 0.5  # the simulated balls do not spin (config/ball_estimator.yaml)
+    initial_velocity_std_m_s: float = 8.0  # a new ball may come at any speed the launcher has
+    bounce_velocity_std_m_s: float = 0.2  # the bounce model's error per axis (spin, the table's spot)
     gate_sigma: float = 4.0
     confirm_detections: int = 4
     track_timeout_s: float = 0.1
@@ -58,30 +60,43 @@ class EstimatorConfig:
     play_volume_max_m: tuple[float, float, float] = (robot_cell.HALF_LENGTH_M + 1.5, 2.0, 2.5)
 
     def validate(self) -> None:
-        for name in ('measurement_noise_std_m', 'acceleration_noise_std_m_s2', 'initial_velocity_std_m_s',
-                     'bounce_velocity_std_m_s', 'gate_sigma', 'track_timeout_s', 'max_speed_m_s'):
+        for name in (
+            'measurement_noise_std_m',
+            'acceleration_noise_std_m_s2',
+            'initial_velocity_std_m_s',
+            'bounce_velocity_std_m_s',
+            'gate_sigma',
+            'track_timeout_s',
+            'max_speed_m_s',
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f'{name} must be finite and positive, got {value}')
         if self.confirm_detections < 2:
             raise ValueError(f'confirm_detections must be at least 2, got {self.confirm_detections}')
         low, high = np.array(self.play_volume_min_m), np.array(self.play_volume_max_m)
-        if low.shape != (3,) or high.shape != (3,) or not (np.isfinite(low).all() and np.isfinite(high).all()
-                                                         and (low < high).all()):
-            raise ValueError(f'play volume needs 3 finite bounds with min < max, got {low.tolist()} '
-                             f'and {high.tolist()}')
+        if (
+            low.shape != (3,)
+            or high.shape != (3,)
+            or not (np.isfinite(low).all() and np.isfinite(high).all() and (low < high).all())
+        ):
+            raise ValueError(
+                f'play volume needs 3 finite bounds with min < max, got {low.tolist()} and {high.tolist()}'
+            )
 
 
 class Outcome(str, enum.Enum):
     """What a detection did."""
-    PUBLISHED = 'published'     # the track is confirmed: an estimate at the detection's stamp
-    TENTATIVE = 'tentative'     # taken, the track is not confirmed yet (nothing to publish)
-    REJECTED = 'rejected'       # refused (see the reason)
+
+    PUBLISHED = 'published'  # the track is confirmed: an estimate at the detection's stamp
+    TENTATIVE = 'tentative'  # taken, the track is not confirmed yet (nothing to publish)
+    REJECTED = 'rejected'  # refused (see the reason)
 
 
 @dataclass(frozen=True)
 class Estimate:
     """The ball at a detection's stamp: position, velocity and their 6x6 covariance (world frame)."""
+
     stamp_s: float
     position_m: np.ndarray
     velocity_m_s: np.ndarray
@@ -96,9 +111,10 @@ class Estimate:
 @dataclass(frozen=True)
 class Result:
     """What one detection did: its outcome, the estimate it led to (if any) and why it was rejected."""
+
     outcome: Outcome
     estimate: Estimate | None = None
-    kind: str = ''              # why it was rejected, a short key for counters and throttled warnings
+    kind: str = ''  # why it was rejected, a short key for counters and throttled warnings
     reason: str = ''
 
 
@@ -113,14 +129,19 @@ class _FlightFilter(ExtendedKalmanFilter):
     def predict_x(self, u=0):
         p, v = self.x[:3, 0], self.x[3:, 0]
         p_next, v_next = predict_ball(p, v, self.dt_s)
-        self.bounced = v[2] < 0.0 < v_next[2]     # gravity alone never turns a fall into a rise
+        self.bounced = v[2] < 0.0 < v_next[2]  # gravity alone never turns a fall into a rise
         self.x = np.concatenate([p_next, v_next]).reshape(6, 1)
 
 
 def _transition(dt_s: float, bounced: bool) -> np.ndarray:
     """The flight's Jacobian to first order: positions move with the velocity; a bounce scales it."""
-    scale = np.array([robot_cell.TABLE_TANGENTIAL_FACTOR, robot_cell.TABLE_TANGENTIAL_FACTOR,
-                      -robot_cell.TABLE_RESTITUTION]) if bounced else np.ones(3)
+    scale = (
+        np.array(
+            [robot_cell.TABLE_TANGENTIAL_FACTOR, robot_cell.TABLE_TANGENTIAL_FACTOR, -robot_cell.TABLE_RESTITUTION]
+        )
+        if bounced
+        else np.ones(3)
+    )
     f = np.eye(6)
     f[:3, 3:] = dt_s * np.eye(3)
     f[3:, 3:] = np.diag(scale)
@@ -140,7 +161,7 @@ class _Track:
         self.config = config
         self.kf = _FlightFilter()
         self.kf.x = np.vstack([z, np.zeros((3, 1))])
-        self.kf.P = np.diag([config.measurement_noise_std_m ** 2] * 3 + [config.initial_velocity_std_m_s ** 2] * 3)
+        self.kf.P = np.diag([config.measurement_noise_std_m**2] * 3 + [config.initial_velocity_std_m_s**2] * 3)
         self.stamp_s = self.accepted_s = stamp_s
         self.hits = 1
 
@@ -157,14 +178,19 @@ class _Track:
         if dt_s <= 0.0:
             return
         kf.dt_s = dt_s
-        kf.Q = Q_continuous_white_noise(dim=2, dt=dt_s, spectral_density=self.config.acceleration_noise_std_m_s2 ** 2,
-                                        block_size=3, order_by_dim=False)
+        kf.Q = Q_continuous_white_noise(
+            dim=2,
+            dt=dt_s,
+            spectral_density=self.config.acceleration_noise_std_m_s2**2,
+            block_size=3,
+            order_by_dim=False,
+        )
         covariance = kf.P
         kf.predict_x()
-        kf.F = _transition(dt_s, kf.bounced)    # the Jacobian is known once the flight says whether it bounced
+        kf.F = _transition(dt_s, kf.bounced)  # the Jacobian is known once the flight says whether it bounced
         kf.P = kf.F @ covariance @ kf.F.T + kf.Q
         if kf.bounced:
-            kf.P[3:, 3:] += np.eye(3) * self.config.bounce_velocity_std_m_s ** 2
+            kf.P[3:, 3:] += np.eye(3) * self.config.bounce_velocity_std_m_s**2
         self.stamp_s = stamp_s
 
     def take(self, z: np.ndarray, r: np.ndarray) -> float:
@@ -197,9 +223,9 @@ class _Track:
         f = _transition(0.0, True)
         bounced = _FlightFilter()
         bounced.x = f @ kf.x
-        bounced.x[2, 0] = max(p[2], robot_cell.TABLE_CONTACT_HEIGHT_M)   # on or over the table, rising
+        bounced.x[2, 0] = max(p[2], robot_cell.TABLE_CONTACT_HEIGHT_M)  # on or over the table, rising
         bounced.P = f @ kf.P @ f.T
-        bounced.P[3:, 3:] += np.eye(3) * self.config.bounce_velocity_std_m_s ** 2
+        bounced.P[3:, 3:] += np.eye(3) * self.config.bounce_velocity_std_m_s**2
         bounced.bounced = True
         return bounced
 
@@ -217,13 +243,13 @@ class BallEstimator:
     def __init__(self, config: EstimatorConfig | None = None):
         self.config = config or EstimatorConfig()
         self.config.validate()
-        self._r = np.eye(3) * self.config.measurement_noise_std_m ** 2
+        self._r = np.eye(3) * self.config.measurement_noise_std_m**2
         # The play volume as arrays once, not per detection.
         self._low = np.array(self.config.play_volume_min_m)
         self._high = np.array(self.config.play_volume_max_m)
         self._track: _Track | None = None
         self._candidate: _Track | None = None
-        self._stamp_s = -math.inf           # the latest detection's stamp
+        self._stamp_s = -math.inf  # the latest detection's stamp
         self.tracks_started = 0
 
     @property
@@ -238,12 +264,11 @@ class BallEstimator:
         problem = self._outside_play_volume(z[:, 0])
         if problem:
             return problem
-        if stamp_s < self._stamp_s:   # equal stamps: more than one detection in a frame (the ball, a false one)
-            return _rejected('stamp_order', f'detection stamp {stamp_s:.4f} s is before the last '
-                                            f'{self._stamp_s:.4f} s')
+        if stamp_s < self._stamp_s:  # equal stamps: more than one detection in a frame (the ball, a false one)
+            return _rejected('stamp_order', f'detection stamp {stamp_s:.4f} s is before the last {self._stamp_s:.4f} s')
         self._stamp_s = stamp_s
         track = self._track
-        if track is None or track.timed_out(stamp_s):   # lost (or the tracker stopped): a new ball
+        if track is None or track.timed_out(stamp_s):  # lost (or the tracker stopped): a new ball
             self._start(stamp_s, z)
             return Result(Outcome.TENTATIVE)
         track.predict(stamp_s)
@@ -252,14 +277,17 @@ class BallEstimator:
             self._candidate = None
             return self._published(track)
         if not track.confirmed:
-            self._start(stamp_s, z)   # the track began on something that was not a ball
+            self._start(stamp_s, z)  # the track began on something that was not a ball
             return Result(Outcome.TENTATIVE)
         if self._grow_candidate(stamp_s, z):
             self._track, self._candidate = self._candidate, None
             self.tracks_started += 1
             return self._published(self._track)
-        return _rejected('gated', f'detection {np.round(z[:, 0], 3).tolist()} m is {distance:.1f} sigma from the '
-                                  'ball (a false detection, a second ball or a jump)')
+        return _rejected(
+            'gated',
+            f'detection {np.round(z[:, 0], 3).tolist()} m is {distance:.1f} sigma from the '
+            'ball (a false detection, a second ball or a jump)',
+        )
 
     # --- internals -------------------------------------------------------------------------------
     def _start(self, stamp_s: float, z: np.ndarray) -> None:

@@ -14,6 +14,7 @@ Clock       none: the filter runs on the detections' stamps, so start it without
 The filter, its gate and its track rules are in ball_estimator.py; detections it refuses are counted and
 named in a throttled warning, and never reach /ball/state.
 """
+
 from __future__ import annotations
 
 import collections
@@ -35,28 +36,64 @@ from stylepong_player.static_frames import StaticFrames
 PROGRAM = 'ball_estimator'
 STATUS_PERIOD_S = 1.0
 # /tf_static as tf2's static broadcaster offers it: every transform latched for late subscribers.
-TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TF_STATIC_QOS = QoSProfile(
+    depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 
 _D = EstimatorConfig()
 PARAMETERS = (
-    Param('measurement_noise_std_m', _D.measurement_noise_std_m, "the tracker's position noise (std, per axis)",
-          low=1e-5, high=0.5),
-    Param('acceleration_noise_std_m_s2', _D.acceleration_noise_std_m_s2,
-          'accelerations the flight model leaves out (spin), as white noise', low=1e-3, high=100.0),
-    Param('initial_velocity_std_m_s', _D.initial_velocity_std_m_s, "a new ball's velocity is this uncertain",
-          low=0.1, high=100.0),
-    Param('bounce_velocity_std_m_s', _D.bounce_velocity_std_m_s, 'velocity uncertainty added at a table bounce',
-          low=0.0, high=10.0),
-    Param('gate_sigma', _D.gate_sigma, 'detections farther from the prediction (Mahalanobis) are not the ball',
-          low=1.0, high=100.0),
-    Param('confirm_detections', _D.confirm_detections, 'detections in a row before a new track is published',
-          low=2, high=100),
-    Param('track_timeout_s', _D.track_timeout_s, 'no detection taken for this long: the ball is lost',
-          low=0.01, high=5.0),
+    Param(
+        'measurement_noise_std_m',
+        _D.measurement_noise_std_m,
+        "the tracker's position noise (std, per axis)",
+        low=1e-5,
+        high=0.5,
+    ),
+    Param(
+        'acceleration_noise_std_m_s2',
+        _D.acceleration_noise_std_m_s2,
+        'accelerations the flight model leaves out (spin), as white noise',
+        low=1e-3,
+        high=100.0,
+    ),
+    Param(
+        'initial_velocity_std_m_s',
+        _D.initial_velocity_std_m_s,
+        "a new ball's velocity is this uncertain",
+        low=0.1,
+        high=100.0,
+    ),
+    Param(
+        'bounce_velocity_std_m_s',
+        _D.bounce_velocity_std_m_s,
+        'velocity uncertainty added at a table bounce',
+        low=0.0,
+        high=10.0,
+    ),
+    Param(
+        'gate_sigma',
+        _D.gate_sigma,
+        'detections farther from the prediction (Mahalanobis) are not the ball',
+        low=1.0,
+        high=100.0,
+    ),
+    Param(
+        'confirm_detections',
+        _D.confirm_detections,
+        'detections in a row before a new track is published',
+        low=2,
+        high=100,
+    ),
+    Param(
+        'track_timeout_s', _D.track_timeout_s, 'no detection taken for this long: the ball is lost', low=0.01, high=5.0
+    ),
     Param('max_speed_m_s', _D.max_speed_m_s, 'a faster estimate drops the track', low=1.0, high=100.0),
-    Param('play_volume_min_m', list(_D.play_volume_min_m), 'world box where a ball may be: lower corner (x: the '
-          "robot's base, behind it nothing is in play)", length=3),
+    Param(
+        'play_volume_min_m',
+        list(_D.play_volume_min_m),
+        "world box where a ball may be: lower corner (x: the robot's base, behind it nothing is in play)",
+        length=3,
+    ),
     Param('play_volume_max_m', list(_D.play_volume_max_m), 'world box where a ball may be: upper corner', length=3),
 )
 
@@ -68,11 +105,23 @@ class BallEstimatorNode(Node):
         super().__init__(PROGRAM, **node_kwargs)
         value = declare_parameters(self, PARAMETERS)
         try:
-            config = EstimatorConfig(**{name: value[name] for name in (
-                'measurement_noise_std_m', 'acceleration_noise_std_m_s2', 'initial_velocity_std_m_s',
-                'bounce_velocity_std_m_s', 'gate_sigma', 'confirm_detections', 'track_timeout_s', 'max_speed_m_s')},
+            config = EstimatorConfig(
+                **{
+                    name: value[name]
+                    for name in (
+                        'measurement_noise_std_m',
+                        'acceleration_noise_std_m_s2',
+                        'initial_velocity_std_m_s',
+                        'bounce_velocity_std_m_s',
+                        'gate_sigma',
+                        'confirm_detections',
+                        'track_timeout_s',
+                        'max_speed_m_s',
+                    )
+                },
                 play_volume_min_m=tuple(value['play_volume_min_m']),
-                play_volume_max_m=tuple(value['play_volume_max_m']))
+                play_volume_max_m=tuple(value['play_volume_max_m']),
+            )
             self.estimator = BallEstimator(config)
         except ValueError as error:
             raise ParameterError(str(error)) from error
@@ -94,8 +143,9 @@ class BallEstimatorNode(Node):
         for transform in msg.transforms:
             t, q = transform.transform.translation, transform.transform.rotation
             try:
-                self.frames.add(transform.header.frame_id, transform.child_frame_id, (t.x, t.y, t.z),
-                                (q.x, q.y, q.z, q.w))
+                self.frames.add(
+                    transform.header.frame_id, transform.child_frame_id, (t.x, t.y, t.z), (q.x, q.y, q.z, q.w)
+                )
             except ValueError as error:
                 self._warnings.warn('tf_static', f'/tf_static: {error}')
 
@@ -104,8 +154,9 @@ class BallEstimatorNode(Node):
         p = msg.point
         position = self.frames.to_frame(frame, FRAME_WORLD, (p.x, p.y, p.z))
         if position is None:
-            self._reject('frame', f'no transform from {frame!r} to {FRAME_WORLD!r} on /tf_static yet: '
-                                  'detection dropped')
+            self._reject(
+                'frame', f'no transform from {frame!r} to {FRAME_WORLD!r} on /tf_static yet: detection dropped'
+            )
             return
         stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         result = self.estimator.update(stamp_s, position)

@@ -11,6 +11,7 @@ semi-implicit Euler; a ball whose bottom reaches the table top over the table bo
 nominal restitution and tangential factor. Plain Python floats: a few hundred operations per step, faster
 than numpy on 3-vectors.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,7 +21,7 @@ import numpy as np
 
 from stylepong_description import robot_cell
 
-STEP_S = 0.002     # integration step; over 50 ms it errs by well under a millimetre
+STEP_S = 0.002  # integration step; over 50 ms it errs by well under a millimetre
 
 
 def over_table(x_m: float, y_m: float) -> bool:
@@ -28,8 +29,9 @@ def over_table(x_m: float, y_m: float) -> bool:
     return abs(x_m) <= robot_cell.HALF_LENGTH_M and abs(y_m) <= robot_cell.HALF_WIDTH_M
 
 
-def predict_ball(position_m: Sequence[float], velocity_m_s: Sequence[float],
-                 horizon_s: float) -> tuple[np.ndarray, np.ndarray]:
+def predict_ball(
+    position_m: Sequence[float], velocity_m_s: Sequence[float], horizon_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The ball's position and velocity horizon_s (>= 0) after the given state."""
     x, y, z = (float(c) for c in position_m)
     vx, vy, vz = (float(c) for c in velocity_m_s)

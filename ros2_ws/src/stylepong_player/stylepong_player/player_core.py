@@ -30,6 +30,7 @@ ramp at its own rate instead of a step every period. Messages with NaN/inf, the 
 frame, implausible values or stamps are rejected (counted, a throttled warning in the node) and never
 reach the actor.
 """
+
 from __future__ import annotations
 
 import collections
@@ -71,7 +72,7 @@ MIN_STEP_SPACING_PERIODS = 0.5
 JOINT_POSITION_TOLERANCE_RAD = 0.05
 JOINT_VELOCITY_FACTOR = 2.0
 STATS_WINDOW = 4096
-ARRIVAL_TOLERANCE_S = 1e-9     # a stream segment has ended (times are sums of floats)
+ARRIVAL_TOLERANCE_S = 1e-9  # a stream segment has ended (times are sums of floats)
 
 
 # --- limits and the command limiter ------------------------------------------------------------------
@@ -85,7 +86,7 @@ def stopping_speed(distance_rad: np.ndarray, acceleration_rad_s2: np.ndarray, pe
     """
     d = np.maximum(np.asarray(distance_rad, dtype=float), 0.0)
     u = acceleration_rad_s2 * period_s
-    steps = d / period_s / u                           # distance in units of u T
+    steps = d / period_s / u  # distance in units of u T
     n = np.maximum(np.ceil((-1.0 + np.sqrt(1.0 + 8.0 * steps)) / 2.0), 1.0)
     return (d / period_s + u * n * (n - 1.0) / 2.0) / n
 
@@ -115,15 +116,19 @@ class CommandLimiter:
     def stop(self) -> None:
         self.position_rad = None
 
-    def step(self, target_rad: np.ndarray, max_speed_rad_s: float | None = None,
-             max_acceleration_rad_s2: float | None = None) -> np.ndarray:
+    def step(
+        self, target_rad: np.ndarray, max_speed_rad_s: float | None = None, max_acceleration_rad_s2: float | None = None
+    ) -> np.ndarray:
         """The next command toward `target_rad` (optionally slower than the limits: home moves)."""
         lim = self.limits
         dt = self.period_s
         x, v_prev = self.position_rad, self.velocity_rad_s
         v_max = lim.velocity_rad_s if max_speed_rad_s is None else np.minimum(lim.velocity_rad_s, max_speed_rad_s)
-        a_max = (lim.acceleration_rad_s2 if max_acceleration_rad_s2 is None
-                 else np.minimum(lim.acceleration_rad_s2, max_acceleration_rad_s2))
+        a_max = (
+            lim.acceleration_rad_s2
+            if max_acceleration_rad_s2 is None
+            else np.minimum(lim.acceleration_rad_s2, max_acceleration_rad_s2)
+        )
         target = np.clip(np.where(np.isfinite(target_rad), target_rad, x), lim.lower_rad, lim.upper_rad)
         to_target = target - x
         # Wanted: reach the target, but no faster than what still stops there.
@@ -198,8 +203,14 @@ class CommandStream:
 _HOME = np.asarray(spec.HOME_JOINT_POSITIONS_RAD, dtype=np.float64)
 
 
-def build_observation(q_rad: np.ndarray, qd_rad_s: np.ndarray, ball_position_m: np.ndarray,
-                      ball_velocity_m_s: np.ndarray, goal_xy_m: np.ndarray, last_action: np.ndarray) -> np.ndarray:
+def build_observation(
+    q_rad: np.ndarray,
+    qd_rad_s: np.ndarray,
+    ball_position_m: np.ndarray,
+    ball_velocity_m_s: np.ndarray,
+    goal_xy_m: np.ndarray,
+    last_action: np.ndarray,
+) -> np.ndarray:
     """The actor's observation [1, NUM_OBS] float32 (joints in URDF order): spec.build_observation on one row."""
     parts = (q_rad, qd_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action)
     for (name, size), part in zip(spec.OBS_LAYOUT, parts):
@@ -219,8 +230,11 @@ class JointOrder:
         names = tuple(names)
         if names != self._names:
             position = {name: i for i, name in enumerate(names)}
-            self._index = (np.array([position[n] for n in spec.JOINT_NAMES])
-                           if all(n in position for n in spec.JOINT_NAMES) else None)
+            self._index = (
+                np.array([position[n] for n in spec.JOINT_NAMES])
+                if all(n in position for n in spec.JOINT_NAMES)
+                else None
+            )
             self._names = names
         return self._index
 
@@ -228,10 +242,12 @@ class JointOrder:
 # --- actors ------------------------------------------------------------------------------------------
 class OnnxActor:
     """The exported `<name>.onnx` in onnxruntime, one thread (a 2-core robot computer runs more than this)."""
+
     backend = 'onnx'
 
     def __init__(self, path: str | pathlib.Path, expected: dict | None = None):
         import onnxruntime
+
         self.path = pathlib.Path(path)
         if not self.path.is_file():
             raise ActorMismatchError(f'actor file {self.path} does not exist')
@@ -248,8 +264,10 @@ class OnnxActor:
         check_contract(self.metadata, self.path, expected)
         inputs, outputs = self._session.get_inputs(), self._session.get_outputs()
         if [i.name for i in inputs] != [ONNX_INPUT] or [o.name for o in outputs] != [ONNX_OUTPUT]:
-            raise ActorMismatchError(f'{self.path} has inputs {[i.name for i in inputs]} and outputs '
-                                     f'{[o.name for o in outputs]}, expected [{ONNX_INPUT!r}] and [{ONNX_OUTPUT!r}]')
+            raise ActorMismatchError(
+                f'{self.path} has inputs {[i.name for i in inputs]} and outputs '
+                f'{[o.name for o in outputs]}, expected [{ONNX_INPUT!r}] and [{ONNX_OUTPUT!r}]'
+            )
         check_output_shape(self)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -258,10 +276,12 @@ class OnnxActor:
 
 class TorchScriptActor:
     """The exported `<name>.pt` with its sidecar, in torch (one thread, inference mode)."""
+
     backend = 'torchscript'
 
     def __init__(self, path: str | pathlib.Path, expected: dict | None = None):
         import torch
+
         torch.set_num_threads(1)
         self._torch = torch
         self.path = pathlib.Path(path)
@@ -281,8 +301,9 @@ def check_output_shape(actor) -> None:
     """ActorMismatchError unless the actor maps one observation row to one action row, as its contract says."""
     out = actor(np.zeros((1, int(actor.metadata['num_obs'])), dtype=np.float32))
     if tuple(out.shape) != (1, int(actor.metadata['num_actions'])):
-        raise ActorMismatchError(f'{actor.path} outputs shape {tuple(out.shape)}, its contract promises '
-                                 f'(1, {actor.metadata["num_actions"]})')
+        raise ActorMismatchError(
+            f'{actor.path} outputs shape {tuple(out.shape)}, its contract promises (1, {actor.metadata["num_actions"]})'
+        )
 
 
 BACKENDS = ('onnx', 'torchscript')
@@ -317,15 +338,21 @@ class Samples:
         if not self.values:
             return {'count': 0}
         v = np.fromiter(self.values, dtype=float) * scale
-        return {'count': self.count, 'mean': round(float(v.mean()), 4), 'p50': round(float(np.percentile(v, 50)), 4),
-                'p99': round(float(np.percentile(v, 99)), 4), 'max': round(float(v.max()), 4),
-                'max_ever': round(self.max * scale, 4)}
+        return {
+            'count': self.count,
+            'mean': round(float(v.mean()), 4),
+            'p50': round(float(np.percentile(v, 50)), 4),
+            'p99': round(float(np.percentile(v, 99)), 4),
+            'max': round(float(v.max()), 4),
+            'max_ever': round(self.max * scale, 4),
+        }
 
 
 # --- the player --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PlayerConfig:
     """The player's settings: rate, goal, command limits, homing and input timeouts."""
+
     rate_hz: float = spec.ACTION_RATE_HZ
     goal_xy_m: tuple[float, float] = (0.685, 0.0)
     position_margin_rad: float = 0.02
@@ -350,7 +377,7 @@ class PlayerConfig:
 
     def validate(self) -> None:
         if not math.isclose(self.rate_hz, spec.ACTION_RATE_HZ):
-            raise ValueError(f'rate_hz must be the actor\'s action rate {spec.ACTION_RATE_HZ} Hz, got {self.rate_hz}')
+            raise ValueError(f"rate_hz must be the actor's action rate {spec.ACTION_RATE_HZ} Hz, got {self.rate_hz}")
         if len(self.acceleration_limit_rad_s2) != spec.NUM_ACTIONS:
             raise ValueError(f'acceleration_limit_rad_s2 needs {spec.NUM_ACTIONS} values')
         check_goal(self.goal_xy_m)
@@ -361,12 +388,15 @@ def check_goal(goal_xy_m: Sequence[float]) -> None:
     x, y = (float(v) for v in goal_xy_m)
     half_length_m, half_width_m = robot_cell.HALF_LENGTH_M, robot_cell.HALF_WIDTH_M
     if not (math.isfinite(x) and math.isfinite(y) and 0.0 < x <= half_length_m and abs(y) <= half_width_m):
-        raise ValueError(f"goal ({x}, {y}) m is not on the opponent's half "
-                         f'(0 < x <= {robot_cell.HALF_LENGTH_M}, |y| <= {robot_cell.HALF_WIDTH_M})')
+        raise ValueError(
+            f"goal ({x}, {y}) m is not on the opponent's half "
+            f'(0 < x <= {robot_cell.HALF_LENGTH_M}, |y| <= {robot_cell.HALF_WIDTH_M})'
+        )
 
 
 class State(str, enum.Enum):
     """The player's state: disabled, ready (at home) or playing."""
+
     DISABLED = 'disabled'
     READY = 'ready'
     PLAYING = 'playing'
@@ -375,10 +405,11 @@ class State(str, enum.Enum):
 @dataclass
 class StepResult:
     """One player step: the command (None: none), the state, whether the actor ran, and why no command."""
+
     command: np.ndarray | None
     state: State
-    policy: bool = False           # the actor ran
-    problem: str = ''              # why there is no command ('' when there is one, or when disabled)
+    policy: bool = False  # the actor ran
+    problem: str = ''  # why there is no command ('' when there is one, or when disabled)
 
 
 @dataclass
@@ -393,17 +424,23 @@ class Player:
     """The player's logic; the caller supplies times (the node's clock, seconds) and calls `step` when
     `ball_step_due` / `fallback_step_due` / `timer_step_due` say so."""
 
-    def __init__(self, config: PlayerConfig, actor: Callable[[np.ndarray], np.ndarray], *,
-                 perf_counter: Callable[[], float] = time.perf_counter):
+    def __init__(
+        self,
+        config: PlayerConfig,
+        actor: Callable[[np.ndarray], np.ndarray],
+        *,
+        perf_counter: Callable[[], float] = time.perf_counter,
+    ):
         config.validate()
         self.config = config
         self.actor = actor
         self.period_s = config.period_s
-        self.limits = JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
-                                               config.acceleration_limit_rad_s2)
+        self.limits = JointLimits.for_commands(
+            config.position_margin_rad, config.velocity_limit_scale, config.acceleration_limit_rad_s2
+        )
         self.limiter = CommandLimiter(self.limits, self.period_s)
         self.stream = CommandStream(self.limits.velocity_rad_s, self.period_s) if config.stream_commands else None
-        self._stream_at_end = True          # the stream's last point has been handed out
+        self._stream_at_end = True  # the stream's last point has been handed out
         self.state = State.DISABLED
         self.goal_xy_m = np.asarray(config.goal_xy_m, dtype=np.float32)
         self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)
@@ -413,7 +450,7 @@ class Player:
         self._qd: np.ndarray | None = None
         self._joint_received_s = -math.inf
         self._ball: _Ball | None = None
-        self._grid_s = -math.inf                # the next policy step's place on the 60 Hz grid (node clock)
+        self._grid_s = -math.inf  # the next policy step's place on the 60 Hz grid (node clock)
         self._last_step_s = -math.inf
         self._last_command_s = -math.inf
         self._last_command_wall_s = -math.inf
@@ -422,13 +459,13 @@ class Player:
         self._urdf_upper = self.limits.upper_rad + config.position_margin_rad + JOINT_POSITION_TOLERANCE_RAD
         self._max_joint_speed = self.limits.velocity_rad_s / config.velocity_limit_scale * JOINT_VELOCITY_FACTOR
         self.rejected: dict[str, int] = collections.defaultdict(int)
-        self.period = Samples()              # between consecutive policy steps (playing), node clock
-        self.period_wall = Samples()         # the same on the wall clock (monotonic)
-        self.period_ready = Samples()        # between consecutive home moves (ready, the 60 Hz timer)
-        self.latency = Samples()             # ball stamp -> command published, ball-driven steps, node clock
-        self.receipt_latency = Samples()     # ball message's callback -> command published, wall clock
-        self.fallback_ball_age = Samples()   # age of the ball a fallback step used, node clock
-        self.inference = Samples()           # actor call
+        self.period = Samples()  # between consecutive policy steps (playing), node clock
+        self.period_wall = Samples()  # the same on the wall clock (monotonic)
+        self.period_ready = Samples()  # between consecutive home moves (ready, the 60 Hz timer)
+        self.latency = Samples()  # ball stamp -> command published, ball-driven steps, node clock
+        self.receipt_latency = Samples()  # ball message's callback -> command published, wall clock
+        self.fallback_ball_age = Samples()  # age of the ball a fallback step used, node clock
+        self.inference = Samples()  # actor call
         self.counts: dict[str, int] = collections.defaultdict(int)
         self._last_state_for_period = State.DISABLED
 
@@ -440,7 +477,7 @@ class Player:
     def set_enabled(self, enabled: bool) -> None:
         if enabled and self.state == State.DISABLED:
             self.state = State.READY
-            self._stop_commands()      # the next command starts from the measured position
+            self._stop_commands()  # the next command starts from the measured position
         elif not enabled:
             self.state = State.DISABLED
             self._stop_commands()
@@ -450,30 +487,42 @@ class Player:
         if self.stream is not None:
             self.stream.stop()
 
-    def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
-                       now_s: float) -> str | None:
+    def on_joint_state(
+        self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float], now_s: float
+    ) -> str | None:
         """Accept a JointState's fields, or return why not."""
         index = self._joint_order.index(names)
         if index is None:
-            return self._reject('joint_names', f'joint state must name every joint of {list(spec.JOINT_NAMES)}, '
-                                               f'got {list(names)[:12]}')
+            return self._reject(
+                'joint_names', f'joint state must name every joint of {list(spec.JOINT_NAMES)}, got {list(names)[:12]}'
+            )
         if len(positions) != len(names) or len(velocities) != len(names):
-            return self._reject('joint_length', f'joint state has {len(names)} names, {len(positions)} positions '
-                                                f'and {len(velocities)} velocities')
+            return self._reject(
+                'joint_length',
+                f'joint state has {len(names)} names, {len(positions)} positions and {len(velocities)} velocities',
+            )
         q = np.asarray(positions, dtype=float)[index]
         qd = np.asarray(velocities, dtype=float)[index]
         if not (np.isfinite(q).all() and np.isfinite(qd).all()):
             return self._reject('joint_not_finite', 'joint state has NaN or inf')
         if (q < self._urdf_lower).any() or (q > self._urdf_upper).any():
-            return self._reject('joint_out_of_limits',
-                                f'joint positions {np.round(q, 3).tolist()} outside the URDF limits')
+            return self._reject(
+                'joint_out_of_limits', f'joint positions {np.round(q, 3).tolist()} outside the URDF limits'
+            )
         if (np.abs(qd) > self._max_joint_speed).any():
             return self._reject('joint_speed', f'joint velocities {np.round(qd, 2).tolist()} beyond twice the limits')
         self._q, self._qd, self._joint_received_s = q, qd, now_s
         return None
 
-    def on_ball(self, frame_id: str, stamp_s: float, position_m: Sequence[float], velocity_m_s: Sequence[float],
-                now_s: float, velocity_covariance: Sequence[float] = (0.0,) * 9) -> str | None:
+    def on_ball(
+        self,
+        frame_id: str,
+        stamp_s: float,
+        position_m: Sequence[float],
+        velocity_m_s: Sequence[float],
+        now_s: float,
+        velocity_covariance: Sequence[float] = (0.0,) * 9,
+    ) -> str | None:
         """Accept a BallState's fields, or return why not."""
         if frame_id.lstrip('/') != FRAME_WORLD:
             return self._reject('ball_frame', f'ball state in frame {frame_id!r}, expected {FRAME_WORLD!r}')
@@ -492,12 +541,18 @@ class Player:
         velocity_std = float(np.sqrt(max(variances[[0, 4, 8]].max(), 0.0)))
         if velocity_std > self.config.max_ball_velocity_std_m_s:
             # An estimate that has not settled yet (a new ball, a bounce): the actor would swing at a guess.
-            return self._reject('ball_uncertain', f'ball velocity uncertain ({velocity_std:.2f} m/s std, accepted '
-                                                  f'up to {self.config.max_ball_velocity_std_m_s} m/s)')
+            return self._reject(
+                'ball_uncertain',
+                f'ball velocity uncertain ({velocity_std:.2f} m/s std, accepted '
+                f'up to {self.config.max_ball_velocity_std_m_s} m/s)',
+            )
         age_s = now_s - stamp_s
         if stamp_s <= 0.0 or not -self.period_s <= age_s <= self.config.max_ball_age_s:
-            return self._reject('ball_stamp', f'ball stamp {stamp_s:.3f} s is {age_s:.3f} s old at {now_s:.3f} s '
-                                              f'(accepted: 0 to {self.config.max_ball_age_s} s)')
+            return self._reject(
+                'ball_stamp',
+                f'ball stamp {stamp_s:.3f} s is {age_s:.3f} s old at {now_s:.3f} s '
+                f'(accepted: 0 to {self.config.max_ball_age_s} s)',
+            )
         if self._ball is not None and stamp_s <= self._ball.stamp_s:
             return self._reject('ball_stamp_order', f'ball stamp {stamp_s:.4f} s not after the last one')
         self._ball = _Ball(p, v, stamp_s, now_s)
@@ -525,7 +580,7 @@ class Player:
         if self.state == State.DISABLED or self._ball is None:
             return False
         if self.state == State.READY:
-            return True            # a ball has come: start playing at once
+            return True  # a ball has come: start playing at once
         if now_s - self._last_step_s < MIN_STEP_SPACING_PERIODS * self.period_s:
             return False
         return now_s >= self._grid_s - STEP_TOLERANCE_PERIODS * self.period_s
@@ -556,8 +611,9 @@ class Player:
         if not self.joints_fresh(now_s):
             # The limiter keeps its segment: joint states back within the timeout continue it, so two
             # commands that close together never jump; only a longer silence restarts from the measured joints.
-            return StepResult(None, self.state, problem='joint states stale: no command (the controller holds '
-                                                        'its last target)')
+            return StepResult(
+                None, self.state, problem='joint states stale: no command (the controller holds its last target)'
+            )
         if not self.limiter.active or now_s - self._last_command_s > self.config.joint_timeout_periods * self.period_s:
             self.limiter.start(self._q)
             if self.stream is not None:
@@ -566,7 +622,7 @@ class Player:
             self.state = State.READY
         elif self.state == State.READY and self.ball_fresh(now_s):
             self.state = State.PLAYING
-            self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)   # as at a training episode start
+            self.last_action = np.zeros(spec.NUM_ACTIONS, dtype=np.float32)  # as at a training episode start
             self._grid_s = -math.inf
         policy = self.state == State.PLAYING
         if policy:
@@ -584,8 +640,13 @@ class Player:
     def stream_command(self, now_s: float) -> np.ndarray | None:
         """Between steps (call it at the controller's rate, e.g. on every joint state): the stream's point to
         publish now, or None (not streaming, disabled, joint states stale, or the segment's end already sent)."""
-        if (self.stream is None or not self.stream.active or self.state == State.DISABLED
-                or not self.joints_fresh(now_s) or self._stream_at_end):
+        if (
+            self.stream is None
+            or not self.stream.active
+            or self.state == State.DISABLED
+            or not self.joints_fresh(now_s)
+            or self._stream_at_end
+        ):
             return None
         self._stream_at_end = self.stream.arrived(now_s)
         return self.stream.point(now_s)
@@ -619,8 +680,9 @@ class Player:
         self.counts['commands'] += 1
         self.counts['policy_steps' if policy else 'home_steps'] += 1
 
-    def record_published(self, published_s: float, ball_driven: bool, wall_received_s: float | None,
-                         wall_published_s: float) -> None:
+    def record_published(
+        self, published_s: float, ball_driven: bool, wall_received_s: float | None, wall_published_s: float
+    ) -> None:
         """After a policy step's command was published (`published_s` on the node clock): for a ball-driven
         step the latency from the ball's stamp and from the message's callback (wall clock); for a fallback
         step the age of the ball it used."""
@@ -637,8 +699,10 @@ class Player:
     def at_home(self) -> bool:
         if self._q is None or not self.limiter.active:
             return False
-        return bool(np.abs(self._q - _HOME).max() <= self.config.home_tolerance_rad
-                    and np.abs(self.limiter.position_rad - _HOME).max() <= 1e-6)
+        return bool(
+            np.abs(self._q - _HOME).max() <= self.config.home_tolerance_rad
+            and np.abs(self.limiter.position_rad - _HOME).max() <= 1e-6
+        )
 
     def status(self, now_s: float) -> dict:
         period = self.period.summary()
@@ -646,11 +710,19 @@ class Player:
             jitter = np.abs(np.fromiter(self.period.values, dtype=float) - self.period_s) * 1e3
             period['jitter_p99'] = round(float(np.percentile(jitter, 99)), 4)
             period['jitter_max'] = round(float(jitter.max()), 4)
-        return {'state': self.state.value, 'at_home': self.at_home(), 'ball_fresh': self.ball_fresh(now_s),
-                'joints_fresh': self.joints_fresh(now_s), 'goal_xy_m': [round(float(v), 4) for v in self.goal_xy_m],
-                'period_ms': period, 'period_wall_ms': self.period_wall.summary(),
-                'period_ready_ms': self.period_ready.summary(),
-                'latency_ms': self.latency.summary(), 'receipt_latency_ms': self.receipt_latency.summary(),
-                'fallback_ball_age_ms': self.fallback_ball_age.summary(),
-                'inference_ms': self.inference.summary(), 'counts': dict(self.counts),
-                'rejected': dict(self.rejected)}
+        return {
+            'state': self.state.value,
+            'at_home': self.at_home(),
+            'ball_fresh': self.ball_fresh(now_s),
+            'joints_fresh': self.joints_fresh(now_s),
+            'goal_xy_m': [round(float(v), 4) for v in self.goal_xy_m],
+            'period_ms': period,
+            'period_wall_ms': self.period_wall.summary(),
+            'period_ready_ms': self.period_ready.summary(),
+            'latency_ms': self.latency.summary(),
+            'receipt_latency_ms': self.receipt_latency.summary(),
+            'fallback_ball_age_ms': self.fallback_ball_age.summary(),
+            'inference_ms': self.inference.summary(),
+            'counts': dict(self.counts),
+            'rejected': dict(self.rejected),
+        }

@@ -15,6 +15,7 @@ Parameters  config/player.yaml (read at start-up; a bad one: one line on stderr,
 Clock       the node's: wall time, or /clock with use_sim_time:=true (ur5_sim), which it then follows at
             any speed. The logic, the state machine and the timing choice are in player_core.py.
 """
+
 from __future__ import annotations
 
 import json
@@ -45,6 +46,7 @@ def _default_actor() -> str:
     is installed; a robot computer without it names its actor."""
     try:
         from ament_index_python.packages import get_package_share_directory
+
         return str(pathlib.Path(get_package_share_directory('stylepong_policy')) / 'models' / 'amp_actor.pt')
     except (ImportError, LookupError):
         return 'amp_actor.pt'
@@ -55,51 +57,109 @@ PARAMETERS = (
     Param('actor', '', "exported actor, <name>.pt or <name>.onnx ('' = the shipped models/amp_actor.pt)"),
     Param('backend', 'onnx', 'onnx (onnxruntime, no torch) or torchscript', choices=core.BACKENDS),
     Param('start_enabled', False, 'enabled at start-up (else wait for /player/enable true)'),
-    Param('goal_xy_m', list(_D.goal_xy_m), "goal on the opponent's half until /player/goal says otherwise", length=2,
-          low=-robot_cell.HALF_LENGTH_M, high=robot_cell.HALF_LENGTH_M),
-    Param('position_margin_rad', _D.position_margin_rad, 'commands stay this far inside the URDF position limits',
-          low=0.0, high=0.5),
-    Param('velocity_limit_scale', _D.velocity_limit_scale, "commands move at most this fraction of the URDF's "
-          'velocity limits', low=0.05, high=1.0),
-    Param('acceleration_limit_rad_s2', list(_D.acceleration_limit_rad_s2), 'command acceleration limits per joint',
-          length=spec.NUM_ACTIONS, low=1.0, high=2000.0),
+    Param(
+        'goal_xy_m',
+        list(_D.goal_xy_m),
+        "goal on the opponent's half until /player/goal says otherwise",
+        length=2,
+        low=-robot_cell.HALF_LENGTH_M,
+        high=robot_cell.HALF_LENGTH_M,
+    ),
+    Param(
+        'position_margin_rad',
+        _D.position_margin_rad,
+        'commands stay this far inside the URDF position limits',
+        low=0.0,
+        high=0.5,
+    ),
+    Param(
+        'velocity_limit_scale',
+        _D.velocity_limit_scale,
+        "commands move at most this fraction of the URDF's velocity limits",
+        low=0.05,
+        high=1.0,
+    ),
+    Param(
+        'acceleration_limit_rad_s2',
+        list(_D.acceleration_limit_rad_s2),
+        'command acceleration limits per joint',
+        length=spec.NUM_ACTIONS,
+        low=1.0,
+        high=2000.0,
+    ),
     Param('home_speed_rad_s', _D.home_speed_rad_s, 'speed of the moves to home (ready)', low=0.05, high=3.0),
-    Param('home_acceleration_rad_s2', _D.home_acceleration_rad_s2, 'acceleration of the moves to home',
-          low=0.1, high=50.0),
+    Param(
+        'home_acceleration_rad_s2', _D.home_acceleration_rad_s2, 'acceleration of the moves to home', low=0.1, high=50.0
+    ),
     Param('home_tolerance_rad', _D.home_tolerance_rad, 'at home: every joint this close to it', low=0.001, high=0.5),
-    Param('joint_timeout_periods', _D.joint_timeout_periods, 'no accepted joint state for this many periods: '
-          'no commands', low=1.0, high=60.0),
-    Param('ball_timeout_s', _D.ball_timeout_s, 'no accepted ball message for this long: the ball is gone (ready)',
-          low=0.02, high=2.0),
-    Param('max_ball_age_s', _D.max_ball_age_s, 'ball messages stamped longer ago than this are rejected',
-          low=0.01, high=2.0),
+    Param(
+        'joint_timeout_periods',
+        _D.joint_timeout_periods,
+        'no accepted joint state for this many periods: no commands',
+        low=1.0,
+        high=60.0,
+    ),
+    Param(
+        'ball_timeout_s',
+        _D.ball_timeout_s,
+        'no accepted ball message for this long: the ball is gone (ready)',
+        low=0.02,
+        high=2.0,
+    ),
+    Param(
+        'max_ball_age_s',
+        _D.max_ball_age_s,
+        'ball messages stamped longer ago than this are rejected',
+        low=0.01,
+        high=2.0,
+    ),
     Param('max_ball_speed_m_s', _D.max_ball_speed_m_s, 'faster ball messages are rejected', low=1.0, high=100.0),
-    Param('max_ball_velocity_std_m_s', _D.max_ball_velocity_std_m_s, 'ball states whose velocity is less certain '
-          '(largest per-axis std of velocity_covariance) are rejected', low=0.01, high=100.0),
-    Param('stream_commands', _D.stream_commands, 'publish on every joint state the point on the straight path to '
-          'the latest command (reached one period after its step); false: one command per 60 Hz period'),
-    Param('predict_ball', _D.predict_ball, "carry the ball forward from its message's stamp to the step "
-          "(flight and table bounce) before the actor sees it; false: the ball as the message says"),
+    Param(
+        'max_ball_velocity_std_m_s',
+        _D.max_ball_velocity_std_m_s,
+        'ball states whose velocity is less certain (largest per-axis std of velocity_covariance) are rejected',
+        low=0.01,
+        high=100.0,
+    ),
+    Param(
+        'stream_commands',
+        _D.stream_commands,
+        'publish on every joint state the point on the straight path to '
+        'the latest command (reached one period after its step); false: one command per 60 Hz period',
+    ),
+    Param(
+        'predict_ball',
+        _D.predict_ball,
+        "carry the ball forward from its message's stamp to the step "
+        '(flight and table bounce) before the actor sees it; false: the ball as the message says',
+    ),
     Param('status_rate_hz', 2.0, '/player/status rate', low=0.1, high=50.0),
 )
 
 
 class PlayerNode(Node):
     """The player node: the exported actor at 60 Hz on ball and joint states, commands to the arm."""
+
     def __init__(self, **node_kwargs):
         super().__init__('player', **node_kwargs)
         value = declare_parameters(self, PARAMETERS)
         try:
             config = core.PlayerConfig(
-                goal_xy_m=tuple(value['goal_xy_m']), position_margin_rad=value['position_margin_rad'],
+                goal_xy_m=tuple(value['goal_xy_m']),
+                position_margin_rad=value['position_margin_rad'],
                 velocity_limit_scale=value['velocity_limit_scale'],
                 acceleration_limit_rad_s2=tuple(value['acceleration_limit_rad_s2']),
-                home_speed_rad_s=value['home_speed_rad_s'], home_acceleration_rad_s2=value['home_acceleration_rad_s2'],
-                home_tolerance_rad=value['home_tolerance_rad'], joint_timeout_periods=value['joint_timeout_periods'],
-                ball_timeout_s=value['ball_timeout_s'], max_ball_age_s=value['max_ball_age_s'],
+                home_speed_rad_s=value['home_speed_rad_s'],
+                home_acceleration_rad_s2=value['home_acceleration_rad_s2'],
+                home_tolerance_rad=value['home_tolerance_rad'],
+                joint_timeout_periods=value['joint_timeout_periods'],
+                ball_timeout_s=value['ball_timeout_s'],
+                max_ball_age_s=value['max_ball_age_s'],
                 max_ball_speed_m_s=value['max_ball_speed_m_s'],
-                max_ball_velocity_std_m_s=value['max_ball_velocity_std_m_s'], stream_commands=value['stream_commands'],
-                predict_ball=value['predict_ball'])
+                max_ball_velocity_std_m_s=value['max_ball_velocity_std_m_s'],
+                stream_commands=value['stream_commands'],
+                predict_ball=value['predict_ball'],
+            )
             config.validate()
         except ValueError as error:
             raise ParameterError(str(error)) from error
@@ -127,7 +187,8 @@ class PlayerNode(Node):
             self._clock_hint = self.create_subscription(Clock, '/clock', self._on_foreign_clock, qos)
         self.get_logger().info(
             f'player: {actor.backend} actor {actor.path} (spec {actor.metadata["spec_version"]}), '
-            f'{config.rate_hz:g} Hz, {"enabled" if value["start_enabled"] else "disabled until /player/enable"}')
+            f'{config.rate_hz:g} Hz, {"enabled" if value["start_enabled"] else "disabled until /player/enable"}'
+        )
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -150,8 +211,9 @@ class PlayerNode(Node):
         now_s = self._now_s()
         stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         p, v = msg.position, msg.velocity
-        problem = self.core.on_ball(msg.header.frame_id, stamp_s, (p.x, p.y, p.z), (v.x, v.y, v.z), now_s,
-                                    msg.velocity_covariance)
+        problem = self.core.on_ball(
+            msg.header.frame_id, stamp_s, (p.x, p.y, p.z), (v.x, v.y, v.z), now_s, msg.velocity_covariance
+        )
         if problem:
             self._warnings.warn('ball', lambda: f'/ball/state rejected: {problem}')
         elif self.core.ball_step_due(now_s):
@@ -162,8 +224,10 @@ class PlayerNode(Node):
             return
         self.destroy_subscription(self._clock_hint)
         self._clock_hint = None
-        self.get_logger().warning('/clock is published (a simulated cell) but this player runs on wall time: '
-                                  'start it with --ros-args -p use_sim_time:=true')
+        self.get_logger().warning(
+            '/clock is published (a simulated cell) but this player runs on wall time: '
+            'start it with --ros-args -p use_sim_time:=true'
+        )
 
     def _on_goal(self, msg: PointStamped) -> None:
         problem = self.core.on_goal(msg.header.frame_id, msg.point.x, msg.point.y)
@@ -210,7 +274,8 @@ class PlayerNode(Node):
         self.get_logger().info(
             f'{s["counts"].get("commands", 0)} commands ({s["counts"].get("policy_steps", 0)} policy steps); '
             f'period {s["period_ms"]}; latency {s["latency_ms"]}; inference {s["inference_ms"]}; '
-            f'rejected {s["rejected"]}')
+            f'rejected {s["rejected"]}'
+        )
 
 
 def main(args=None) -> int:

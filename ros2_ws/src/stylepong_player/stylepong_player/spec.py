@@ -28,6 +28,7 @@ sent to the joint position servo (ur5_sim's or the real driver's forward_positio
 Why absolute targets around home (the paper's choice) and this scale: a stroke's poses lie within about
 1.5 rad of home on every joint (inverse kinematics over the hitting region: 90th percentiles 0.7-1.6 rad).
 """
+
 from __future__ import annotations
 
 import functools
@@ -65,6 +66,7 @@ def observation_slice(name: str) -> slice:
         start += size
     raise KeyError(f'no {name!r} in OBS_LAYOUT: {[entry for entry, _ in OBS_LAYOUT]}')
 
+
 # torch is imported inside the functions that use it: the constants above are the whole contract, and the
 # player's ONNX path reads them and builds its observation with numpy on a robot computer that has no torch.
 if TYPE_CHECKING:
@@ -74,10 +76,14 @@ if TYPE_CHECKING:
 def action_decoding() -> dict:
     """The action's meaning, for the exported actor's sidecar JSON."""
     limits = robot_model.joint_limits()
-    return {'kind': 'joint_position_targets', 'home_rad': list(HOME_JOINT_POSITIONS_RAD),
-            'scale_rad': list(ACTION_SCALE_RAD), 'clip': ACTION_CLIP,
-            'lower_limit_rad': [float(x) for x in limits.lower_rad],
-            'upper_limit_rad': [float(x) for x in limits.upper_rad]}
+    return {
+        'kind': 'joint_position_targets',
+        'home_rad': list(HOME_JOINT_POSITIONS_RAD),
+        'scale_rad': list(ACTION_SCALE_RAD),
+        'clip': ACTION_CLIP,
+        'lower_limit_rad': [float(x) for x in limits.lower_rad],
+        'upper_limit_rad': [float(x) for x in limits.upper_rad],
+    }
 
 
 @functools.lru_cache(maxsize=None)
@@ -85,17 +91,22 @@ def _rows_on(device: torch.device) -> tuple[torch.Tensor, torch.Tensor, torch.Te
     """(home, scale, lower limit, upper limit) as float32 rows on `device`, made once per device: made
     per call they were a host-to-device copy, a wait on a GPU, at every training step."""
     import torch
+
     limits = robot_model.joint_limits()
-    return tuple(torch.as_tensor(values, dtype=torch.float32, device=device)
-                 for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
+    return tuple(
+        torch.as_tensor(values, dtype=torch.float32, device=device)
+        for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad)
+    )
 
 
 @functools.lru_cache(maxsize=1)
 def _numpy_rows() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(home, scale, lower limit, upper limit) as float32 numpy rows: the player's side of `_rows_on`."""
     limits = robot_model.joint_limits()
-    return tuple(np.asarray(values, dtype=np.float32)
-                 for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad))
+    return tuple(
+        np.asarray(values, dtype=np.float32)
+        for values in (HOME_JOINT_POSITIONS_RAD, ACTION_SCALE_RAD, limits.lower_rad, limits.upper_rad)
+    )
 
 
 def clip_action(action):
@@ -115,20 +126,21 @@ def decode_action(action):
         target = home + scale * clip_action(action.astype(np.float32))
         return np.maximum(np.minimum(target, upper), lower)
     import torch
+
     home, scale, lower, upper = _rows_on(action.device)
     target = home + scale * clip_action(action.to(torch.float32))
     return torch.maximum(torch.minimum(target, upper), lower)
 
 
-def build_observation(joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m,
-                      last_action):
+def build_observation(
+    joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action
+):
     """The actor's observation [N, NUM_OBS] float32 from the sensed state (rows = environments), as torch
     tensors when the joint positions are one (training), else as a numpy array (the player).
 
     joint_* [N, 6] in URDF order, ball_* [N, 3], goal_xy_m [N, 2], last_action [N, 6] (clipped).
     """
-    parts = (joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m,
-             last_action)
+    parts = (joint_positions_rad, joint_velocities_rad_s, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action)
     for (name, size), part in zip(OBS_LAYOUT, parts):
         if part.shape[-1] != size:
             raise ValueError(f'{name} needs {size} values per row, got shape {tuple(part.shape)}')
@@ -137,6 +149,7 @@ def build_observation(joint_positions_rad, joint_velocities_rad_s, ball_position
         rows[0] = rows[0] - np.asarray(HOME_JOINT_POSITIONS_RAD, dtype=np.float32)
         return np.concatenate(rows, axis=-1)
     import torch
+
     home = _rows_on(joint_positions_rad.device)[0]
     rows = [p.to(torch.float32) for p in parts]
     rows[0] = rows[0] - home

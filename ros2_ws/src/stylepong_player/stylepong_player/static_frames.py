@@ -5,6 +5,7 @@ is bolted to the cell): each is kept as its parent's rotation and translation of
 is carried up the chain of parents until `world`. A chain that does not reach `world` (a frame nobody
 has published yet, or a loop) gives None.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -13,7 +14,7 @@ import numpy as np
 
 from stylepong_description.robot_state import rotate
 
-MAX_CHAIN = 32    # more links than any real tree has: a loop
+MAX_CHAIN = 32  # more links than any real tree has: a loop
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """The ball estimator's filter and track rules on made-up flights (no ROS, no simulator): what it publishes,
 what it refuses and why, and how it recovers."""
+
 import math
 
 import numpy as np
@@ -23,7 +24,7 @@ def flight(p0, v0, frames: int, start_s: float = 1.0):
     return out
 
 
-INCOMING = dict(p0=(1.2, 0.1, 1.0), v0=(-5.5, -0.2, 0.3))   # bounces on the robot's half about 0.25 s later
+INCOMING = dict(p0=(1.2, 0.1, 1.0), v0=(-5.5, -0.2, 0.3))  # bounces on the robot's half about 0.25 s later
 
 
 def feed(estimator, samples, rng, noise_m: float = NOISE_M):
@@ -58,18 +59,21 @@ def test_the_velocity_is_right_50_ms_after_a_bounce_on_the_table():
     assert np.percentile(errors, 95) < 0.3, errors
 
 
-@pytest.mark.parametrize('position, kind', [
-    ((math.nan, 0.0, 1.0), 'not_finite'),
-    ((math.inf, 0.0, 1.0), 'not_finite'),
-    ((30.0, 0.0, 1.0), 'outside'),
-    ((0.0, 0.0, -0.5), 'outside'),
-    ((robot_cell.ROBOT_BASE_POSITION_M[0] - 0.3, 0.0, 1.0), 'behind_robot'),
-])
+@pytest.mark.parametrize(
+    'position, kind',
+    [
+        ((math.nan, 0.0, 1.0), 'not_finite'),
+        ((math.inf, 0.0, 1.0), 'not_finite'),
+        ((30.0, 0.0, 1.0), 'outside'),
+        ((0.0, 0.0, -0.5), 'outside'),
+        ((robot_cell.ROBOT_BASE_POSITION_M[0] - 0.3, 0.0, 1.0), 'behind_robot'),
+    ],
+)
 def test_bad_detections_are_refused_and_named(position, kind):
     estimator = BallEstimator()
     result = estimator.update(1.0, position)
     assert result.outcome == Outcome.REJECTED and result.kind == kind and result.reason
-    assert estimator.update(2.0, INCOMING['p0']).outcome == Outcome.TENTATIVE   # nothing was disturbed
+    assert estimator.update(2.0, INCOMING['p0']).outcome == Outcome.TENTATIVE  # nothing was disturbed
 
 
 def test_a_teleporting_detection_and_a_second_ball_do_not_move_the_track():
@@ -102,8 +106,9 @@ def test_after_the_tracker_stops_for_half_a_second_the_next_ball_is_a_new_track(
     assert estimator.confirmed
     started = estimator.tracks_started
     # The tracker is silent for 0.5 s, then a different ball comes: nothing is published until it is confirmed.
-    results = feed(estimator, flight((1.0, -0.3, 1.1), (-6.0, 0.3, 0.0), frames=10, start_s=1.0 + 20 * FRAME_S + 0.5),
-                   rng)
+    results = feed(
+        estimator, flight((1.0, -0.3, 1.1), (-6.0, 0.3, 0.0), frames=10, start_s=1.0 + 20 * FRAME_S + 0.5), rng
+    )
     assert estimator.tracks_started == started + 1
     assert [r.outcome for r in results[:3]] == [Outcome.TENTATIVE] * 3
     assert results[3].outcome == Outcome.PUBLISHED and results[3].estimate.velocity_m_s[0] < -5.0
@@ -126,7 +131,7 @@ def test_a_ball_hit_back_by_the_paddle_is_followed_within_a_few_frames():
 def test_a_track_started_on_a_false_detection_is_dropped_for_the_ball():
     estimator, rng = BallEstimator(), np.random.default_rng(5)
     samples = flight(**INCOMING, frames=10)
-    assert estimator.update(samples[0][0] - FRAME_S, (0.0, 1.5, 0.5)).outcome == Outcome.TENTATIVE   # a light
+    assert estimator.update(samples[0][0] - FRAME_S, (0.0, 1.5, 0.5)).outcome == Outcome.TENTATIVE  # a light
     results = feed(estimator, samples, rng)
     assert results[EstimatorConfig().confirm_detections - 1].outcome == Outcome.PUBLISHED
 

@@ -1,4 +1,5 @@
 """The ball carried forward over its age: flight, the bounce on the table, a ball beside the table."""
+
 import math
 
 import numpy as np
@@ -26,11 +27,11 @@ def test_flight_is_a_parabola_slowed_by_drag():
     t_s, speed = 0.04, 6.0
     p, v = predict_ball([-0.5, 0.0, 1.2], [-speed, 0.0, 0.0], t_s)
     g = robot_cell.GRAVITY_M_S2
-    assert p[2] == pytest.approx(1.2 - 0.5 * g * t_s ** 2, abs=1e-3)
+    assert p[2] == pytest.approx(1.2 - 0.5 * g * t_s**2, abs=1e-3)
     assert v[2] == pytest.approx(-g * t_s, abs=0.01)
-    drag_m_s2 = robot_cell.DRAG_K_PER_M * speed ** 2
+    drag_m_s2 = robot_cell.DRAG_K_PER_M * speed**2
     assert v[0] == pytest.approx(-speed + drag_m_s2 * t_s, abs=0.01)
-    assert p[0] == pytest.approx(-0.5 - speed * t_s + 0.5 * drag_m_s2 * t_s ** 2, abs=1e-3)
+    assert p[0] == pytest.approx(-0.5 - speed * t_s + 0.5 * drag_m_s2 * t_s**2, abs=1e-3)
 
 
 def test_a_ball_dropped_on_the_table_bounces_with_its_restitution():

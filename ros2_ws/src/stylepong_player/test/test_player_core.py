@@ -1,5 +1,6 @@
 """The player's logic without ROS: state machine, limits on every command, stale inputs, rejected messages,
 phase-locked timing, and the numpy observation/decoding against the spec's torch ones."""
+
 import math
 
 import numpy as np
@@ -72,8 +73,9 @@ def test_training_and_player_build_the_same_observation_from_random_inputs():
     names = [NAMES[i] for i in order]
     index = player_core.JointOrder().index(names)
     for i in range(rows):
-        got = player_core.build_observation(q[i][order][index], qd[i][order][index], ball_p[i], ball_v[i], goal[i],
-                                            last[i])
+        got = player_core.build_observation(
+            q[i][order][index], qd[i][order][index], ball_p[i], ball_v[i], goal[i], last[i]
+        )
         assert got.dtype == np.float32 and got.shape == (1, spec.NUM_OBS)
         np.testing.assert_array_equal(got[0], training[i])
 
@@ -97,7 +99,7 @@ def test_state_machine_disabled_ready_playing_ready_disabled():
     core.set_enabled(True)
     assert core.state == player_core.State.READY and core.timer_step_due(t)
     result = core.step(t)
-    np.testing.assert_allclose(result.command, HOME, atol=1e-12)   # already home: holds it
+    np.testing.assert_allclose(result.command, HOME, atol=1e-12)  # already home: holds it
     assert core.at_home()
     # A ball arrives: it drives a policy step at once.
     t += 0.004
@@ -144,10 +146,11 @@ def test_the_actor_sees_the_ball_carried_forward_to_the_step(predict):
     assert core.on_ball('world', t - 0.03, BALL_P, BALL_V, t) is None
     core.step(t)
     position, velocity = predict_ball(BALL_P, BALL_V, 0.03) if predict else (BALL_P, BALL_V)
-    expected = player_core.build_observation(HOME, np.zeros(6), np.asarray(position), np.asarray(velocity),
-                                             core.goal_xy_m, np.zeros(6))
+    expected = player_core.build_observation(
+        HOME, np.zeros(6), np.asarray(position), np.asarray(velocity), core.goal_xy_m, np.zeros(6)
+    )
     np.testing.assert_allclose(actor.observations[0], expected, atol=1e-6)
-    assert not np.allclose(predict_ball(BALL_P, BALL_V, 0.03)[0], BALL_P, atol=0.05)   # the two differ
+    assert not np.allclose(predict_ball(BALL_P, BALL_V, 0.03)[0], BALL_P, atol=0.05)  # the two differ
 
 
 def test_every_command_is_within_the_limits_for_adversarial_inputs():
@@ -159,7 +162,7 @@ def test_every_command_is_within_the_limits_for_adversarial_inputs():
     q = HOME.copy()
     for k in range(3000):
         t += PERIOD_S / 2
-        if rng.random() < 0.3:   # joints jump by radians, within the URDF limits, or are garbage
+        if rng.random() < 0.3:  # joints jump by radians, within the URDF limits, or are garbage
             q = rng.uniform(limits.lower_rad, limits.upper_rad)
         bad_joint = rng.random() < 0.1
         joints = [np.nan] * 6 if bad_joint else q
@@ -182,14 +185,14 @@ def test_the_stream_reaches_each_command_one_period_after_its_step_along_a_strai
     t = 1.0
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
     core.on_ball('world', t, BALL_P, BALL_V, t)
-    np.testing.assert_allclose(core.step(t).command, HOME, atol=1e-12)   # the path starts where the arm is
+    np.testing.assert_allclose(core.step(t).command, HOME, atol=1e-12)  # the path starts where the arm is
     target = core.limiter.position_rad.copy()
     assert np.abs(target - HOME).max() > 1e-3
     core.on_joint_state(NAMES, HOME, np.zeros(6), t + PERIOD_S / 2)
     np.testing.assert_allclose(core.stream_command(t + PERIOD_S / 2), (HOME + target) / 2, atol=1e-12)
     core.on_joint_state(NAMES, HOME, np.zeros(6), t + PERIOD_S)
     np.testing.assert_allclose(core.stream_command(t + PERIOD_S), target, atol=1e-12)
-    assert core.stream_command(t + 1.2 * PERIOD_S) is None        # its end was sent: nothing new to say
+    assert core.stream_command(t + 1.2 * PERIOD_S) is None  # its end was sent: nothing new to say
     # A command before the segment's end: from where the stream is, no faster than the velocity limits.
     stream = player_core.CommandStream(core.limits.velocity_rad_s, PERIOD_S)
     stream.start(HOME)
@@ -235,7 +238,7 @@ def test_the_stream_says_nothing_while_disabled_or_with_stale_joint_states():
     core.on_joint_state(NAMES, HOME + 0.2, np.zeros(6), 0.0)
     core.step(0.0)
     assert core.stream_command(0.5 * PERIOD_S) is not None
-    assert core.stream_command(3.5 * PERIOD_S) is None              # no joint state for over 3 periods
+    assert core.stream_command(3.5 * PERIOD_S) is None  # no joint state for over 3 periods
     core.on_joint_state(NAMES, HOME + 0.2, np.zeros(6), 3.6 * PERIOD_S)
     core.set_enabled(False)
     assert core.stream_command(3.7 * PERIOD_S) is None
@@ -246,11 +249,11 @@ def test_limiter_brakes_before_position_limits_without_exceeding_the_acceleratio
     limits = player_core.JointLimits.for_commands(0.02, 1.0, [400.0] * 6)
     limiter = player_core.CommandLimiter(limits, PERIOD_S)
     limiter.start(limits.lower_rad + 0.5 if start == 'lower' else limits.upper_rad - 0.5)
-    target = limits.upper_rad + 10 if start == 'lower' else limits.lower_rad - 10   # beyond the far limit
+    target = limits.upper_rad + 10 if start == 'lower' else limits.lower_rad - 10  # beyond the far limit
     commands = [limiter.position_rad.copy()] + [limiter.step(target) for _ in range(600)]
     check_commands(commands, limits)
     far = limits.upper_rad if start == 'lower' else limits.lower_rad
-    np.testing.assert_allclose(commands[-1], far, atol=1e-9)   # it got there and stopped
+    np.testing.assert_allclose(commands[-1], far, atol=1e-9)  # it got there and stopped
 
 
 def test_limiter_reaches_a_target_and_stops_there():
@@ -273,7 +276,7 @@ def test_ready_moves_home_gently_and_arrives():
         core.on_joint_state(NAMES, q, np.zeros(6), t)
         result = core.step(t)
         commands.append(result.command)
-        q = result.command   # a perfect servo
+        q = result.command  # a perfect servo
         t += PERIOD_S
     steps = np.abs(np.diff(np.array(commands), axis=0)) / PERIOD_S
     assert steps.max() <= core.config.home_speed_rad_s + 1e-9
@@ -287,7 +290,7 @@ def test_stale_joint_states_stop_commands_and_restart_from_the_measured_position
     t = 0.0
     core.on_joint_state(NAMES, HOME, np.zeros(6), t)
     assert core.step(t).command is not None
-    t += 3.5 * PERIOD_S           # no joint state for more than 3 periods
+    t += 3.5 * PERIOD_S  # no joint state for more than 3 periods
     result = core.step(t)
     assert result.command is None and 'stale' in result.problem
     moved = HOME + 0.3
@@ -309,31 +312,37 @@ def test_joint_states_back_within_the_timeout_continue_the_commands():
     assert np.abs(command - last).max() <= core.config.home_speed_rad_s * PERIOD_S + 1e-9
 
 
-@pytest.mark.parametrize('names, positions, velocities, kind', [
-    (NAMES[:5], list(HOME[:5]), [0.0] * 5, 'joint_names'),
-    (NAMES, list(HOME[:5]), [0.0] * 6, 'joint_length'),
-    (NAMES, list(HOME), [], 'joint_length'),
-    (NAMES, [math.nan] + list(HOME[1:]), [0.0] * 6, 'joint_not_finite'),
-    (NAMES, list(HOME), [math.inf] + [0.0] * 5, 'joint_not_finite'),
-    (NAMES, [0.0, 0.0, 4.0, 0.0, 0.0, 0.0], [0.0] * 6, 'joint_out_of_limits'),
-    (NAMES, list(HOME), [100.0] + [0.0] * 5, 'joint_speed'),
-])
+@pytest.mark.parametrize(
+    'names, positions, velocities, kind',
+    [
+        (NAMES[:5], list(HOME[:5]), [0.0] * 5, 'joint_names'),
+        (NAMES, list(HOME[:5]), [0.0] * 6, 'joint_length'),
+        (NAMES, list(HOME), [], 'joint_length'),
+        (NAMES, [math.nan] + list(HOME[1:]), [0.0] * 6, 'joint_not_finite'),
+        (NAMES, list(HOME), [math.inf] + [0.0] * 5, 'joint_not_finite'),
+        (NAMES, [0.0, 0.0, 4.0, 0.0, 0.0, 0.0], [0.0] * 6, 'joint_out_of_limits'),
+        (NAMES, list(HOME), [100.0] + [0.0] * 5, 'joint_speed'),
+    ],
+)
 def test_bad_joint_states_are_rejected(names, positions, velocities, kind):
     core = make_core()
     assert core.on_joint_state(names, positions, velocities, 1.0)
     assert core.rejected[kind] == 1 and not core.joints_fresh(1.0)
 
 
-@pytest.mark.parametrize('frame, stamp, position, velocity, kind', [
-    ('base_link', 1.0, BALL_P, BALL_V, 'ball_frame'),
-    ('world', 1.0, (math.nan, 0.0, 1.0), BALL_V, 'ball_not_finite'),
-    ('world', 1.0, BALL_P, (0.0, math.inf, 0.0), 'ball_not_finite'),
-    ('world', 1.0, (40.0, 0.0, 1.0), BALL_V, 'ball_outside_cell'),
-    ('world', 1.0, BALL_P, (300.0, 0.0, 0.0), 'ball_speed'),
-    ('world', 0.0, BALL_P, BALL_V, 'ball_stamp'),
-    ('world', 0.5, BALL_P, BALL_V, 'ball_stamp'),     # 0.5 s old
-    ('world', 1.5, BALL_P, BALL_V, 'ball_stamp'),     # from the future
-])
+@pytest.mark.parametrize(
+    'frame, stamp, position, velocity, kind',
+    [
+        ('base_link', 1.0, BALL_P, BALL_V, 'ball_frame'),
+        ('world', 1.0, (math.nan, 0.0, 1.0), BALL_V, 'ball_not_finite'),
+        ('world', 1.0, BALL_P, (0.0, math.inf, 0.0), 'ball_not_finite'),
+        ('world', 1.0, (40.0, 0.0, 1.0), BALL_V, 'ball_outside_cell'),
+        ('world', 1.0, BALL_P, (300.0, 0.0, 0.0), 'ball_speed'),
+        ('world', 0.0, BALL_P, BALL_V, 'ball_stamp'),
+        ('world', 0.5, BALL_P, BALL_V, 'ball_stamp'),  # 0.5 s old
+        ('world', 1.5, BALL_P, BALL_V, 'ball_stamp'),  # from the future
+    ],
+)
 def test_bad_ball_states_are_rejected_and_never_reach_the_actor(frame, stamp, position, velocity, kind):
     actor = WildActor()
     core = make_core(actor)
@@ -373,9 +382,13 @@ def test_steps_are_phase_locked_to_every_second_frame_of_a_120_hz_camera():
 def _play(core, frame_times_s, joint_rate_hz=500.0):
     """Joint states at joint_rate_hz and ball messages arriving at frame_times_s, stepping as the node does
     (a ball that is due, else the fallback on a joint state); the step times."""
-    events = sorted([(t, 1, 'ball') for t in frame_times_s]      # at equal times the joint state first
-                    + [(frame_times_s[0] + k / joint_rate_hz, 0, 'joint')
-                       for k in range(int((frame_times_s[-1] - frame_times_s[0]) * joint_rate_hz) + 1)])
+    events = sorted(
+        [(t, 1, 'ball') for t in frame_times_s]  # at equal times the joint state first
+        + [
+            (frame_times_s[0] + k / joint_rate_hz, 0, 'joint')
+            for k in range(int((frame_times_s[-1] - frame_times_s[0]) * joint_rate_hz) + 1)
+        ]
+    )
     steps = []
     for t, _, kind in events:
         if kind == 'joint':
@@ -392,7 +405,7 @@ def _play(core, frame_times_s, joint_rate_hz=500.0):
 def test_a_lost_frame_costs_one_late_step_and_a_burst_does_not_speed_the_loop_up():
     core = make_core(lambda obs: np.zeros((1, 6), dtype=np.float32))
     core.set_enabled(True)
-    frames = [3.0 + k / 120.0 for k in range(40) if k != 10]     # one lost camera frame
+    frames = [3.0 + k / 120.0 for k in range(40) if k != 10]  # one lost camera frame
     steps = _play(core, frames)
     gaps_ms = np.diff(steps) * 1e3
     late = gaps_ms > PERIOD_S * 1e3 + 0.5

@@ -1,5 +1,6 @@
 """Learning and evaluation: `training/`, `evaluation/`, `reports/`, `shipping/`, `experiments/`, and the
 algorithms in `rl/` (README.md lists the modules)."""
+
 import os
 
 # Before torch or onnxruntime start their thread pools, which every entry point of this package reaches

@@ -6,6 +6,7 @@ with few enough is stored exactly (lossless), one with more (rendered frames, ma
 quantised without dithering (dithering's noise compresses badly), which leaves the frames' smooth
 shading slightly banded and a third to a sixth of the size. Pillow comes with matplotlib.
 """
+
 from __future__ import annotations
 
 import io
@@ -32,8 +33,9 @@ def palettised(image):
     if exact is None:
         # Quantised, then given the exact palette's order: the same pixels always make the same file, so
         # shrinking a file this module wrote leaves it as it is.
-        exact = _exact_palette(rgb.quantize(PALETTE_COLOURS, method=Image.Quantize.FASTOCTREE,
-                                            dither=Image.Dither.NONE).convert('RGB'))
+        exact = _exact_palette(
+            rgb.quantize(PALETTE_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE).convert('RGB')
+        )
     return exact
 
 

@@ -4,6 +4,7 @@ synthetic_reference).
 The suite runs in pytest's importlib mode (test files of different packages share basenames), which
 puts no test folder on sys.path; this one is added so the tests can `import ppo_toy_task`.
 """
+
 import pathlib
 import sys
 

@@ -1,4 +1,5 @@
 """Test helper: every string in a JSON document, keys included (to look for machine paths in it)."""
+
 from typing import Any, Iterator
 
 

@@ -7,6 +7,7 @@ target within 0.1 is a success that ends the episode; otherwise a time limit end
 A random policy succeeds in well under half the episodes; a policy that learnt succeeds in nearly all.
 The style frame is the position and the velocity of the last step.
 """
+
 from __future__ import annotations
 
 import torch
@@ -17,10 +18,11 @@ class ReachTask:
     num_critic_obs = 7
     num_actions = 2
     num_style_features = 4
-    step_size = 0.1        # position change per step at full action
+    step_size = 0.1  # position change per step at full action
 
-    def __init__(self, num_envs: int = 128, device: str = 'cpu', seed: int = 0, episode_steps: int = 30,
-                 obs_noise: float = 0.02):
+    def __init__(
+        self, num_envs: int = 128, device: str = 'cpu', seed: int = 0, episode_steps: int = 30, obs_noise: float = 0.02
+    ):
         self.num_envs = num_envs
         self.device = torch.device(device)
         self.episode_steps = episode_steps
@@ -65,12 +67,20 @@ class ReachTask:
         dones = success | time_outs
         rewards = -0.1 * distance + 2.0 * success.float()
         done_idx = dones.nonzero(as_tuple=False).squeeze(-1)
-        extras = {'time_outs': time_outs, 'style_state': self.style_state(), 'success': success.clone(),
-                  'log': {}, 'log_weight': int(done_idx.numel())}
+        extras = {
+            'time_outs': time_outs,
+            'style_state': self.style_state(),
+            'success': success.clone(),
+            'log': {},
+            'log_weight': int(done_idx.numel()),
+        }
         if done_idx.numel():
             ended = success[done_idx].float().mean().item()
-            extras['log'] = {'success_rate': ended, 'timeout_rate': 1.0 - ended,
-                             'final_distance': float(distance[done_idx].mean())}
+            extras['log'] = {
+                'success_rate': ended,
+                'timeout_rate': 1.0 - ended,
+                'final_distance': float(distance[done_idx].mean()),
+            }
             self._reset_envs(done_idx)
         obs, critic_obs = self._observe()
         return obs, critic_obs, rewards, dones, extras

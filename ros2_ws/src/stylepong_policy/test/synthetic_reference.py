@@ -1,4 +1,5 @@
 """A synthetic reference dataset for tests that measure DTW (evaluate, select_checkpoint)."""
+
 import pathlib
 
 import numpy as np

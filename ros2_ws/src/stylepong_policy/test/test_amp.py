@@ -1,5 +1,6 @@
 """The adversarial motion prior (stylepong_policy.rl.amp): reference windows, history, replay, the
 discriminator's loss and what it learns, the style reward, and AMP training on the toy task."""
+
 import math
 import pathlib
 
@@ -27,13 +28,13 @@ BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
 def test_reference_windows_never_cross_a_clip_and_are_drawn_uniformly():
     frames = np.arange(10, dtype=float)[:, None] * np.ones((1, 2))
     reference = ReferenceMotion(frames, clip_starts=[0, 4, 9], clip_lengths=[4, 5, 1], length=3)
-    assert reference.num_windows == 2 + 3           # the 1-frame clip has none
+    assert reference.num_windows == 2 + 3  # the 1-frame clip has none
     windows = reference.sample(20000, torch.Generator().manual_seed(0))
     first = windows[:, 0, 0].long()
     assert set(first.tolist()) == {0, 1, 4, 5, 6}
     counts = torch.bincount(first, minlength=7)[[0, 1, 4, 5, 6]].float()
     assert (counts / counts.sum() - 0.2).abs().max() < 0.02
-    assert torch.equal(windows[:, 1:, 0] - windows[:, :-1, 0], torch.ones(20000, 2))   # consecutive frames
+    assert torch.equal(windows[:, 1:, 0] - windows[:, :-1, 0], torch.ones(20000, 2))  # consecutive frames
 
 
 def test_style_history_restarts_a_new_episode_from_its_own_first_frame():
@@ -60,7 +61,7 @@ def test_style_rewards_are_bounded_and_rise_with_the_discriminator_output():
     for kind in ('lsgan', 'log'):
         r = style_reward(d, kind)
         assert r.min() >= 0.0 and r.max() <= 1.0 + 1e-6
-        assert r[d <= -1.0].max() == 0.0                      # the policy target earns nothing
+        assert r[d <= -1.0].max() == 0.0  # the policy target earns nothing
         rising = r[(d >= -1.0) & (d <= 1.0)]
         assert (rising[1:] >= rising[:-1]).all() and rising[-1] > 0.99
     assert style_reward(torch.tensor([1.0]))[0] == 1.0 and style_reward(torch.tensor([0.0]))[0] == 0.75
@@ -72,9 +73,11 @@ def _shipped_or_synthetic_dataset(tmp_path) -> ReferenceDataset:
     """The dataset of the shipped clips; a synthetic swing set where the bags are not there."""
     if any(BAGS.glob('*/metadata.yaml')):
         from stylepong_policy.training import build_dataset
+
         assert build_dataset.run([str(BAGS), '-o', str(tmp_path / 'd.npz')]) == 0
         return ReferenceDataset.load(tmp_path / 'd.npz')
     from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
+
     t = np.arange(120) / 60.0
     originals = []
     for i in range(4):
@@ -97,12 +100,12 @@ def _slowed(windows: torch.Tensor, reference: ReferenceMotion) -> torch.Tensor:
     return torch.cat((frames[..., :half], 0.5 * frames[..., half:]), dim=-1)
 
 
-MOVING_RAD_S = 0.3     # a window's mean joint speed (norm over joints); 80 % of the shipped clips' windows
+MOVING_RAD_S = 0.3  # a window's mean joint speed (norm over joints); 80 % of the shipped clips' windows
 
 
 def _mean_joint_speed(windows: torch.Tensor) -> torch.Tensor:
     """[B, L, 12] (q, qdot) windows -> [B]: the norm of qdot, averaged over the window's frames."""
-    return windows[..., windows.shape[-1] // 2:].norm(dim=-1).mean(dim=1)
+    return windows[..., windows.shape[-1] // 2 :].norm(dim=-1).mean(dim=1)
 
 
 @pytest.mark.parametrize('negative', ['shuffled', 'slowed'])
@@ -143,17 +146,28 @@ def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_o
         d_fake = prior.discriminator.score(fake_windows)
     accuracy = 0.5 * ((d_reference > 0).float().mean() + (d_fake < 0).float().mean())
     assert accuracy > 0.85, (negative, float(accuracy), stats)
-    assert d_reference.mean() > 0.2 and d_fake.mean() < -0.2    # on their sides of 0, towards the targets +-1
+    assert d_reference.mean() > 0.2 and d_fake.mean() < -0.2  # on their sides of 0, towards the targets +-1
 
 
 def test_position_features_keep_only_the_joint_positions_of_reference_and_policy_frames():
     """frame_features 'q': the reference windows, the replayed policy windows and the windows scored for the
     reward hold the first half of each (positions, velocities) frame, in order."""
-    frames = np.arange(40 * 4, dtype=np.float64).reshape(40, 4)    # 2 joints: q0 q1 qd0 qd1
-    dataset = ReferenceDataset(t=np.arange(40) / 60.0, q=frames[:, :2], qd=frames[:, 2:], clip_start=np.array([0]),
-                               clip_length=np.array([40]), label=np.array(['forward']), speed_factor=np.array([1]),
-                               source=np.array(['toy']), original=np.array([0]), time_source=np.array(['header']),
-                               velocity_source=np.array(['bag']), rate_hz=60.0, joint_names=np.array(['a', 'b']))
+    frames = np.arange(40 * 4, dtype=np.float64).reshape(40, 4)  # 2 joints: q0 q1 qd0 qd1
+    dataset = ReferenceDataset(
+        t=np.arange(40) / 60.0,
+        q=frames[:, :2],
+        qd=frames[:, 2:],
+        clip_start=np.array([0]),
+        clip_length=np.array([40]),
+        label=np.array(['forward']),
+        speed_factor=np.array([1]),
+        source=np.array(['toy']),
+        original=np.array([0]),
+        time_source=np.array(['header']),
+        velocity_source=np.array(['bag']),
+        rate_hz=60.0,
+        joint_names=np.array(['a', 'b']),
+    )
     cfg = AMPConfig(sequence_length=3, frame_features='q', batch_size=8, updates_per_iteration=1)
     reference = ReferenceMotion.from_dataset(dataset, cfg.sequence_length, features='q')
     assert torch.equal(reference.windows(torch.tensor([0]))[0], torch.tensor(frames[:3, :2], dtype=torch.float32))
@@ -162,7 +176,7 @@ def test_position_features_keep_only_the_joint_positions_of_reference_and_policy
     prior.start(policy)
     prior.observe(policy + 1.0, torch.tensor([False, True]), policy)
     assert torch.equal(prior.replay.data[:2, -1], policy[:, :2] + 1.0)
-    assert torch.equal(prior.history.frames[1], policy[1, :2].expand(3, 2))    # restarted from its new first frame
+    assert torch.equal(prior.history.frames[1], policy[1, :2].expand(3, 2))  # restarted from its new first frame
     assert prior.discriminator.normalizer.mean.shape[-1] == 2
     assert 'disc/loss' in prior.update()
     with pytest.raises(ValueError, match='reference frames hold 4'):
@@ -176,8 +190,9 @@ def test_position_features_keep_only_the_joint_positions_of_reference_and_policy
 def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():
     """The penalty is the gradient of D with respect to the normalised reference windows the loss used:
     for a linear discriminator it is exactly |w|^2, whatever the normaliser's statistics."""
-    cfg = AMPConfig(sequence_length=2, hidden_dims=[], batch_size=64, updates_per_iteration=1, grad_penalty=1.0,
-                    learning_rate=1e-12)
+    cfg = AMPConfig(
+        sequence_length=2, hidden_dims=[], batch_size=64, updates_per_iteration=1, grad_penalty=1.0, learning_rate=1e-12
+    )
     frames = np.random.default_rng(0).normal(3.0, 5.0, size=(50, 3))
     reference = ReferenceMotion(frames, [0], [50], 2)
     prior = MotionPrior(cfg, reference, frame_size=3, num_envs=1, device='cpu')
@@ -190,10 +205,21 @@ def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():
 def test_an_env_style_factor_scales_the_style_weight_per_environment(tmp_path):
     """The runner passes the env's 'style_weight' extras to the mix: a style-only reward with the factor 0
     in every environment returns nothing, with the factor 2 twice what it does without one."""
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-                            'ppo': {'num_steps_per_env': 40}, 'runner': {'seed': 0, 'save_interval': 1000},
-                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
-                                    'w_style': 1.0, 'replay_size': 1000}})
+    cfg = config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+            'ppo': {'num_steps_per_env': 40},
+            'runner': {'seed': 0, 'save_interval': 1000},
+            'amp': {
+                'sequence_length': 2,
+                'hidden_dims': [8],
+                'batch_size': 64,
+                'w_task': 0.0,
+                'w_style': 1.0,
+                'replay_size': 1000,
+            },
+        }
+    )
 
     class FactorTask(TOY.ReachTask):
         def __init__(self, factor):
@@ -216,22 +242,35 @@ def test_an_env_style_factor_scales_the_style_weight_per_environment(tmp_path):
         returns[factor] = runner.learn(1, progress_bar=False)
     assert returns[None]['mean_return'] > 0.0 and returns[0.0]['mean_return'] == 0.0
     assert math.isclose(returns[2.0]['mean_return'], 2.0 * returns[None]['mean_return'], rel_tol=1e-5)
-    assert returns[2.0]['step_reward/style'] == returns[None]['step_reward/style']    # logged unweighted
+    assert returns[2.0]['step_reward/style'] == returns[None]['step_reward/style']  # logged unweighted
 
 
 def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resumes_with_that_scale(tmp_path):
     """amp.hold_success: the runner feeds each iteration's training success to rl.success_hold, and the
     scale it returns weighs the next iteration's motion terms (a style-only reward returns nothing at
     scale 0); a resumed run continues at the saved scale."""
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-                            'ppo': {'num_steps_per_env': 40},
-                            'runner': {'seed': 0, 'save_interval': 1000, 'critic_warmup_iterations': 2},
-                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
-                                    'w_style': 1.0, 'replay_size': 1000, 'hold_success': True,
-                                    'hold_success_gain': 100.0, 'hold_success_smoothing': 1.0}})
+    cfg = config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+            'ppo': {'num_steps_per_env': 40},
+            'runner': {'seed': 0, 'save_interval': 1000, 'critic_warmup_iterations': 2},
+            'amp': {
+                'sequence_length': 2,
+                'hidden_dims': [8],
+                'batch_size': 64,
+                'w_task': 0.0,
+                'w_style': 1.0,
+                'replay_size': 1000,
+                'hold_success': True,
+                'hold_success_gain': 100.0,
+                'hold_success_smoothing': 1.0,
+            },
+        }
+    )
 
     class FallingTask(TOY.ReachTask):
         """Reports every episode a success for the first two iterations' worth of steps, then none."""
+
         def step(self, actions):
             obs, critic_obs, rewards, dones, extras = super().step(actions)
             self.calls = getattr(self, 'calls', 0) + 1
@@ -246,7 +285,7 @@ def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resum
     runner = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
     warm = runner.learn(2, progress_bar=False)
     assert warm['motion_scale'] == 1.0 and warm['mean_return'] > 0.0
-    fallen = runner.learn(3, progress_bar=False)                 # its success 0: far below the floor
+    fallen = runner.learn(3, progress_bar=False)  # its success 0: far below the floor
     assert fallen['motion_scale'] == 0.0 and prior.motion_scale == 0.0
     assert runner.learn(4, progress_bar=False)['mean_return'] == 0.0
     runner.save(tmp_path / 'held.pt')
@@ -259,13 +298,14 @@ def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resum
 class TouchTask(TOY.ReachTask):
     """The toy task with a touch: 'style_phase' is 1 from an episode's third step on; its target is out of
     reach, so that every episode ends at its step limit (as a terminal, so no value is bootstrapped)."""
+
     def _reset_envs(self, idx):
         super()._reset_envs(idx)
         self.target[idx] = self.position[idx] + 10.0
 
     def step(self, actions):
         obs, critic_obs, rewards, dones, extras = super().step(actions)
-        extras['style_phase'] = ((self.steps >= 3) | dones).long()   # an ended episode's steps are reset
+        extras['style_phase'] = ((self.steps >= 3) | dones).long()  # an ended episode's steps are reset
         extras['time_outs'] = torch.zeros_like(dones)
         return obs, critic_obs, rewards, dones, extras
 
@@ -273,10 +313,22 @@ class TouchTask(TOY.ReachTask):
 def test_a_free_follow_through_leaves_the_motion_after_the_touch_unheld_in_a_value_stream_that_ends_at_it(tmp_path):
     """amp.free_follow_through: with the motion terms held at 0 a style-only reward still pays the steps that
     began after the touch, in the second value stream alone, and that stream ends at the step that touches."""
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-                            'ppo': {'num_steps_per_env': 12}, 'runner': {'seed': 0, 'save_interval': 1000},
-                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'w_task': 0.0,
-                                    'w_style': 1.0, 'replay_size': 1000, 'free_follow_through': True}})
+    cfg = config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+            'ppo': {'num_steps_per_env': 12},
+            'runner': {'seed': 0, 'save_interval': 1000},
+            'amp': {
+                'sequence_length': 2,
+                'hidden_dims': [8],
+                'batch_size': 64,
+                'w_task': 0.0,
+                'w_style': 1.0,
+                'replay_size': 1000,
+                'free_follow_through': True,
+            },
+        }
+    )
     seed_everything(0)
     env = TouchTask(num_envs=4, seed=0, episode_steps=6)
     reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
@@ -286,7 +338,7 @@ def test_a_free_follow_through_leaves_the_motion_after_the_touch_unheld_in_a_val
     runner.learn(1, progress_bar=False)
     storage = runner.storage
     assert runner.actor_critic.value_streams == 2 and storage.values.shape == (12, 4, 2)
-    assert float(storage.rewards[..., 0].abs().max()) == 0.0            # held at 0: nothing before the touch
+    assert float(storage.rewards[..., 0].abs().max()) == 0.0  # held at 0: nothing before the touch
     # Episodes of 6 steps from a common start: steps 4-6 of each began after the touch (step 3 touches).
     step_in_episode = torch.arange(12) % 6
     after = (step_in_episode >= 3)[:, None].expand(12, 4)
@@ -300,14 +352,27 @@ def test_a_free_follow_through_leaves_the_motion_after_the_touch_unheld_in_a_val
 def test_a_free_follow_through_run_starts_from_a_skill_with_one_value_stream(tmp_path):
     """A skill saved with one value stream starts a free follow-through run: the same actor, and a critic
     whose streams sum to the skill's value."""
-    small = {'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]}, 'ppo': {'num_steps_per_env': 4},
-             'runner': {'seed': 0, 'save_interval': 1000}}
+    small = {
+        'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+        'ppo': {'num_steps_per_env': 4},
+        'runner': {'seed': 0, 'save_interval': 1000},
+    }
     seed_everything(0)
     env = TouchTask(num_envs=4, seed=0, episode_steps=6)
     skill = OnPolicyRunner(env, config_from_dict(small), tmp_path / 'skill', tensorboard=False)
     skill.learn(1, progress_bar=False)
-    cfg = config_from_dict({**small, 'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64,
-                                             'replay_size': 1000, 'free_follow_through': True}})
+    cfg = config_from_dict(
+        {
+            **small,
+            'amp': {
+                'sequence_length': 2,
+                'hidden_dims': [8],
+                'batch_size': 64,
+                'replay_size': 1000,
+                'free_follow_through': True,
+            },
+        }
+    )
     reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
     prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
     run = OnPolicyRunner(env, cfg, tmp_path / 'run', tensorboard=False, motion_prior=prior)
@@ -321,10 +386,20 @@ def test_a_free_follow_through_run_starts_from_a_skill_with_one_value_stream(tmp
 
 
 def test_a_free_follow_through_needs_the_env_s_phase(tmp_path):
-    cfg = config_from_dict({'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-                            'ppo': {'num_steps_per_env': 4}, 'runner': {'seed': 0, 'save_interval': 1000},
-                            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64,
-                                    'replay_size': 1000, 'free_follow_through': True}})
+    cfg = config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+            'ppo': {'num_steps_per_env': 4},
+            'runner': {'seed': 0, 'save_interval': 1000},
+            'amp': {
+                'sequence_length': 2,
+                'hidden_dims': [8],
+                'batch_size': 64,
+                'replay_size': 1000,
+                'free_follow_through': True,
+            },
+        }
+    )
     env = TOY.ReachTask(num_envs=4, seed=0, episode_steps=6)
     reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
     prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
@@ -343,13 +418,30 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     positions = starts + np.stack([0.06 * np.arange(20), np.zeros(20)], axis=1)[None]
     velocities = np.broadcast_to(np.array([0.06, 0.0]), positions.shape)
     frames = np.concatenate([positions, velocities], axis=2).reshape(-1, 4)
-    cfg = config_from_dict({
-        'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 0.5},
-        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3,
-                'entropy_coef': 0.005},
-        'runner': {'seed': 0, 'save_interval': 1000},
-        'amp': {'sequence_length': 3, 'hidden_dims': [32, 32], 'batch_size': 512, 'updates_per_iteration': 4,
-                'learning_rate': 1e-3, 'grad_penalty': 1.0, 'w_task': 0.0, 'w_style': 1.0, 'replay_size': 20000}})
+    cfg = config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 0.5},
+            'ppo': {
+                'num_steps_per_env': 16,
+                'num_mini_batches': 2,
+                'num_learning_epochs': 4,
+                'learning_rate': 3e-3,
+                'entropy_coef': 0.005,
+            },
+            'runner': {'seed': 0, 'save_interval': 1000},
+            'amp': {
+                'sequence_length': 3,
+                'hidden_dims': [32, 32],
+                'batch_size': 512,
+                'updates_per_iteration': 4,
+                'learning_rate': 1e-3,
+                'grad_penalty': 1.0,
+                'w_task': 0.0,
+                'w_style': 1.0,
+                'replay_size': 20000,
+            },
+        }
+    )
     env = TOY.ReachTask(num_envs=128, seed=0, episode_steps=30)
     reference = ReferenceMotion(frames, np.arange(64) * 20, [20] * 64, cfg.amp.sequence_length)
     prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
@@ -363,8 +455,9 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     assert velocity[:, 0].mean() > 0.03 and velocity[:, 1].abs().mean() < 0.03, velocity.mean(0)
 
 
-def _train_against_the_wrong_conditions(prior: MotionPrior, windows: torch.Tensor, wrong: torch.Tensor,
-                                        steps: int = 300) -> None:
+def _train_against_the_wrong_conditions(
+    prior: MotionPrior, windows: torch.Tensor, wrong: torch.Tensor, steps: int = 300
+) -> None:
     """Train D with the demonstrated windows as its positives and the same windows under the wrong
     condition as the policy's (the replay buffer holds only those)."""
     for _ in range(steps):
@@ -380,14 +473,21 @@ def test_a_discriminator_conditioned_on_labels_tells_a_motion_under_its_own_labe
     below 0 under the other; the unconditioned D cannot tell the two sets apart."""
     torch.manual_seed(0)
     ramp = np.linspace(0.0, 1.0, 30)[:, None] * np.ones((1, 2))
-    frames = np.concatenate([ramp, ramp[::-1]])                   # clip 0 rises, clip 1 falls
+    frames = np.concatenate([ramp, ramp[::-1]])  # clip 0 rises, clip 1 falls
     labels = ('up', 'down')
     reference = ReferenceMotion(frames, [0, 30], [30, 30], 4, clip_labels=[0, 1], label_names=labels)
     assert reference.labels.tolist() == [0] * 27 + [1] * 27
     outputs = {}
     for conditioned in (True, False):
-        cfg = AMPConfig(sequence_length=4, hidden_dims=[32, 32], batch_size=256, updates_per_iteration=1,
-                        grad_penalty=0.1, learning_rate=1e-3, condition_on_label=conditioned)
+        cfg = AMPConfig(
+            sequence_length=4,
+            hidden_dims=[32, 32],
+            batch_size=256,
+            updates_per_iteration=1,
+            grad_penalty=0.1,
+            learning_rate=1e-3,
+            condition_on_label=conditioned,
+        )
         prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
         everything = torch.arange(reference.num_windows)
         swapped = 1 - reference.labels[everything]
@@ -407,17 +507,33 @@ def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_pa
     cfg = AMPConfig(sequence_length=2, hidden_dims=[8], batch_size=8, condition_on_label=True)
     with pytest.raises(ValueError, match='needs reference windows with labels'):
         MotionPrior(cfg, ReferenceMotion(frames, [0], [20], 2), frame_size=2, num_envs=1, device='cpu')
-    prior = MotionPrior(cfg, ReferenceMotion(frames, [0], [20], 2, clip_labels=[1], label_names=('a', 'b')),
-                        frame_size=2, num_envs=2, device='cpu')
+    prior = MotionPrior(
+        cfg,
+        ReferenceMotion(frames, [0], [20], 2, clip_labels=[1], label_names=('a', 'b')),
+        frame_size=2,
+        num_envs=2,
+        device='cpu',
+    )
     prior.start(torch.zeros(2, 2))
     with pytest.raises(ValueError, match='style_label'):
         prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2))
     prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2), torch.tensor([0, 1]))
     assert prior.replay.conditions[:2].tolist() == [0, 1]
-    dataset = ReferenceDataset(t=np.arange(20) / 60.0, q=frames[:, :1], qd=frames[:, 1:], clip_start=np.array([0]),
-                               clip_length=np.array([20]), label=np.array(['sideways']), speed_factor=np.array([1]),
-                               source=np.array(['toy']), original=np.array([0]), time_source=np.array(['header']),
-                               velocity_source=np.array(['bag']), rate_hz=60.0, joint_names=np.array(['a']))
+    dataset = ReferenceDataset(
+        t=np.arange(20) / 60.0,
+        q=frames[:, :1],
+        qd=frames[:, 1:],
+        clip_start=np.array([0]),
+        clip_length=np.array([20]),
+        label=np.array(['sideways']),
+        speed_factor=np.array([1]),
+        source=np.array(['toy']),
+        original=np.array([0]),
+        time_source=np.array(['header']),
+        velocity_source=np.array(['bag']),
+        rate_hz=60.0,
+        joint_names=np.array(['a']),
+    )
     with pytest.raises(ValueError, match="labelled \\['sideways'\\]"):
         ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'leftward'))
     assert ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'sideways')).labels.unique().tolist() == [1]
@@ -428,21 +544,37 @@ def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_pa
 def test_a_reference_window_s_phase_is_its_last_frame_s_and_the_condition_pairs_label_and_phase():
     frames = np.arange(12, dtype=float)[:, None] * np.ones((1, 2))
     after = np.zeros(12, dtype=bool)
-    after[[4, 5, 9, 10, 11]] = True                     # clip 0 (frames 0-5) hits at 4, clip 1 (6-11) at 9
-    reference = ReferenceMotion(frames, [0, 6], [6, 6], 3, clip_labels=[0, 1], label_names=('a', 'b'),
-                                frame_after_hit=after)
-    assert reference.phases.tolist() == [0, 0, 1, 1] + [0, 1, 1, 1]   # windows ending at 2-5 and 8-11
+    after[[4, 5, 9, 10, 11]] = True  # clip 0 (frames 0-5) hits at 4, clip 1 (6-11) at 9
+    reference = ReferenceMotion(
+        frames, [0, 6], [6, 6], 3, clip_labels=[0, 1], label_names=('a', 'b'), frame_after_hit=after
+    )
+    assert reference.phases.tolist() == [0, 0, 1, 1] + [0, 1, 1, 1]  # windows ending at 2-5 and 8-11
     with pytest.raises(ValueError, match='one flag per frame'):
         ReferenceMotion(frames, [0], [12], 3, frame_after_hit=after[:-1])
     labels, phases = torch.tensor([0, 0, 1, 1]), torch.tensor([0, 1, 0, 1])
-    both = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True, condition_on_phase=True),
-                       reference, frame_size=2, num_envs=1, device='cpu')
+    both = MotionPrior(
+        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True, condition_on_phase=True),
+        reference,
+        frame_size=2,
+        num_envs=1,
+        device='cpu',
+    )
     assert both.num_conditions == 4 and both.condition(labels, phases).tolist() == [0, 1, 2, 3]
-    phase_only = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_phase=True), reference,
-                             frame_size=2, num_envs=1, device='cpu')
+    phase_only = MotionPrior(
+        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_phase=True),
+        reference,
+        frame_size=2,
+        num_envs=1,
+        device='cpu',
+    )
     assert phase_only.num_conditions == 2 and phase_only.condition(None, phases).tolist() == [0, 1, 0, 1]
-    label_only = MotionPrior(AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True), reference,
-                             frame_size=2, num_envs=1, device='cpu')
+    label_only = MotionPrior(
+        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True),
+        reference,
+        frame_size=2,
+        num_envs=1,
+        device='cpu',
+    )
     assert label_only.condition(labels, phases).tolist() == [0, 0, 1, 1]
     phase_only.start(torch.zeros(1, 2))
     with pytest.raises(ValueError, match='style_phase'):
@@ -461,11 +593,18 @@ def test_a_discriminator_conditioned_on_the_phase_tells_a_follow_through_from_a_
     after = np.arange(60) >= 30
     reference = ReferenceMotion(frames, [0], [60], 4, frame_after_hit=after)
     rising = reference.phases == 0
-    cfg = AMPConfig(sequence_length=4, hidden_dims=[32, 32], batch_size=256, updates_per_iteration=1,
-                    grad_penalty=0.1, learning_rate=1e-3, condition_on_phase=True)
+    cfg = AMPConfig(
+        sequence_length=4,
+        hidden_dims=[32, 32],
+        batch_size=256,
+        updates_per_iteration=1,
+        grad_penalty=0.1,
+        learning_rate=1e-3,
+        condition_on_phase=True,
+    )
     prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
     everything = torch.arange(reference.num_windows)
-    straddling = (everything + 3 >= 30) & (everything < 30)      # windows that hold both phases' frames
+    straddling = (everything + 3 >= 30) & (everything < 30)  # windows that hold both phases' frames
     keep = everything[~straddling]
     wrong = 1 - reference.phases[keep]
     _train_against_the_wrong_conditions(prior, reference.windows(keep), wrong)
@@ -481,14 +620,16 @@ def test_a_prior_saved_without_phases_resumes_with_them_and_starts_as_it_was():
     in either phase the output it gave under its label; the resumed prior trains on from there."""
     frames = np.random.default_rng(1).normal(size=(40, 2))
     after = np.arange(40) % 20 >= 12
-    reference = ReferenceMotion(frames, [0, 20], [20, 20], 3, clip_labels=[0, 1], label_names=('a', 'b'),
-                                frame_after_hit=after)
+    reference = ReferenceMotion(
+        frames, [0, 20], [20, 20], 3, clip_labels=[0, 1], label_names=('a', 'b'), frame_after_hit=after
+    )
     base = dict(sequence_length=3, hidden_dims=[16, 8], batch_size=32, condition_on_label=True)
     saved = MotionPrior(AMPConfig(**base), reference, frame_size=2, num_envs=1, device='cpu', seed=0)
     saved.replay.insert(reference.sample(64), torch.randint(2, (64,)))
     saved.update()
-    resumed = MotionPrior(AMPConfig(**base, condition_on_phase=True), reference, frame_size=2, num_envs=1,
-                          device='cpu', seed=0)
+    resumed = MotionPrior(
+        AMPConfig(**base, condition_on_phase=True), reference, frame_size=2, num_envs=1, device='cpu', seed=0
+    )
     resumed.load_state_dict(saved.state_dict())
     windows, labels = reference.windows(torch.arange(reference.num_windows)), reference.labels
     with torch.no_grad():
@@ -498,5 +639,5 @@ def test_a_prior_saved_without_phases_resumes_with_them_and_starts_as_it_was():
             assert torch.allclose(now, before, atol=1e-6)
     resumed.replay.insert(reference.sample(64), torch.randint(4, (64,)))
     assert math.isfinite(resumed.update()['disc/loss'])
-    with pytest.raises(RuntimeError, match='size mismatch'):     # a phase-conditioned D does not shrink back
+    with pytest.raises(RuntimeError, match='size mismatch'):  # a phase-conditioned D does not shrink back
         saved.load_state_dict(resumed.state_dict())

@@ -2,6 +2,7 @@
 
 The expected values come from rosbags' own AnyReader and deserializer, not from the code under test.
 """
+
 import os
 import pathlib
 
@@ -12,8 +13,10 @@ from stylepong_policy.training.build_dataset import build_parser, process_bag, s
 from stylepong_recording.joint_state_bags import URDF_JOINTS, read_with_rosbags
 
 # ../shared/interop-bags beside the repository, unless STYLEPONG_INTEROP_BAGS names another copy.
-INTEROP = pathlib.Path(os.environ.get('STYLEPONG_INTEROP_BAGS')
-                       or pathlib.Path(__file__).resolve().parents[4].parent / 'shared' / 'interop-bags')
+INTEROP = pathlib.Path(
+    os.environ.get('STYLEPONG_INTEROP_BAGS')
+    or pathlib.Path(__file__).resolve().parents[4].parent / 'shared' / 'interop-bags'
+)
 UR3E = ('ur3e-hw-sqlite3-v5-toolpath', 'ur3e-ursim-sqlite3-v5-toolpath', 'ur3e-hw-sqlite3-v5-pos1')
 
 pytestmark = pytest.mark.skipif(not INTEROP.is_dir(), reason=f'{INTEROP} is absent')
@@ -56,8 +59,10 @@ def test_every_interop_bag_is_read_or_rejected_with_a_one_line_reason():
             assert report.clips
         else:
             assert report.reason and '\n' not in report.reason and len(report.reason) < 400, name
-    assert {name for name, r in reports.items() if r.used} == {'ur3e-hw-sqlite3-v5-toolpath',
-                                                               'ur3e-ursim-sqlite3-v5-toolpath'}
+    assert {name for name, r in reports.items() if r.used} == {
+        'ur3e-hw-sqlite3-v5-toolpath',
+        'ur3e-ursim-sqlite3-v5-toolpath',
+    }
     reasons = {name: r.reason for name, r in reports.items()}
     assert 'not supported' in reasons['rosbag2-sqlite3-v4-wrong_serialization_format']
     assert 'no sensor_msgs/msg/JointState topic' in reasons['rosbag2-mcap-v8-service_events']
@@ -72,10 +77,12 @@ def test_other_robots_joint_states_by_topic_joints_and_assume_order():
     nameless = INTEROP / 'ats-sqlite3-v5-jointstate-noname'
     report = run_bag(nameless, '--topic', '/servo/out/state', '--joints', 'a,b,c')
     assert not report.used and '--assume-order' in report.reason
-    report = run_bag(nameless, '--topic', '/servo/out/state', '--joints', 'a,b,c', '--assume-order',
-                     '--idle-speed-rad-s', '0')
+    report = run_bag(
+        nameless, '--topic', '/servo/out/state', '--joints', 'a,b,c', '--assume-order', '--idle-speed-rad-s', '0'
+    )
     assert report.used and not report.problems
     # Thousands of px4 messages there cannot be deserialized; the JointState topic is unaffected.
-    report = run_bag(INTEROP / 'ats-sqlite3-v5-jointstate-px4', '--topic', '/controller/out/servo_positions',
-                     '--joints', 'q1,q2,q3')
+    report = run_bag(
+        INTEROP / 'ats-sqlite3-v5-jointstate-px4', '--topic', '/controller/out/servo_positions', '--joints', 'q1,q2,q3'
+    )
     assert report.used and not report.problems

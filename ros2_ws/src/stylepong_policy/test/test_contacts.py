@@ -1,4 +1,5 @@
 """stylepong_policy.evaluation.contacts: the blade at a contact, for known poses, strokes and demonstrations."""
+
 import numpy as np
 import pytest
 from synthetic_reference import write_reference  # beside this file: conftest.py
@@ -22,7 +23,7 @@ def test_the_home_pose_meets_the_ball_square_upright_and_at_home():
 def test_the_blade_speed_is_the_paddle_centre_s_turning_about_the_base_for_the_shoulder_pan():
     paddle = np.asarray(paddle_home_position_m())
     base = np.asarray(world_spec.ROBOT_BASE_POSITION_M)
-    radius_m = float(np.hypot(*(paddle - base)[:2]))          # the pan axis is the base's vertical axis
+    radius_m = float(np.hypot(*(paddle - base)[:2]))  # the pan axis is the base's vertical axis
     pan = np.zeros((1, 6))
     pan[0, 0] = 2.0
     (blade,) = contacts.blades(HOME[None], pan)
@@ -50,17 +51,29 @@ def test_turning_the_last_wrist_joint_turns_the_face_one_way_and_then_the_other(
 
 def _stroke(direction: str, hit: bool, q_at_hit: np.ndarray) -> Stroke:
     q = np.repeat(HOME[None], 10, axis=0)
-    q[3:5] = q_at_hit           # at rest at the contact
-    return Stroke(seed=0, ball=0, joint_positions_rad=q, ball_position_m=np.zeros((10, 3)), direction=direction,
-                  arrival_y_m=0.0, launch_velocity_m_s=np.zeros(3), outcome='returned' if hit else 'no_hit',
-                  success=hit, hit=hit, hit_frame=4 if hit else -1, verdict_frame=9)
+    q[3:5] = q_at_hit  # at rest at the contact
+    return Stroke(
+        seed=0,
+        ball=0,
+        joint_positions_rad=q,
+        ball_position_m=np.zeros((10, 3)),
+        direction=direction,
+        arrival_y_m=0.0,
+        launch_velocity_m_s=np.zeros(3),
+        outcome='returned' if hit else 'no_hit',
+        success=hit,
+        hit=hit,
+        hit_frame=4 if hit else -1,
+        verdict_frame=9,
+    )
 
 
 def test_an_actor_s_contact_is_its_pose_at_the_hit_frame_and_a_miss_has_none():
     turned = HOME.copy()
     turned[WRIST_3] += 0.3
-    found = contacts.actor_contacts([_stroke('leftward', True, turned), _stroke('leftward', False, HOME),
-                                     _stroke('forward', True, HOME)])
+    found = contacts.actor_contacts(
+        [_stroke('leftward', True, turned), _stroke('leftward', False, HOME), _stroke('forward', True, HOME)]
+    )
     assert [len(found[d]) for d in ('leftward', 'forward')] == [1, 1] and 'rightward' not in found
     assert found['leftward'][0] == contacts.blades(turned[None], np.zeros((1, 6)))[0]
     means = contacts.mean_blades(found)

@@ -1,4 +1,5 @@
 """Recording -> 60 Hz clips -> augmentation -> .npz -> discriminator windows (stylepong_policy.training.dataset)."""
+
 import math
 import pathlib
 
@@ -65,7 +66,7 @@ def test_header_stamps_that_go_backwards_fall_back_to_receive_time():
     swing = Swing()
     stamps, receive, q, qd = sample(swing, 200.0, swing.total_s)
     stamps = stamps.copy()
-    stamps[100] = stamps[98]   # a driver clock step
+    stamps[100] = stamps[98]  # a driver clock step
     result = make_clips(stamps, receive, q, qd, ClipOptions(idle_speed_rad_s=0.0))
     assert result.clips[0].time_source == 'receive'
     assert any('not increasing' in n for n in result.notes)
@@ -75,18 +76,19 @@ def test_exact_repeated_messages_are_dropped_without_giving_up_header_stamps():
     swing = Swing()
     stamps, receive, q, qd = sample(swing, 200.0, swing.total_s)
     index = np.sort(np.concatenate([np.arange(len(stamps)), [50, 51, 300]]))
-    result = make_clips(stamps[index], receive[index] + np.arange(len(index)), q[index], qd[index],
-                        ClipOptions(idle_speed_rad_s=0.0))
+    result = make_clips(
+        stamps[index], receive[index] + np.arange(len(index)), q[index], qd[index], ClipOptions(idle_speed_rad_s=0.0)
+    )
     assert result.clips[0].time_source == 'header'
     assert any('3 repeated messages' in n for n in result.notes)
 
 
 def test_a_joint_recorded_wrapped_into_minus_pi_pi_is_made_continuous():
-    swing = Swing()   # wrist_3 turns from 2.8 rad past pi to 4.1 rad
+    swing = Swing()  # wrist_3 turns from 2.8 rad past pi to 4.1 rad
     stamps, receive, q, _qd = sample(swing, 125.0, swing.total_s, with_velocity=False)
     wrapped = q.copy()
     wrapped[:, 5] = wrap_to_pi(q[:, 5])
-    assert np.abs(np.diff(wrapped[:, 5])).max() > 6.0   # the recording does jump
+    assert np.abs(np.diff(wrapped[:, 5])).max() > 6.0  # the recording does jump
     result = make_clips(stamps, receive, wrapped, np.full_like(q, np.nan), ClipOptions(idle_speed_rad_s=0.0))
     (clip,) = result.clips
     assert np.abs(np.diff(clip.q[:, 5])).max() < 0.1
@@ -132,7 +134,7 @@ def test_a_recording_that_never_moves_gives_no_clip_unless_trimming_is_off():
 def test_a_long_silence_splits_the_recording():
     swing = Swing()
     stamps, receive, q, qd = sample(swing, 500.0, swing.total_s)
-    cut = (stamps - stamps[0] > 1.0e9) & (stamps - stamps[0] < 1.3e9)   # 0.3 s lost mid-swing
+    cut = (stamps - stamps[0] > 1.0e9) & (stamps - stamps[0] < 1.3e9)  # 0.3 s lost mid-swing
     result = make_clips(stamps[~cut], receive[~cut], q[~cut], qd[~cut], ClipOptions(idle_speed_rad_s=0.0))
     assert len(result.clips) == 2
     assert result.clips[0].t[-1] < result.clips[1].t[0] - 0.25
@@ -167,8 +169,11 @@ def make_dataset(lengths=(10, 7), speedups=(2, 3, 5)):
     for i, n in enumerate(lengths):
         t = 100.0 * i + np.arange(n) / 60.0
         q = np.arange(n * 6, dtype=float).reshape(n, 6) + 1000 * i
-        originals.append(SourceClip(Clip(t=t, q=q, qd=-q), label=['forward', 'leftward'][i % 2],
-                                    source=f'bags/clip{i}:/joint_states'))
+        originals.append(
+            SourceClip(
+                Clip(t=t, q=q, qd=-q), label=['forward', 'leftward'][i % 2], source=f'bags/clip{i}:/joint_states'
+            )
+        )
     return assemble_dataset(originals, speedups, JOINTS, 60.0)
 
 
@@ -206,8 +211,11 @@ def test_a_dataset_with_some_clips_keeps_their_frames_and_every_per_clip_array()
         assert np.array_equal(subset.clip(i).q, dataset.clip(c).q)
         assert subset.original[i] == dataset.original[c] and subset.source[i] == dataset.source[c]
     # Every array with one entry per clip is subset (a new per-clip field must join PER_CLIP_FIELDS).
-    per_clip = {name for name, value in vars(dataset).items()
-                if isinstance(value, np.ndarray) and len(value) == dataset.num_clips}
+    per_clip = {
+        name
+        for name, value in vars(dataset).items()
+        if isinstance(value, np.ndarray) and len(value) == dataset.num_clips
+    }
     assert per_clip == set(PER_CLIP_FIELDS)
 
 
@@ -221,7 +229,7 @@ def test_windows_are_consecutive_states_that_never_cross_a_clip(length):
     for c in range(dataset.num_clips):
         clip = dataset.clip(c)
         for start in range(len(clip) - length + 1):
-            state = np.concatenate([clip.q[start:start + length], clip.qd[start:start + length]], axis=1)
+            state = np.concatenate([clip.q[start : start + length], clip.qd[start : start + length]], axis=1)
             assert np.array_equal(windows[index], state)
             index += 1
     assert index == expected
@@ -244,6 +252,7 @@ def _shipped_dataset(tmp_path_factory) -> ReferenceDataset | None:
     if not any(bags.glob('*/metadata.yaml')):
         return None
     from stylepong_policy.training import build_dataset
+
     out = tmp_path_factory.mktemp('shipped') / 'dataset.npz'
     assert build_dataset.run([str(bags), '-o', str(out)]) == 0
     return ReferenceDataset.load(out)
@@ -264,7 +273,7 @@ def test_every_shipped_clip_has_velocities_that_match_its_positions_at_the_playb
         np.testing.assert_allclose(np.diff(clip.t), 1.0 / dataset.rate_hz, rtol=1e-6)
         from_positions = np.gradient(clip.q, clip.t, axis=0)
         error = np.sqrt(np.mean((from_positions[1:-1] - clip.qd[1:-1]) ** 2))
-        scale = np.sqrt(np.mean(clip.qd ** 2))
+        scale = np.sqrt(np.mean(clip.qd**2))
         assert error <= 0.25 * scale, (c, int(dataset.speed_factor[c]), error, scale)
 
 
@@ -278,19 +287,29 @@ def test_a_clip_s_hit_is_the_fastest_frame_of_its_last_swing_even_when_the_back_
     # idle lead-in, a fast back-swing, a pause, a slower forward swing, a slow follow-through
     qd = _speed_bumps((5, 0.0), (21, 3.0), (4, 0.0), (21, 2.0), (11, 0.5))
     assert hit_frame(qd) == 5 + 21 + 4 + 10
-    assert hit_frame(_speed_bumps((31, 2.0))) == 15        # one swing: its fastest frame
+    assert hit_frame(_speed_bumps((31, 2.0))) == 15  # one swing: its fastest frame
     assert hit_frame(np.zeros((6, 2))) == 0
     with pytest.raises(ValueError, match='empty'):
         hit_frame(np.zeros((0, 2)))
 
 
 def test_frames_after_each_clip_s_hit_are_flagged_clip_by_clip():
-    swing = _speed_bumps((11, 3.0), (4, 0.0), (11, 2.0))   # hit at frame 20 of 26
-    qd = np.concatenate([swing, swing[::2]])                 # an original and its x2 (hit at frame 10 of 13)
+    swing = _speed_bumps((11, 3.0), (4, 0.0), (11, 2.0))  # hit at frame 20 of 26
+    qd = np.concatenate([swing, swing[::2]])  # an original and its x2 (hit at frame 10 of 13)
     dataset = ReferenceDataset(
-        t=np.arange(len(qd)) / 60.0, q=np.zeros_like(qd), qd=qd, clip_start=np.array([0, 26]),
-        clip_length=np.array([26, 13]), label=np.array(['forward'] * 2), speed_factor=np.array([1, 2]),
-        source=np.array(['toy'] * 2), original=np.array([0, 0]), time_source=np.array(['header'] * 2),
-        velocity_source=np.array(['bag'] * 2), rate_hz=60.0, joint_names=np.array(['a', 'b']))
+        t=np.arange(len(qd)) / 60.0,
+        q=np.zeros_like(qd),
+        qd=qd,
+        clip_start=np.array([0, 26]),
+        clip_length=np.array([26, 13]),
+        label=np.array(['forward'] * 2),
+        speed_factor=np.array([1, 2]),
+        source=np.array(['toy'] * 2),
+        original=np.array([0, 0]),
+        time_source=np.array(['header'] * 2),
+        velocity_source=np.array(['bag'] * 2),
+        rate_hz=60.0,
+        joint_names=np.array(['a', 'b']),
+    )
     after = dataset.after_hit()
     assert np.flatnonzero(after).tolist() == list(range(20, 26)) + list(range(36, 39))

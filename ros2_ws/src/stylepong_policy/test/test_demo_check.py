@@ -1,4 +1,5 @@
 """demo_check: good demonstrations pass, each kind of bad one is refused with one line naming its bag."""
+
 import pathlib
 import shutil
 import subprocess
@@ -28,7 +29,7 @@ from stylepong_recording.joint_state_bags import (
 )
 
 SHIPPED_BAGS = pathlib.Path(__file__).resolve().parents[3] / 'bags'
-WINDOW = 8     # the recipe's discriminator window (config/amp.yaml sequence_length)
+WINDOW = 8  # the recipe's discriminator window (config/amp.yaml sequence_length)
 SWING = Swing()
 
 
@@ -97,8 +98,13 @@ def test_a_ur_driver_recording_at_125_hz_passes(tmp_path):
 def test_other_tools_label_a_take_by_its_name_or_its_folder(tmp_path):
     """No custom_data label: a direction among the name's words, else the folder it sits in."""
     folder = tmp_path / 'demos'
-    takes = {'take3-Leftward': 'leftward', 'Forward01': 'forward', 'rightward/take_7': 'rightward',
-             'forward/clip': 'forward', 'leftward/rightward_2': 'rightward'}
+    takes = {
+        'take3-Leftward': 'leftward',
+        'Forward01': 'forward',
+        'rightward/take_7': 'rightward',
+        'forward/clip': 'forward',
+        'leftward/rightward_2': 'rightward',
+    }
     for name in takes:
         write_driver_bag(folder / name, SWING, SWING.total_s, label=None)
     found = check_demonstrations(folder, window_frames=WINDOW)
@@ -134,7 +140,7 @@ def test_unlabelled_and_unknown_labels_are_refused(tmp_path):
 
 def test_another_robots_joints_are_refused(tmp_path):
     store = jazzy_typestore()
-    names = [f'joint_{k}' for k in range(1, 8)]   # a seven-joint arm
+    names = [f'joint_{k}' for k in range(1, 8)]  # a seven-joint arm
     times_s = np.arange(0, SWING.total_s, 1 / 200)
     q, qd = SWING(times_s)
     messages = []
@@ -149,7 +155,7 @@ def test_another_robots_joints_are_refused(tmp_path):
 
 
 def test_positions_outside_the_joint_limits_are_refused(tmp_path):
-    elbow_past_pi = Swing(end_rad=(0.6, -1.3, 3.4, -0.8, -1.2, 2.0))   # the elbow stops at +-pi
+    elbow_past_pi = Swing(end_rad=(0.6, -1.3, 3.4, -0.8, -1.2, 2.0))  # the elbow stops at +-pi
     bag = tmp_path / 'limits' / 'forward_20250101_120000_000'
     write_recorder_bag(bag, elbow_past_pi, elbow_past_pi.total_s)
     assert_one_line_naming(refusal(bag.parent), bag, 'elbow_joint', "outside the UR5's limits", '3.142')
@@ -201,7 +207,7 @@ def test_a_dataset_passes_or_is_refused_naming_the_bag_of_the_bad_clips(tmp_path
     assert '\n' not in message and bag in message and 'unlabelled clips' in message
 
     dataset = ReferenceDataset.load(good)
-    dataset.q[:, 2] += 3.0                          # every clip's elbow beyond pi
+    dataset.q[:, 2] += 3.0  # every clip's elbow beyond pi
     dataset.save(tmp_path / 'limits.npz')
     with pytest.raises(DemonstrationError) as caught:
         check_demonstrations(tmp_path / 'limits.npz', window_frames=WINDOW)
@@ -223,16 +229,20 @@ def test_a_dataset_passes_or_is_refused_naming_the_bag_of_the_bad_clips(tmp_path
 def test_a_refusal_comes_fast_without_torch(tmp_path):
     bag = tmp_path / 'bad' / 'take1'
     write_recorder_bag(bag, SWING, SWING.total_s, label=None)
-    script = ('import sys\n'
-              'from stylepong_policy.training.demo_check import DemonstrationError, check_demonstrations\n'
-              f'try:\n    check_demonstrations({str(bag.parent)!r}, window_frames=8)\n'
-              'except DemonstrationError as error:\n    print(error)\n'
-              "print('torch imported' if 'torch' in sys.modules else 'no torch')\n")
+    script = (
+        'import sys\n'
+        'from stylepong_policy.training.demo_check import DemonstrationError, check_demonstrations\n'
+        f'try:\n    check_demonstrations({str(bag.parent)!r}, window_frames=8)\n'
+        'except DemonstrationError as error:\n    print(error)\n'
+        "print('torch imported' if 'torch' in sys.modules else 'no torch')\n"
+    )
     started = time.perf_counter()
     done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
     elapsed_s = time.perf_counter() - started
     assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == [f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory '
-                                        "name or its folder's name); label it forward, leftward, rightward",
-                                        'no torch']
+    assert done.stdout.splitlines() == [
+        f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory '
+        "name or its folder's name); label it forward, leftward, rightward",
+        'no torch',
+    ]
     assert elapsed_s < 15.0

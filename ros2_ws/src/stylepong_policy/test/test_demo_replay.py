@@ -1,4 +1,5 @@
 """Replaying a joint-position sequence against incoming balls (stylepong_policy.evaluation.demo_replay)."""
+
 import pathlib
 
 import numpy as np
@@ -16,7 +17,7 @@ WRIST_1 = 3
 
 def test_the_fastest_frame_and_the_targets_around_it():
     q = np.zeros((10, 6))
-    q[6:, 0] = 0.5                                   # the largest jump is into frame 6
+    q[6:, 0] = 0.5  # the largest jump is into frame 6
     assert demo_replay.fastest_frame(q, 60.0) == 6
     hit_steps = torch.tensor([20, 30])
     # The fastest frame falls at each env's hit step; the first frame holds before, the last after.
@@ -42,6 +43,7 @@ def test_the_shipped_opened_blade_returns_the_ball_and_an_upright_one_seldom_doe
     if not any(bags.glob('*/metadata.yaml')):
         pytest.skip('no shipped clips in ros2_ws/bags')
     from stylepong_policy.training import build_dataset
+
     assert build_dataset.run([str(bags), '-o', str(tmp_path / 'dataset.npz')]) == 0
     dataset = ReferenceDataset.load(tmp_path / 'dataset.npz')
     clip = dataset.clip(int(dataset.select(labels=['forward'], speed_factors=[5])[0])).q

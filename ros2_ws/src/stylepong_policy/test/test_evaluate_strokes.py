@@ -1,5 +1,6 @@
 """`evaluate` with --save-strokes and --dtw on the shipped PPO actor (1 seed, a few balls), and
 `run_evaluation`, the function other code calls."""
+
 import json
 import pathlib
 
@@ -21,10 +22,27 @@ def evaluated(tmp_path_factory):
     folder = tmp_path_factory.mktemp('evaluate')
     write_reference(folder / 'reference.npz')
     with pytest.MonkeyPatch.context() as patch:
-        patch.chdir(folder)   # relative paths, as a person types them
-        status = evaluate.main(['--actor', str(PPO_ACTOR), '--seeds', '1', '--first-seed', str(SEED), '--balls',
-                                str(BALLS), '--save-strokes', 'out/strokes.npz', '--dtw', 'reference.npz',
-                                '--json', 'out/eval.json', '--num-threads', '1'])
+        patch.chdir(folder)  # relative paths, as a person types them
+        status = evaluate.main(
+            [
+                '--actor',
+                str(PPO_ACTOR),
+                '--seeds',
+                '1',
+                '--first-seed',
+                str(SEED),
+                '--balls',
+                str(BALLS),
+                '--save-strokes',
+                'out/strokes.npz',
+                '--dtw',
+                'reference.npz',
+                '--json',
+                'out/eval.json',
+                '--num-threads',
+                '1',
+            ]
+        )
     assert status == 0
     return folder
 
@@ -32,7 +50,7 @@ def evaluated(tmp_path_factory):
 def test_stroke_file_holds_every_ball_from_launch_to_the_follow_through(evaluated):
     saved = strokes.load_strokes(evaluated / 'out' / 'strokes.npz')
     assert len(saved.strokes) == BALLS and saved.rate_hz == 60.0 and saved.speed == 'all'
-    assert saved.actor == 'ppo_actor.pt'            # an absolute path outside the working folder: its name only
+    assert saved.actor == 'ppo_actor.pt'  # an absolute path outside the working folder: its name only
     assert [s.ball for s in saved.strokes] == list(range(BALLS)) and {s.seed for s in saved.strokes} == {SEED}
     for s in saved.strokes:
         assert s.direction in strokes.DIRECTIONS
@@ -96,16 +114,24 @@ def test_dtw_in_the_json_is_recomputable_from_the_stroke_file(evaluated):
 
 
 def test_run_evaluation_returns_what_evaluate_prints(evaluated):
-    summary = evaluate.run_evaluation(PPO_ACTOR, seeds=1, first_seed=SEED, balls=BALLS, speed='all',
-                                      randomize=False, device='cpu')
+    summary = evaluate.run_evaluation(
+        PPO_ACTOR, seeds=1, first_seed=SEED, balls=BALLS, speed='all', randomize=False, device='cpu'
+    )
     printed = json.loads((evaluated / 'out' / 'eval.json').read_text())
     assert summary['per_seed'] == printed['per_seed'] and summary['failures'] == printed['failures']
     assert summary['directions'] == printed['directions'] and 'dtw' not in summary
-    assert set(printed) - set(summary) == {'dtw', 'dtw_by_lateral_offset', 'dtw_dataset', 'dtw_call', 'strokes_file',
-                                           'command'}
+    assert set(printed) - set(summary) == {
+        'dtw',
+        'dtw_by_lateral_offset',
+        'dtw_dataset',
+        'dtw_call',
+        'strokes_file',
+        'command',
+    }
     assert printed['command'].startswith('ros2 run stylepong_policy evaluate --actor ')
     # A loaded actor is accepted as well, and the path it was loaded from is reported as given.
     from stylepong_policy.rl.export import load_actor
+
     again = evaluate.run_evaluation(load_actor(PPO_ACTOR), seeds=1, first_seed=SEED, balls=BALLS)
     assert again['per_seed'] == summary['per_seed']
 
@@ -125,8 +151,27 @@ def test_a_stiff_drive_changes_the_world_and_the_result_says_so(tmp_path):
     results = {}
     for share in ('0', '1'):
         out = tmp_path / f'{share}.json'
-        assert evaluate.main(['--actor', str(actor), '--seeds', '1', '--first-seed', '900', '--balls', '60',
-                              '--velocity-drive', share, '--json', str(out), '--num-threads', '1']) == 0
+        assert (
+            evaluate.main(
+                [
+                    '--actor',
+                    str(actor),
+                    '--seeds',
+                    '1',
+                    '--first-seed',
+                    '900',
+                    '--balls',
+                    '60',
+                    '--velocity-drive',
+                    share,
+                    '--json',
+                    str(out),
+                    '--num-threads',
+                    '1',
+                ]
+            )
+            == 0
+        )
         results[share] = json.loads(out.read_text())
     assert results['0']['success_rate'] >= 0.85 and results['1']['success_rate'] <= 0.6, results
     assert results['1']['failures'].get('table_contact_by_robot', 0) >= 10

@@ -1,4 +1,5 @@
 """The exported actor: TorchScript equals the training model, the sidecar guards the spec contract."""
+
 import json
 
 import pytest
@@ -7,9 +8,15 @@ import torch
 from stylepong_policy.rl.export import ActorMismatchError, current_spec_contract, export_actor, load_actor, sidecar_path
 from stylepong_policy.rl.networks import ActorCritic
 
-CONTRACT = {'spec_version': 3, 'action_rate_hz': 60.0, 'joint_names': ['j1', 'j2'],
-            'obs_layout': [['joint_positions', 2], ['ball_position', 3]], 'num_obs': 5, 'num_actions': 2,
-            'action_decoding': {'scale_rad': [0.5, 0.5]}}
+CONTRACT = {
+    'spec_version': 3,
+    'action_rate_hz': 60.0,
+    'joint_names': ['j1', 'j2'],
+    'obs_layout': [['joint_positions', 2], ['ball_position', 3]],
+    'num_obs': 5,
+    'num_actions': 2,
+    'action_decoding': {'scale_rad': [0.5, 0.5]},
+}
 
 
 @pytest.fixture
@@ -37,9 +44,16 @@ def test_exported_actor_equals_the_model_with_its_normaliser(tmp_path, trained_m
     assert trained_model.training and trained_model.std.requires_grad
 
 
-@pytest.mark.parametrize('key, value', [('spec_version', 4), ('joint_names', ['j2', 'j1']), ('action_rate_hz', 50.0),
-                                        ('obs_layout', [['joint_positions', 2], ['ball_velocity', 3]]),
-                                        ('action_decoding', {'scale_rad': [0.4, 0.5]})])
+@pytest.mark.parametrize(
+    'key, value',
+    [
+        ('spec_version', 4),
+        ('joint_names', ['j2', 'j1']),
+        ('action_rate_hz', 50.0),
+        ('obs_layout', [['joint_positions', 2], ['ball_velocity', 3]]),
+        ('action_decoding', {'scale_rad': [0.4, 0.5]}),
+    ],
+)
 def test_loader_refuses_a_different_spec(tmp_path, trained_model, key, value):
     path, _ = export_actor(trained_model, tmp_path / 'actor.pt', CONTRACT)
     with pytest.raises(ActorMismatchError, match=key):
@@ -49,7 +63,7 @@ def test_loader_refuses_a_different_spec(tmp_path, trained_model, key, value):
 def test_loader_refuses_missing_or_altered_files(tmp_path, trained_model):
     path, json_path = export_actor(trained_model, tmp_path / 'actor.pt', CONTRACT)
     other, _ = export_actor(ActorCritic(5, 9, 2, [8], [8]), tmp_path / 'other.pt', CONTRACT)
-    path.write_bytes(other.read_bytes())        # a different actor under the sidecar of the first
+    path.write_bytes(other.read_bytes())  # a different actor under the sidecar of the first
     with pytest.raises(ActorMismatchError, match='SHA-256'):
         load_actor(path, expected=CONTRACT)
     json_path.unlink()
@@ -66,9 +80,10 @@ def test_export_refuses_a_network_that_does_not_fit_the_spec(tmp_path):
 
 def test_current_spec_contract_describes_the_spec_module():
     from stylepong_player import spec
+
     contract = current_spec_contract()
     assert contract['spec_version'] == spec.SPEC_VERSION
     assert contract['joint_names'] == list(spec.JOINT_NAMES)
     assert contract['num_obs'] == sum(size for _, size in spec.OBS_LAYOUT)
     assert contract['action_rate_hz'] == 60.0
-    json.dumps(contract)   # the sidecar must be able to hold it
+    json.dumps(contract)  # the sidecar must be able to hold it

@@ -1,6 +1,7 @@
 """learn_style end to end on a tiny budget (the shipped clips in, an actor, its files and a report out), its
 resume, and the rules it chooses and budgets by. The recipe is config/amp.yaml with a small batch and the
 evaluations shrunk, so that every stage runs in seconds."""
+
 import json
 import pathlib
 import subprocess
@@ -51,13 +52,14 @@ def run(tmp_path_factory):
         yield out
 
 
-@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
+@pytest.mark.slow  # the run: about 40 s on a quiet 2-core machine
 def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
     actor = load_actor(run / learn_style.ACTOR_NAME)
     assert actor(torch.zeros(1, actor.num_obs)).shape == (1, actor.num_actions)
     # The player runs it as it is: the ONNX file against the contract of this workspace's spec.
     from stylepong_player.actor_contract import current_spec_contract
     from stylepong_player.player_core import load_actor as player_actor
+
     onnx = player_actor(run / 'actor.onnx', 'onnx', current_spec_contract())
     assert onnx(np.zeros((1, actor.num_obs), dtype=np.float32)).shape == (1, actor.num_actions)
     assert read_sidecar(run / learn_style.ACTOR_NAME)['training']['learn_style']['candidate']
@@ -70,11 +72,10 @@ def test_a_run_leaves_a_deployable_actor_its_network_and_a_report(run):
         assert files.all_speeds_json.is_file() and files.strokes_npz.is_file()
     state = json.loads((run / learn_style.STATE_NAME).read_text())
     assert list(state['stages']) == list(learn_style.STAGES)
-    assert state['stages']['choose']['chosen'] in json.loads((run / 'choose' / 'candidates.json').read_text())[
-        'chosen']
+    assert state['stages']['choose']['chosen'] in json.loads((run / 'choose' / 'candidates.json').read_text())['chosen']
 
 
-@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
+@pytest.mark.slow  # the run: about 40 s on a quiet 2-core machine
 def test_the_start_is_the_librarys_nearest_skill_and_the_new_network_records_these_demonstrations(run):
     state = json.loads((run / learn_style.STATE_NAME).read_text())
     record = json.loads((run / learn_style.SKILL_DIR / learn_style.SKILLS_JSON).read_text())
@@ -90,7 +91,7 @@ def test_the_start_is_the_librarys_nearest_skill_and_the_new_network_records_the
     assert 'chosen from the library' in (run / style_report.REPORT_MD).read_text()
 
 
-@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
+@pytest.mark.slow  # the run: about 40 s on a quiet 2-core machine
 def test_a_finished_run_is_not_overwritten_and_resumes_only_what_is_missing(run):
     assert learn_style.main([str(BAGS), '--out', str(run)]) == 2
     state = json.loads((run / learn_style.STATE_NAME).read_text())
@@ -104,7 +105,7 @@ def test_a_finished_run_is_not_overwritten_and_resumes_only_what_is_missing(run)
     assert 'report' in json.loads((run / learn_style.STATE_NAME).read_text())['stages']
 
 
-@pytest.mark.slow      # the run: about 40 s on a quiet 2-core machine
+@pytest.mark.slow  # the run: about 40 s on a quiet 2-core machine
 def test_a_learn_style_run_is_a_skill_to_start_from(run):
     assert learn_style.skill_checkpoint(run) == run / learn_style.ACTOR_CHECKPOINT_NAME
     assert learn_style.skill_checkpoint(run / learn_style.ACTOR_NAME) == run / learn_style.ACTOR_CHECKPOINT_NAME
@@ -116,8 +117,12 @@ def test_bad_demonstrations_are_refused_in_one_line_before_training(tmp_path):
     started = time.monotonic()
     empty = tmp_path / 'empty'
     empty.mkdir()
-    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.training.learn_style', str(empty), '--out',
-                             str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, '-m', 'stylepong_policy.training.learn_style', str(empty), '--out', str(tmp_path / 'run')],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and str(empty) in lines[0], result.stderr
@@ -136,19 +141,27 @@ def test_a_device_without_cuda_is_refused_in_one_line_before_anything_is_written
 
 def test_candidates_are_averages_along_the_end_of_the_run_and_the_last_checkpoint(tmp_path, monkeypatch):
     from stylepong_policy.training import select_checkpoint
-    numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]     # 12 checkpoints
+
+    numbered = [(i, tmp_path / f'model_{i:06d}.pt') for i in range(50, 650, 50)]  # 12 checkpoints
     monkeypatch.setattr(select_checkpoint, 'numbered_checkpoints', lambda run_dir: numbered)
     candidates = dict(learn_style.candidates_of(tmp_path))
-    assert candidates == {'average_150_200': [150, 200], 'average_250_300': [250, 300],
-                          'average_350_400': [350, 400], 'average_450_500': [450, 500],
-                          'average_550_600': [550, 600], 'average_450_600': [450, 500, 550, 600],
-                          'checkpoint_600': [600]}
+    assert candidates == {
+        'average_150_200': [150, 200],
+        'average_250_300': [250, 300],
+        'average_350_400': [350, 400],
+        'average_450_500': [450, 500],
+        'average_550_600': [550, 600],
+        'average_450_600': [450, 500, 550, 600],
+        'checkpoint_600': [600],
+    }
 
 
 def test_the_choice_is_the_most_stylish_candidate_that_returns_enough_balls():
-    rows = [{'candidate': 'a', 'success_rate': 0.95, 'mean_dtw_rad': 20.0},
-            {'candidate': 'b', 'success_rate': 0.93, 'mean_dtw_rad': 15.0},
-            {'candidate': 'c', 'success_rate': 0.80, 'mean_dtw_rad': 5.0}]
+    rows = [
+        {'candidate': 'a', 'success_rate': 0.95, 'mean_dtw_rad': 20.0},
+        {'candidate': 'b', 'success_rate': 0.93, 'mean_dtw_rad': 15.0},
+        {'candidate': 'c', 'success_rate': 0.80, 'mean_dtw_rad': 5.0},
+    ]
     assert learn_style.choose_candidate(rows)['candidate'] == 'b'
     assert learn_style.choose_candidate([dict(r, success_rate=0.5) for r in rows])['candidate'] == 'a'
 
@@ -158,8 +171,10 @@ def test_a_start_must_leave_the_success_hold_room_above_the_choices_bar():
     bar = learn_style.skill_bar(cfg)
     assert cfg.amp.hold_success_margin > 0.0
     assert bar == pytest.approx(learn_style.MIN_SUCCESS + cfg.amp.hold_success_margin)
-    skills_validated = [{'candidate': 'near', 'success_rate': learn_style.MIN_SUCCESS + 0.006, 'mean_dtw_rad': 35.0},
-                        {'candidate': 'far', 'success_rate': bar + 0.004, 'mean_dtw_rad': 45.0}]
+    skills_validated = [
+        {'candidate': 'near', 'success_rate': learn_style.MIN_SUCCESS + 0.006, 'mean_dtw_rad': 35.0},
+        {'candidate': 'far', 'success_rate': bar + 0.004, 'mean_dtw_rad': 45.0},
+    ]
     assert learn_style.choose_candidate(skills_validated)['candidate'] == 'near'
     assert learn_style.choose_candidate(skills_validated, bar)['candidate'] == 'far'
 
@@ -176,6 +191,7 @@ def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clo
     stopped one was (its progress log's last wall time), so its ETA is the budget really left."""
     from stylepong_policy.rl.logger import CSV_NAME
     from stylepong_policy.training.learn_style_progress import StageBar
+
     assert learn_style.trained_s(tmp_path) == 0.0
     (tmp_path / CSV_NAME).write_text('iteration,wall_time_s\n1,2.5\n2,828.0\n')
     assert learn_style.trained_s(tmp_path) == 828.0
@@ -184,7 +200,7 @@ def test_a_resumed_runs_bar_starts_at_its_training_time_and_follows_the_runs_clo
         bar.iteration({'iteration': 3, 'wall_time_s': 830.0, 'iteration_time_s': 2.0})
         assert bar.bar.n == 830.0
         bar.iteration({'iteration': 4, 'wall_time_s': 4000.0, 'iteration_time_s': 2.0})
-        assert bar.bar.n == 3060.0                    # never past the budget
+        assert bar.bar.n == 3060.0  # never past the budget
 
 
 def test_a_skill_given_with_from_is_the_start_without_validating_the_library(tmp_path):

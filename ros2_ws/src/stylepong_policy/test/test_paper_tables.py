@@ -1,4 +1,5 @@
 """`paper_tables` on a tiny setting, the shipped PPO actor standing in for every row."""
+
 import json
 import pathlib
 
@@ -19,22 +20,51 @@ def stand_ins() -> str:
 @pytest.fixture(scope='module')
 def written(tmp_path_factory):
     out = tmp_path_factory.mktemp('results')
-    (out / 'sim2sim_mujoco.json').write_text(json.dumps({
-        'simulator': 'MuJoCo cell', 'success_rate': 0.5, 'balls_per_seed': 10, 'seeds': [1000, 1001],
-        'actor': 'models/amp_actor.pt'}))
-    status = paper_tables.main(['--out', str(out), '--actors', stand_ins(), '--seeds', '1', '--balls', '8',
-                                '--bags', str(REPOSITORY / 'ros2_ws' / 'bags'), '--num-threads', '1'])
+    (out / 'sim2sim_mujoco.json').write_text(
+        json.dumps(
+            {
+                'simulator': 'MuJoCo cell',
+                'success_rate': 0.5,
+                'balls_per_seed': 10,
+                'seeds': [1000, 1001],
+                'actor': 'models/amp_actor.pt',
+            }
+        )
+    )
+    status = paper_tables.main(
+        [
+            '--out',
+            str(out),
+            '--actors',
+            stand_ins(),
+            '--seeds',
+            '1',
+            '--balls',
+            '8',
+            '--bags',
+            str(REPOSITORY / 'ros2_ws' / 'bags'),
+            '--num-threads',
+            '1',
+        ]
+    )
     assert status == 0
     return out
 
 
 def test_markdown_has_every_table_with_the_papers_figures_beside_ours(written):
     text = (written / 'README.md').read_text()
-    for heading in ('## Table I', '## Table II', '## Where the DTW distance lies', '## Table III', '## Smoothness',
-                    '## Table IV', '## Fig. 2'):
+    for heading in (
+        '## Table I',
+        '## Table II',
+        '## Where the DTW distance lies',
+        '## Table III',
+        '## Smoothness',
+        '## Table IV',
+        '## Fig. 2',
+    ):
         assert heading in text, heading
     for figure in ('96.27 %', '90.32 %', '148.23', '62.73', '0.423', '85.91 %', '71.39 %'):
-        assert figure in text, figure                   # the paper's, beside ours
+        assert figure in text, figure  # the paper's, beside ours
     assert 'seed 1000 x 8 balls' in text and 'seed 2000 x 8 balls' in text
     assert 'Stand-in actors' in text
     assert 'MuJoCo cell (ours, `sim2sim_mujoco.json`)' in text and '50.00 %' in text
@@ -64,22 +94,37 @@ def test_without_sim2sim_files_table_four_says_not_measured(tmp_path):
 
 
 def test_table_four_lists_each_sim2sim_row_with_its_command(tmp_path):
-    (tmp_path / 'sim2sim_pybullet_ideal.json').write_text(json.dumps({
-        'world': 'ur5_sim engine pybullet (PyBullet cell, Bullet contacts) through ROS, ideal actuator',
-        'success_rate': 0.8, 'success_rate_std': 0.05, 'balls_per_seed': 20, 'seeds': list(range(1000, 1010)),
-        'actor': 'models/amp_actor.pt', 'command': 'tools/sim2sim.sh --engine pybullet'}))
+    (tmp_path / 'sim2sim_pybullet_ideal.json').write_text(
+        json.dumps(
+            {
+                'world': 'ur5_sim engine pybullet (PyBullet cell, Bullet contacts) through ROS, ideal actuator',
+                'success_rate': 0.8,
+                'success_rate_std': 0.05,
+                'balls_per_seed': 20,
+                'seeds': list(range(1000, 1010)),
+                'actor': 'models/amp_actor.pt',
+                'command': 'tools/sim2sim.sh --engine pybullet',
+            }
+        )
+    )
     rows = paper_tables.load_sim2sim(tmp_path)
     assert rows[0]['command'] == 'tools/sim2sim.sh --engine pybullet' and rows[0]['mean_successes_per_seed'] == 16.0
-    batched = {'balls_per_seed': 200, 'mean_successes_per_seed': 190.5, 'success_rate': 0.9525,
-               'success_rate_std': 0.01, 'actor': 'models/amp_actor.pt'}
+    batched = {
+        'balls_per_seed': 200,
+        'mean_successes_per_seed': 190.5,
+        'success_rate': 0.9525,
+        'success_rate_std': 0.01,
+        'actor': 'models/amp_actor.pt',
+    }
     text = '\n'.join(paper_tables.table_four(rows, {'amp': {'all': batched}}, None))
     assert 'PyBullet cell, Bullet contacts' in text and '80.00 %' in text and '39.32 %' in text
     assert '`sim2sim_pybullet_ideal.json`: `tools/sim2sim.sh --engine pybullet`' in text
 
 
 def test_a_missing_shipped_actor_fails_clearly(tmp_path, capsys):
-    status = paper_tables.main(['--out', str(tmp_path / 'r'), '--models-dir', str(tmp_path),
-                                '--actors', f'ppo={PPO_ACTOR}', '--no-figure'])
+    status = paper_tables.main(
+        ['--out', str(tmp_path / 'r'), '--models-dir', str(tmp_path), '--actors', f'ppo={PPO_ACTOR}', '--no-figure']
+    )
     assert status == 2
     error = capsys.readouterr().err
     assert 'amp-noaug' in error and 'amp_actor.pt' in error and '--actors' in error
@@ -87,8 +132,10 @@ def test_a_missing_shipped_actor_fails_clearly(tmp_path, capsys):
 
 
 def test_actor_overrides_are_checked():
-    assert paper_tables.parse_actor_overrides('ppo=a.pt,amp=b.pt') == {'ppo': pathlib.Path('a.pt'),
-                                                                     'amp': pathlib.Path('b.pt')}
+    assert paper_tables.parse_actor_overrides('ppo=a.pt,amp=b.pt') == {
+        'ppo': pathlib.Path('a.pt'),
+        'amp': pathlib.Path('b.pt'),
+    }
     with pytest.raises(ValueError):
         paper_tables.parse_actor_overrides('dqn=a.pt')
     with pytest.raises(ValueError):

@@ -1,5 +1,6 @@
 """The player's actors: ONNX and TorchScript give the same actions, the contract is checked in both, the
 ONNX path needs no torch, and export writes the ONNX file with the contract in its metadata."""
+
 import json
 import os
 import pathlib
@@ -32,8 +33,17 @@ def test_shipped_actor_onnx_and_torchscript_agree_on_random_observations():
 def test_shipped_onnx_carries_the_contract_of_the_sidecar():
     props = {p.key: json.loads(p.value) for p in onnx.load(str(onnx_path(SHIPPED))).metadata_props}
     sidecar = json.loads(SHIPPED.with_suffix('.json').read_text())
-    for key in ('format', 'format_version', 'spec_version', 'action_rate_hz', 'joint_names', 'obs_layout',
-                'num_obs', 'num_actions', 'action_decoding'):
+    for key in (
+        'format',
+        'format_version',
+        'spec_version',
+        'action_rate_hz',
+        'joint_names',
+        'obs_layout',
+        'num_obs',
+        'num_actions',
+        'action_decoding',
+    ):
         assert props[key] == sidecar[key], key
     assert props['exported_from']['sha256'] == sidecar['actor_sha256']
 
@@ -65,9 +75,15 @@ def _rewrite_onnx_metadata(path: pathlib.Path, **changes) -> None:
     onnx.save(model, str(path))
 
 
-@pytest.mark.parametrize('key, value', [('spec_version', 99), ('joint_names', ['a', 'b', 'c', 'd', 'e', 'f']),
-                                        ('action_rate_hz', 50.0),
-                                        ('obs_layout', [['joint_position_offset_rad', 6], ['other', 20]])])
+@pytest.mark.parametrize(
+    'key, value',
+    [
+        ('spec_version', 99),
+        ('joint_names', ['a', 'b', 'c', 'd', 'e', 'f']),
+        ('action_rate_hz', 50.0),
+        ('obs_layout', [['joint_position_offset_rad', 6], ['other', 20]]),
+    ],
+)
 def test_onnx_actor_with_another_contract_is_refused_in_one_line(exported, key, value):
     path, _ = exported
     _rewrite_onnx_metadata(onnx_path(path), **{key: value})
@@ -105,15 +121,16 @@ def test_the_onnx_path_runs_without_torch():
     """The robot computer: torch cannot be imported at all, the player core and its ONNX actor still work."""
     code = (
         "import sys; sys.modules['torch'] = None\n"
-        "import numpy as np\n"
-        "from stylepong_player import player_core, spec\n"
+        'import numpy as np\n'
+        'from stylepong_player import player_core, spec\n'
         f"core = player_core.Player(player_core.PlayerConfig(), player_core.load_actor({str(SHIPPED)!r}, 'onnx'))\n"
-        "core.set_enabled(True)\n"
-        "core.on_joint_state(list(spec.JOINT_NAMES), list(spec.HOME_JOINT_POSITIONS_RAD), [0.0] * 6, 1.0)\n"
+        'core.set_enabled(True)\n'
+        'core.on_joint_state(list(spec.JOINT_NAMES), list(spec.HOME_JOINT_POSITIONS_RAD), [0.0] * 6, 1.0)\n'
         "core.on_ball('world', 1.0, (-0.9, 0.1, 1.0), (-5.0, 0.0, 0.5), 1.0)\n"
-        "result = core.step(1.0)\n"
-        "assert result.policy and np.isfinite(result.command).all()\n"
+        'result = core.step(1.0)\n'
+        'assert result.policy and np.isfinite(result.command).all()\n'
         "assert 'torch' not in {m.split('.')[0] for m, v in sys.modules.items() if v is not None}\n"
-        "print('ok')\n")
+        "print('ok')\n"
+    )
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=dict(os.environ))
     assert result.returncode == 0 and 'ok' in result.stdout, result.stderr

@@ -1,4 +1,5 @@
 """stylepong_policy.png: the small PNG files every chart and strip is written as."""
+
 import numpy as np
 from PIL import Image
 
@@ -12,7 +13,7 @@ def _pixels(path):
 
 def test_few_colours_are_kept_exactly_and_many_are_quantised(tmp_path):
     rng = np.random.default_rng(0)
-    few = rng.choice([0, 128, 255], size=(40, 60, 3)).astype(np.uint8)   # 27 colours at most
+    few = rng.choice([0, 128, 255], size=(40, 60, 3)).astype(np.uint8)  # 27 colours at most
     png.write_png(Image.fromarray(few), tmp_path / 'few.png')
     with Image.open(tmp_path / 'few.png') as image:
         assert image.mode == 'P'
@@ -36,6 +37,7 @@ def test_a_transparent_pixel_lies_on_white_and_shrinking_again_changes_nothing(t
 
 def test_a_figure_is_saved_small_unless_its_path_names_another_format(tmp_path):
     import matplotlib
+
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 

@@ -1,5 +1,6 @@
 """The pose prior (rl.pose_prior) and how the motion prior uses it: the reward of a pose against its label's
 demonstrated pose at the same time from the hit, labels without clips, and the mixed reward."""
+
 import math
 
 import numpy as np
@@ -24,7 +25,7 @@ def line_clip(frames: int, hit: int, joint: int = 0) -> tuple[np.ndarray, int]:
 def test_reference_is_the_clip_frame_at_the_same_time_from_the_hit():
     prior = PosePrior([[line_clip(10, 4)]], sigma_rad=0.5, rate_hz=10.0)
     q = torch.zeros(5, 6)
-    time_s = torch.tensor([0.0, -0.2, 0.3, -5.0, 5.0])       # frames 4, 2, 7, before the start, after the end
+    time_s = torch.tensor([0.0, -0.2, 0.3, -5.0, 5.0])  # frames 4, 2, 7, before the start, after the end
     expected = [4.0, 2.0, 7.0, 0.0, 9.0]
     assert prior.reference_distance_rad(q, time_s).tolist() == pytest.approx(expected)
     q[:, 0] = torch.tensor(expected)
@@ -36,16 +37,17 @@ def test_reference_is_the_clip_frame_at_the_same_time_from_the_hit():
 def test_after_the_touch_the_follow_through_ends_with_the_stroke():
     """follow_through_s: the clip's frames after its hit are spread over the stroke's time after the touch,
     so the stroke's last frame is paired with the clip's last, as DTW pairs them; before it, no change."""
-    prior = PosePrior([[line_clip(10, 4), line_clip(24, 4, joint=1)]], sigma_rad=0.5, rate_hz=10.0,
-                      follow_through_s=0.5)
+    prior = PosePrior(
+        [[line_clip(10, 4), line_clip(24, 4, joint=1)]], sigma_rad=0.5, rate_hz=10.0, follow_through_s=0.5
+    )
     time_s = torch.tensor([-0.2, 0.0, 0.25, 0.5, 3.0])
     frames = prior._reference_frames(prior.labels[0], time_s)
-    assert frames[:, 0].tolist() == [2, 4, 6, 9, 9]          # 5 frames after the hit in 0.5 s
-    assert frames[:, 1].tolist() == [2, 4, 14, 23, 23]       # 19 frames after the hit in the same 0.5 s
+    assert frames[:, 0].tolist() == [2, 4, 6, 9, 9]  # 5 frames after the hit in 0.5 s
+    assert frames[:, 1].tolist() == [2, 4, 14, 23, 23]  # 19 frames after the hit in the same 0.5 s
     on_own_clock = PosePrior([[line_clip(10, 4), line_clip(24, 4, joint=1)]], sigma_rad=0.5, rate_hz=10.0)
     assert on_own_clock._reference_frames(on_own_clock.labels[0], time_s)[:, 1].tolist() == [2, 4, 6, 9, 23]
     q = torch.zeros(1, 6)
-    q[0, 1] = 23.0                                            # the long clip's end at the stroke's end
+    q[0, 1] = 23.0  # the long clip's end at the stroke's end
     assert prior.reward(q, torch.tensor([0.5])).item() == pytest.approx(1.0)
     assert on_own_clock.reward(q, torch.tensor([0.5])).item() < 1e-6
     with pytest.raises(ValueError, match='follow-through'):
@@ -53,10 +55,13 @@ def test_after_the_touch_the_follow_through_ends_with_the_stroke():
 
 
 def test_the_nearest_clip_of_the_label_counts_and_other_labels_do_not():
-    prior = PosePrior([[line_clip(10, 4, joint=0), line_clip(10, 4, joint=1)], [line_clip(5, 2, joint=2)]],
-                      sigma_rad=1.0, rate_hz=10.0)
+    prior = PosePrior(
+        [[line_clip(10, 4, joint=0), line_clip(10, 4, joint=1)], [line_clip(5, 2, joint=2)]],
+        sigma_rad=1.0,
+        rate_hz=10.0,
+    )
     q = torch.zeros(2, 6)
-    q[:, 1] = 4.0                      # on the second clip of label 0 at the hit, 4 rad off label 1's clip
+    q[:, 1] = 4.0  # on the second clip of label 0 at the hit, 4 rad off label 1's clip
     distance = prior.reference_distance_rad(q, torch.zeros(2), torch.tensor([0, 1]))
     assert distance[0].item() == pytest.approx(0.0)
     assert distance[1].item() == pytest.approx(math.hypot(4.0, 2.0))
@@ -96,11 +101,13 @@ def test_from_dataset_takes_every_clip_of_each_label(forward_only):
 
 
 def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose(forward_only):
-    cfg = AMPConfig(sequence_length=2, frame_features='q', condition_on_label=True, w_style=0.5, w_pose=2.0,
-                    pose_sigma_rad=0.3)
+    cfg = AMPConfig(
+        sequence_length=2, frame_features='q', condition_on_label=True, w_style=0.5, w_pose=2.0, pose_sigma_rad=0.3
+    )
     reference = ReferenceMotion.from_dataset(forward_only, 2, features='q', label_names=LABELS)
-    prior = MotionPrior(cfg, reference, 12, num_envs=3, device='cpu',
-                        pose_prior=PosePrior.from_dataset(forward_only, LABELS, 0.3))
+    prior = MotionPrior(
+        cfg, reference, 12, num_envs=3, device='cpu', pose_prior=PosePrior.from_dataset(forward_only, LABELS, 0.3)
+    )
     frames = torch.as_tensor(forward_only.states()[:3], dtype=torch.float32)
     prior.start(frames)
     labels = torch.tensor([0, 1, 2])
@@ -118,6 +125,7 @@ def test_motion_prior_gives_no_style_to_a_label_without_clips_and_mixes_the_pose
 def test_stroke_prior_rewards_each_stroke_once_by_its_dtw_to_the_nearest_clip_of_its_label():
     from stylepong_policy.evaluation.style_metrics import dtw_distance_rad
     from stylepong_policy.rl.stroke_prior import StrokePrior
+
     clip = line_clip(4, 1)[0]
     prior = StrokePrior([[clip], []], sigma_rad=0.5, num_envs=3, joints=6)
     frames = torch.zeros(3, 6)
@@ -134,8 +142,8 @@ def test_stroke_prior_rewards_each_stroke_once_by_its_dtw_to_the_nearest_clip_of
     stroke = np.zeros((4, 6))
     stroke[:, 0] = np.arange(4)
     assert rewards[2][0].item() == pytest.approx(math.exp(-dtw_distance_rad(stroke, clip) / (0.5 * 4)))
-    assert rewards[2][0].item() == pytest.approx(1.0)            # the clip itself
-    assert rewards[2][1:].tolist() == [0.0, 0.0]                 # still going; a label without clips
+    assert rewards[2][0].item() == pytest.approx(1.0)  # the clip itself
+    assert rewards[2][1:].tolist() == [0.0, 0.0]  # still going; a label without clips
     # An ended stroke earns nothing more until its episode ends; the episode's end ends the other stroke.
     done = torch.tensor([True, True, False])
     after = prior.observe(torch.full((3, 6), 9.0), no, done, torch.zeros(3, 6), labels)

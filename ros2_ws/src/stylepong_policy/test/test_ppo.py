@@ -1,4 +1,5 @@
 """PPO parts on their own (normaliser, GAE, KL, losses, config) and PPO learning a small toy task."""
+
 import math
 import pathlib
 
@@ -21,11 +22,20 @@ HERE = pathlib.Path(__file__).resolve().parent
 
 
 def toy_config(**ppo) -> TrainConfig:
-    return config_from_dict({
-        'policy': {'actor_hidden_dims': [64, 64], 'critic_hidden_dims': [64, 64], 'init_noise_std': 0.5},
-        'ppo': {'num_steps_per_env': 16, 'num_mini_batches': 2, 'num_learning_epochs': 4, 'learning_rate': 3e-3,
-                'entropy_coef': 0.005, **ppo},
-        'runner': {'seed': 0, 'save_interval': 1000}})
+    return config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [64, 64], 'critic_hidden_dims': [64, 64], 'init_noise_std': 0.5},
+            'ppo': {
+                'num_steps_per_env': 16,
+                'num_mini_batches': 2,
+                'num_learning_epochs': 4,
+                'learning_rate': 3e-3,
+                'entropy_coef': 0.005,
+                **ppo,
+            },
+            'runner': {'seed': 0, 'save_interval': 1000},
+        }
+    )
 
 
 def test_normalizer_matches_batch_statistics_for_any_split():
@@ -60,12 +70,12 @@ def _storage_with(rewards, dones, values):
 def test_gae_with_lambda_one_is_discounted_return_cut_at_episode_ends():
     gamma = 0.9
     rewards = torch.tensor([[1.0], [2.0], [3.0], [4.0]])
-    dones = torch.tensor([[0.0], [1.0], [0.0], [0.0]])   # the episode ends after step 1
+    dones = torch.tensor([[0.0], [1.0], [0.0], [0.0]])  # the episode ends after step 1
     values = torch.tensor([[0.5], [0.1], [0.7], [0.2]])
     last_value = torch.tensor([10.0])
     storage = _storage_with(rewards, dones, values)
     storage.compute_returns(last_value, gamma=gamma, lam=1.0, normalize_advantages=False)
-    expected = [1.0 + gamma * 2.0, 2.0, 3.0 + gamma * 4.0 + gamma ** 2 * 10.0, 4.0 + gamma * 10.0]
+    expected = [1.0 + gamma * 2.0, 2.0, 3.0 + gamma * 4.0 + gamma**2 * 10.0, 4.0 + gamma * 10.0]
     np.testing.assert_allclose(storage.returns[:, 0].numpy(), expected, rtol=1e-6)
     np.testing.assert_allclose(storage.advantages[:, 0].numpy(), np.array(expected) - values[:, 0].numpy(), rtol=1e-6)
 
@@ -94,7 +104,7 @@ def test_value_streams_each_estimate_their_own_advantage_with_their_own_ends_and
     for t in range(2):
         storage.add(zeros, zeros, zeros, rewards[t], dones[t], values[t], torch.zeros(1), zeros, zeros + 1)
     storage.compute_returns(torch.tensor([[1.0, 2.0]]), gamma=gamma, lam=1.0, normalize_advantages=False)
-    expected = torch.tensor([[[1.0 + gamma * 0.0 + gamma ** 2 * 1.0, 0.0]], [[gamma * 1.0, 5.0 + gamma * 2.0]]])
+    expected = torch.tensor([[[1.0 + gamma * 0.0 + gamma**2 * 1.0, 0.0]], [[gamma * 1.0, 5.0 + gamma * 2.0]]])
     torch.testing.assert_close(storage.returns, expected)
     torch.testing.assert_close(storage.advantages, (expected - values).sum(-1))
     mb = next(storage.minibatches(1, 1))
@@ -104,8 +114,17 @@ def test_value_streams_each_estimate_their_own_advantage_with_their_own_ends_and
 def test_an_episode_end_ends_every_value_stream():
     storage = RolloutStorage(1, 3, 1, 1, 1, 'cpu', value_streams=2)
     zeros = torch.zeros(3, 1)
-    storage.add(zeros, zeros, zeros, torch.zeros(3, 2), torch.tensor([0.0, 1.0, 0.0]), torch.zeros(3, 2),
-                torch.zeros(3), zeros, zeros + 1)
+    storage.add(
+        zeros,
+        zeros,
+        zeros,
+        torch.zeros(3, 2),
+        torch.tensor([0.0, 1.0, 0.0]),
+        torch.zeros(3, 2),
+        torch.zeros(3),
+        zeros,
+        zeros + 1,
+    )
     assert storage.dones[0].tolist() == [[0.0, 0.0], [1.0, 1.0], [0.0, 0.0]]
 
 
@@ -130,8 +149,9 @@ def test_a_critic_fitted_to_another_number_of_value_streams_keeps_the_summed_val
 
 def test_minibatches_cover_every_sample_once_per_epoch():
     T, N = 4, 6
-    storage = _storage_with(torch.arange(T * N, dtype=torch.float32).reshape(T, N), torch.zeros(T, N),
-                            torch.zeros(T, N))
+    storage = _storage_with(
+        torch.arange(T * N, dtype=torch.float32).reshape(T, N), torch.zeros(T, N), torch.zeros(T, N)
+    )
     storage.compute_returns(torch.zeros(N), 0.0, 0.0, normalize_advantages=False)
     seen = sorted(v for mb in storage.minibatches(3, 1) for v in mb.returns.tolist())
     assert seen == list(range(T * N))
@@ -152,8 +172,17 @@ def _filled_storage(ac: ActorCritic, ppo: PPO, shift_mean: float = 0.0) -> Rollo
         for _ in range(T):
             critic_obs = torch.randn(N, ac.num_critic_obs)
             step = ppo.act(torch.randn(N, ac.num_obs), critic_obs)
-            storage.add(step.norm_obs, step.norm_critic_obs, step.actions, 3.0 * critic_obs.sum(-1), torch.ones(N),
-                        step.values, step.log_probs, step.mean + shift_mean, step.std)
+            storage.add(
+                step.norm_obs,
+                step.norm_critic_obs,
+                step.actions,
+                3.0 * critic_obs.sum(-1),
+                torch.ones(N),
+                step.values,
+                step.log_probs,
+                step.mean + shift_mean,
+                step.std,
+            )
     storage.compute_returns(torch.zeros(N), 0.99, 0.95)
     return storage
 
@@ -163,7 +192,7 @@ def test_adaptive_learning_rate_falls_when_the_policy_moved_far_and_rises_when_i
     cfg = toy_config(num_learning_epochs=1, num_mini_batches=1, learning_rate=1e-3).ppo
     ac = ActorCritic(3, 4, 2, [16], [16])
     ppo = PPO(ac, cfg)
-    ppo.update(_filled_storage(ac, ppo, shift_mean=5.0))   # old policy far away: KL >> desired
+    ppo.update(_filled_storage(ac, ppo, shift_mean=5.0))  # old policy far away: KL >> desired
     assert ppo.learning_rate == pytest.approx(1e-3 / 1.5)
     ac2 = ActorCritic(3, 4, 2, [16], [16])
     ppo2 = PPO(ac2, cfg)
@@ -184,8 +213,16 @@ def test_fixed_and_linear_schedules():
 def test_update_lowers_the_clipped_objective_on_a_fixed_batch():
     torch.manual_seed(1)
     ac = ActorCritic(3, 4, 2, [32], [32])
-    ppo = PPO(ac, toy_config(num_learning_epochs=1, num_mini_batches=1, schedule='fixed', learning_rate=1e-2,
-                             use_clipped_value_loss=False).ppo)
+    ppo = PPO(
+        ac,
+        toy_config(
+            num_learning_epochs=1,
+            num_mini_batches=1,
+            schedule='fixed',
+            learning_rate=1e-2,
+            use_clipped_value_loss=False,
+        ).ppo,
+    )
     storage = _filled_storage(ac, ppo)
     first = ppo.update(storage)
     for _ in range(50):
@@ -223,7 +260,7 @@ def test_a_config_extends_another_and_changes_only_what_it_names(tmp_path):
     (tmp_path / 'child.yaml').write_text('extends: base.yaml\nppo:\n  lam: 0.8\n')
     cfg = load_config(tmp_path / 'child.yaml')
     assert (cfg.ppo.gamma, cfg.ppo.lam, cfg.task['num_envs']) == (0.9, 0.8, 8)
-    save_config(cfg, tmp_path / 'saved.yaml')                     # what a run keeps is whole
+    save_config(cfg, tmp_path / 'saved.yaml')  # what a run keeps is whole
     assert 'extends' not in (tmp_path / 'saved.yaml').read_text()
     assert load_config(tmp_path / 'saved.yaml') == cfg
     (tmp_path / 'loop.yaml').write_text('extends: loop.yaml\n')

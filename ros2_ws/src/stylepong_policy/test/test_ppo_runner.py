@@ -1,4 +1,5 @@
 """The runner's checkpoints, resume, logs and interruption handling, on the toy task."""
+
 import csv
 
 import pytest
@@ -12,11 +13,13 @@ import ppo_toy_task as TOY  # beside this file: conftest.py
 
 
 def small_config(**runner):
-    return config_from_dict({'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32],
-                                        'init_noise_std': 1.0},
-                             'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2,
-                                     'entropy_coef': 0.005},
-                             'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2, **runner}})
+    return config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 1.0},
+            'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2, 'entropy_coef': 0.005},
+            'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2, **runner},
+        }
+    )
 
 
 def make_runner(run_dir, cfg=None, tensorboard=False, env=None):
@@ -32,12 +35,12 @@ def test_resume_continues_exactly_like_an_uninterrupted_run(tmp_path):
     env_rng_at_3 = straight.env.generator.get_state()
     straight.learn(6, progress_bar=False)
 
-    seed_everything(99)   # a fresh process would have other RNG states: the checkpoint must restore them
+    seed_everything(99)  # a fresh process would have other RNG states: the checkpoint must restore them
     env = TOY.ReachTask(num_envs=64, seed=5)
-    env.generator.set_state(env_rng_at_3)   # the toy env's own state is not part of the runner's checkpoint
+    env.generator.set_state(env_rng_at_3)  # the toy env's own state is not part of the runner's checkpoint
     resumed = make_runner(tmp_path / 'b', env=env)
-    resumed.load(tmp_path / 'a' / 'checkpoints' / 'model_000004.pt')   # an older one first: overwritten next
-    resumed.load(tmp_path / 'a')                                       # a run dir means its last.pt
+    resumed.load(tmp_path / 'a' / 'checkpoints' / 'model_000004.pt')  # an older one first: overwritten next
+    resumed.load(tmp_path / 'a')  # a run dir means its last.pt
     assert resumed.iteration == 6
     checkpoint = read_checkpoint(tmp_path / 'a' / 'checkpoints' / 'last.pt')
     assert checkpoint['iteration'] == 6
@@ -69,8 +72,11 @@ def test_checkpoint_files_csv_and_tensorboard(tmp_path):
     checkpoints = sorted(p.name for p in (tmp_path / 'checkpoints').iterdir())
     assert checkpoints == ['last.pt', 'model_000002.pt', 'model_000004.pt']
     runner.learn(7, progress_bar=False)
-    assert sorted(p.name for p in (tmp_path / 'checkpoints').iterdir()) == \
-        ['last.pt', 'model_000004.pt', 'model_000006.pt']   # keep_checkpoints=2
+    assert sorted(p.name for p in (tmp_path / 'checkpoints').iterdir()) == [
+        'last.pt',
+        'model_000004.pt',
+        'model_000006.pt',
+    ]  # keep_checkpoints=2
     progress = read_progress(tmp_path / 'progress.csv')
     assert progress['iteration'] == [1, 2, 3, 4, 5, 6, 7]
     for column in ('samples_per_s', 'world_share', 'success_rate', 'timeout_rate', 'kl', 'value_loss'):
@@ -93,7 +99,7 @@ def test_a_slim_checkpoint_resumes_with_its_model_and_a_fresh_optimiser(tmp_path
     assert resumed.iteration == 2
     for a, b in zip(run.actor_critic.state_dict().values(), resumed.actor_critic.state_dict().values()):
         assert torch.equal(a, b)
-    assert not resumed.alg.optimizer.state            # fresh: no Adam moments yet
+    assert not resumed.alg.optimizer.state  # fresh: no Adam moments yet
     resumed.learn(3, progress_bar=False)
     assert resumed.iteration == 3
 
@@ -139,7 +145,7 @@ class InterruptingTask(TOY.ReachTask):
 
 
 def test_ctrl_c_keeps_the_last_completed_iteration(tmp_path):
-    env = InterruptingTask(interrupt_at_step=8 * 3 + 4, num_envs=64, seed=5)   # inside iteration 4
+    env = InterruptingTask(interrupt_at_step=8 * 3 + 4, num_envs=64, seed=5)  # inside iteration 4
     runner = make_runner(tmp_path, env=env)
     runner.learn(10, progress_bar=False)
     assert runner.interrupted and runner.iteration == 3
@@ -163,6 +169,7 @@ def test_episode_statistics_weight_the_env_log_by_the_episodes_it_averages():
     """The env's 'log' is a mean over the episodes that ended in a step; an iteration's figure is the mean
     over all its episodes, so a step where three ended counts three times one where one ended."""
     from stylepong_policy.rl.runner import EpisodeStatistics
+
     stats = EpisodeStatistics(3, torch.device('cpu'))
 
     def step(done, log=None):
@@ -187,11 +194,18 @@ def test_a_run_from_a_skill_keeps_its_std_as_the_ceiling_when_asked(tmp_path, ke
     skill = make_runner(tmp_path / 'skill')
     skill.learn(2, progress_bar=False)
     skill_std = skill.actor_critic.action_std().detach().clone()
-    cfg = config_from_dict({
-        'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 1.0,
-                   'keep_skill_std': keep},
-        'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2, 'entropy_coef': 1.0},
-        'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2}})
+    cfg = config_from_dict(
+        {
+            'policy': {
+                'actor_hidden_dims': [32, 32],
+                'critic_hidden_dims': [32, 32],
+                'init_noise_std': 1.0,
+                'keep_skill_std': keep,
+            },
+            'ppo': {'num_steps_per_env': 8, 'num_mini_batches': 2, 'num_learning_epochs': 2, 'entropy_coef': 1.0},
+            'runner': {'seed': 3, 'save_interval': 2, 'keep_checkpoints': 2},
+        }
+    )
     run = make_runner(tmp_path / 'run', cfg)
     run.start_from(tmp_path / 'skill')
     run.learn(4, progress_bar=False)

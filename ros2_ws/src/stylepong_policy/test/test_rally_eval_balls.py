@@ -1,4 +1,5 @@
 """rally_eval serves, for seed S, exactly the balls `evaluate` plays for S (the task's first balls)."""
+
 import numpy as np
 
 from stylepong_policy.training import task
@@ -21,4 +22,4 @@ def test_goals_lie_on_the_opponents_half_with_their_region():
     r = world_spec.GOAL_RADIUS_M
     assert (goals[:, 0] >= r).all() and (goals[:, 0] <= world_spec.HALF_LENGTH_M - r).all()
     assert (np.abs(goals[:, 1]) <= world_spec.HALF_WIDTH_M - r).all()
-    assert task.TaskConfig().goal_radius_m == r      # the task rewards the region rally_eval sends
+    assert task.TaskConfig().goal_radius_m == r  # the task rewards the region rally_eval sends

@@ -1,6 +1,7 @@
 """select_checkpoint on a tiny real run: 2 PPO iterations (64 envs, small networks, a numbered checkpoint
 every iteration), then validation, append-only validation.csv, selection.json and the chosen actor; and
 average_checkpoints on the same run."""
+
 import csv
 import json
 import shutil
@@ -28,10 +29,25 @@ def run_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp('select')
     (root / 'toy.yaml').write_text(TOY_CONFIG)
     run = root / 'run'
-    result = subprocess.run([sys.executable, '-m', 'stylepong_policy.training.train',
-                             '--config', str(root / 'toy.yaml'), '--out', str(run),
-                             '--iterations', '2', '--num-envs', '64', '--no-tensorboard'],
-                            capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'stylepong_policy.training.train',
+            '--config',
+            str(root / 'toy.yaml'),
+            '--out',
+            str(run),
+            '--iterations',
+            '2',
+            '--num-envs',
+            '64',
+            '--no-tensorboard',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert [i for i, _ in select_checkpoint.numbered_checkpoints(run)] == [1, 2]
     return run
@@ -45,8 +61,16 @@ def read_csv(path):
 def test_every_checkpoint_is_validated_once_and_rows_are_only_appended(run_dir, capsys):
     # A row someone validated earlier with another setting stays, first, untouched.
     earlier = {c: '' for c in select_checkpoint.COLUMNS}
-    earlier.update(iteration='1', samples='512', val_success_all='0.5000', val_hit_rate_all='0.6000', speed='all',
-                   seeds='900-909', balls='200', checkpoint='checkpoints/model_000001.pt')
+    earlier.update(
+        iteration='1',
+        samples='512',
+        val_success_all='0.5000',
+        val_hit_rate_all='0.6000',
+        speed='all',
+        seeds='900-909',
+        balls='200',
+        checkpoint='checkpoints/model_000001.pt',
+    )
     with (run_dir / select_checkpoint.CSV_NAME).open('w', newline='') as stream:
         writer = csv.DictWriter(stream, fieldnames=select_checkpoint.COLUMNS)
         writer.writeheader()
@@ -60,14 +84,19 @@ def test_every_checkpoint_is_validated_once_and_rows_are_only_appended(run_dir, 
     assert [r['checkpoint'] for r in new] == ['checkpoints/model_000001.pt', 'checkpoints/model_000002.pt']
     assert int(new[1]['samples']) == 2 * int(new[0]['samples']) > 0
     for row in new:
-        assert (row['speed'], row['seeds'], row['balls'], row['high_seeds'], row['high_balls']) == \
-            ('all', '900-900', '8', '950-950', '8')
+        assert (row['speed'], row['seeds'], row['balls'], row['high_seeds'], row['high_balls']) == (
+            'all',
+            '900-900',
+            '8',
+            '950-950',
+            '8',
+        )
         for key in ('val_success_all', 'val_success_high', 'val_hit_rate_all', 'val_hit_rate_high'):
             assert 0.0 <= float(row[key]) <= 1.0
     assert (run_dir / select_checkpoint.CURVE_NAME).stat().st_size > 0
 
     selection = json.loads((run_dir / select_checkpoint.SELECTION_NAME).read_text())
-    chosen = select_checkpoint.choose(new)       # the earlier row's 0.5 was another setting: it is no candidate
+    chosen = select_checkpoint.choose(new)  # the earlier row's 0.5 was another setting: it is no candidate
     assert selection['iteration'] == int(chosen['iteration'])
     assert selection['checkpoint'] == chosen['checkpoint']
     assert selection['val_success_all'] == float(chosen['val_success_all'])
@@ -96,8 +125,14 @@ def test_the_chosen_checkpoints_actor_is_exported_with_a_sidecar_naming_files_be
     assert not any(isinstance(v, str) and v.startswith('/') for v in elsewhere.values())
 
 
-@pytest.mark.parametrize('args', [['--first-seed', '1000'], ['--first-seed', '995', '--seeds', '10'],
-                                  ['--high-first-seed', '999', '--high-seeds', '2']])
+@pytest.mark.parametrize(
+    'args',
+    [
+        ['--first-seed', '1000'],
+        ['--first-seed', '995', '--seeds', '10'],
+        ['--high-first-seed', '999', '--high-seeds', '2'],
+    ],
+)
 def test_evaluation_seeds_are_refused(run_dir, args, capsys):
     with pytest.raises(SystemExit) as refused:
         select_checkpoint.main(['--run', str(run_dir), *args])
@@ -108,6 +143,7 @@ def test_evaluation_seeds_are_refused(run_dir, args, capsys):
 def test_the_rule_prefers_success_then_high_speed_success_then_the_earlier_iteration():
     def row(iteration, success, high=''):
         return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': high}
+
     assert select_checkpoint.choose([row(1, '0.80'), row(2, '0.90'), row(3, '0.85')])['iteration'] == '2'
     rows = [row(1, '0.90', '0.70'), row(2, '0.90', '0.80'), row(3, '0.90', '0.75')]
     assert select_checkpoint.choose(rows)['iteration'] == '2'
@@ -126,7 +162,7 @@ def test_a_csv_without_the_columns_is_left_alone(tmp_path, capsys):
 
 def test_with_dtw_each_row_measures_the_strokes_and_the_style_rule_chooses_the_closest(run_dir, tmp_path):
     run = tmp_path / 'run'
-    shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')   # a fresh validation.csv
+    shutil.copytree(run_dir / 'checkpoints', run / 'checkpoints')  # a fresh validation.csv
     reference = str(write_reference(tmp_path / 'reference.npz'))
     setting = ['--seeds', '1', '--first-seed', '901', '--balls', '40', '--dtw', reference]
     assert select_checkpoint.main(['--run', str(run), *setting, '--min-success', '0.0']) == 0
@@ -149,10 +185,19 @@ def test_with_dtw_each_row_measures_the_strokes_and_the_style_rule_chooses_the_c
 
 def test_the_style_rule_takes_the_closest_strokes_among_checkpoints_that_return_enough():
     def row(iteration, success, dtw=('', '', '')):
-        return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': '',
-                **{f'val_dtw_{d}': v for d, v in zip(select_checkpoint.DIRECTIONS, dtw)}}
-    rows = [row(1, '0.95', ('30', '40', '40')), row(2, '0.93', ('12', '18', '17')),
-            row(3, '0.80', ('5', '5', '5')), row(4, '0.97')]
+        return {
+            'iteration': str(iteration),
+            'val_success_all': success,
+            'val_success_high': '',
+            **{f'val_dtw_{d}': v for d, v in zip(select_checkpoint.DIRECTIONS, dtw)},
+        }
+
+    rows = [
+        row(1, '0.95', ('30', '40', '40')),
+        row(2, '0.93', ('12', '18', '17')),
+        row(3, '0.80', ('5', '5', '5')),
+        row(4, '0.97'),
+    ]
     # 3 is closer but returns too few; 4 was not measured.
     assert select_checkpoint.choose(rows, 0.93)['iteration'] == '2'
     # None qualifies with its distances: the success rule.
@@ -163,14 +208,21 @@ def test_the_style_rule_takes_the_closest_strokes_among_checkpoints_that_return_
 
 def test_the_worst_direction_rule_takes_the_checkpoint_whose_furthest_direction_is_closest_to_the_baseline():
     def row(iteration, success, dtw):
-        return {'iteration': str(iteration), 'val_success_all': success, 'val_success_high': '',
-                **{f'val_dtw_{d}': v for d, v in zip(select_checkpoint.DIRECTIONS, dtw)}}
+        return {
+            'iteration': str(iteration),
+            'val_success_all': success,
+            'val_success_high': '',
+            **{f'val_dtw_{d}': v for d, v in zip(select_checkpoint.DIRECTIONS, dtw)},
+        }
+
     baseline = dict(zip(select_checkpoint.DIRECTIONS, (40.0, 50.0, 50.0)))
-    rows = [row(1, '0.95', ('8', '15', '21')),        # mean 14.7, worst 21 / 50 = 0.42
-            row(2, '0.95', ('14', '19', '19')),       # mean 17.3, worst 14 / 40 = 0.38 (forward)
-            row(3, '0.90', ('4', '10', '10'))]        # the closest, but returns too few
-    assert select_checkpoint.choose(rows, 0.93)['iteration'] == '1'              # the style rule: the lowest mean
-    assert select_checkpoint.choose(rows, 0.93, baseline)['iteration'] == '2'    # the worst-direction rule
+    rows = [
+        row(1, '0.95', ('8', '15', '21')),  # mean 14.7, worst 21 / 50 = 0.42
+        row(2, '0.95', ('14', '19', '19')),  # mean 17.3, worst 14 / 40 = 0.38 (forward)
+        row(3, '0.90', ('4', '10', '10')),
+    ]  # the closest, but returns too few
+    assert select_checkpoint.choose(rows, 0.93)['iteration'] == '1'  # the style rule: the lowest mean
+    assert select_checkpoint.choose(rows, 0.93, baseline)['iteration'] == '2'  # the worst-direction rule
     assert select_checkpoint.worst_ratio(rows[1], baseline) == pytest.approx(0.38)
     assert select_checkpoint.dtw_ratios(rows[0], baseline)['rightward'] == pytest.approx(0.42)
 
@@ -183,10 +235,24 @@ def test_the_worst_direction_rule_measures_the_baseline_on_the_same_balls(run_di
     first = select_checkpoint.read_checkpoint(run / 'checkpoints' / 'model_000001.pt')
     select_checkpoint.export_checkpoint(first, baseline, onnx=False)
     setting = ['--seeds', '1', '--first-seed', '901', '--balls', '40', '--dtw', reference]
-    assert select_checkpoint.main(['--run', str(run), *setting, '--min-success', '0.0', '--relative-to', str(baseline),
-                                   '--from-iteration', '2']) == 0
+    assert (
+        select_checkpoint.main(
+            [
+                '--run',
+                str(run),
+                *setting,
+                '--min-success',
+                '0.0',
+                '--relative-to',
+                str(baseline),
+                '--from-iteration',
+                '2',
+            ]
+        )
+        == 0
+    )
     rows = read_csv(run / select_checkpoint.CSV_NAME)
-    assert [r['iteration'] for r in rows] == ['2']                 # --from-iteration: 1 is not validated
+    assert [r['iteration'] for r in rows] == ['2']  # --from-iteration: 1 is not validated
     selection = json.loads((run / select_checkpoint.SELECTION_NAME).read_text())
     # The baseline is checkpoint 1's actor, measured on the same balls as the rows.
     validation = select_checkpoint.Setting('all', 901, 1, 40, None, 1, 40, reference)
@@ -196,7 +262,7 @@ def test_the_worst_direction_rule_measures_the_baseline_on_the_same_balls(run_di
     ratios = select_checkpoint.dtw_ratios(rows[0], measured)
     assert selection['val_dtw_ratio'] == {d: round(r, 4) for d, r in ratios.items()}
     with pytest.raises(SystemExit):
-        select_checkpoint.main(['--run', str(run), *setting, '--relative-to', str(baseline)])    # needs --min-success
+        select_checkpoint.main(['--run', str(run), *setting, '--relative-to', str(baseline)])  # needs --min-success
     assert '--relative-to needs --min-success' in capsys.readouterr().err
 
 
@@ -206,15 +272,29 @@ def test_a_csv_from_before_the_dtw_columns_is_extended_without_dtw_and_refused_w
     with (run / select_checkpoint.CSV_NAME).open('w', newline='') as stream:
         csv.DictWriter(stream, fieldnames=select_checkpoint.COLUMNS).writeheader()
     before = (run / select_checkpoint.CSV_NAME).read_text()
-    assert select_checkpoint.main(['--run', str(run), '--seeds', '1', '--balls', '4', '--dtw',
-                                   str(write_reference(tmp_path / 'reference.npz'))]) == 2
+    assert (
+        select_checkpoint.main(
+            [
+                '--run',
+                str(run),
+                '--seeds',
+                '1',
+                '--balls',
+                '4',
+                '--dtw',
+                str(write_reference(tmp_path / 'reference.npz')),
+            ]
+        )
+        == 2
+    )
     assert 'lacks the columns' in capsys.readouterr().err and (run / select_checkpoint.CSV_NAME).read_text() == before
     assert select_checkpoint.main(['--run', str(run), '--seeds', '1', '--balls', '4']) == 0
     assert [r['iteration'] for r in read_csv(run / select_checkpoint.CSV_NAME)] == ['1', '2']
 
 
-@pytest.mark.parametrize('args', [['--min-success', '0.9'], ['--dtw', 'missing.npz'],
-                                  ['--dtw', __file__, '--min-success', '1.5']])
+@pytest.mark.parametrize(
+    'args', [['--min-success', '0.9'], ['--dtw', 'missing.npz'], ['--dtw', __file__, '--min-success', '1.5']]
+)
 def test_the_style_rule_needs_a_dataset_and_a_rate(run_dir, args, capsys):
     with pytest.raises(SystemExit) as refused:
         select_checkpoint.main(['--run', str(run_dir), *args])
@@ -223,15 +303,19 @@ def test_the_style_rule_needs_a_dataset_and_a_rate(run_dir, args, capsys):
 
 # --- average_checkpoints: the weight average of a run's end, validated and shipped like a run ----------
 def test_the_averaged_network_is_the_mean_of_the_checkpoints_with_the_last_ones_records(run_dir):
-    first, last = (select_checkpoint.read_checkpoint(path)
-                   for _, path in select_checkpoint.numbered_checkpoints(run_dir))
+    first, last = (
+        select_checkpoint.read_checkpoint(path) for _, path in select_checkpoint.numbered_checkpoints(run_dir)
+    )
     averaged = average_checkpoints.average_checkpoints([first, last])
     for key, value in averaged['model'].items():
         assert torch.allclose(value, (first['model'][key] + last['model'][key]) / 2, atol=1e-6), key
     # The observation normaliser's statistics are averaged too: they are part of the policy.
     assert not torch.equal(averaged['model']['obs_normalizer.mean'], last['model']['obs_normalizer.mean'])
-    assert (averaged['iteration'], averaged['env_steps'], averaged['wall_time_s']) == \
-        (last['iteration'], last['env_steps'], last['wall_time_s'])
+    assert (averaged['iteration'], averaged['env_steps'], averaged['wall_time_s']) == (
+        last['iteration'],
+        last['env_steps'],
+        last['wall_time_s'],
+    )
     assert averaged['optimizer'] is None and averaged['motion_prior'] is None
     assert averaged[select_checkpoint.AVERAGED_KEY] == [1, 2]
     wider = {**last, 'architecture': {**last['architecture'], 'actor_hidden_dims': [64, 64]}}
@@ -243,8 +327,10 @@ def test_an_averaged_run_is_validated_and_exported_like_a_run_and_its_actor_name
     out = tmp_path / 'averaged'
     assert average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '1', '--out', str(out)]) == 0
     assert [i for i, _ in select_checkpoint.numbered_checkpoints(out)] == [2]
-    assert json.loads((out / average_checkpoints.SUMMARY_NAME).read_text())['averaged_from'] == {'run': str(run_dir),
-                                                                               'iterations': [1, 2]}
+    assert json.loads((out / average_checkpoints.SUMMARY_NAME).read_text())['averaged_from'] == {
+        'run': str(run_dir),
+        'iterations': [1, 2],
+    }
     assert (out / select_checkpoint.CONFIG_NAME).read_text() == (run_dir / select_checkpoint.CONFIG_NAME).read_text()
     assert select_checkpoint.main(['--run', str(out), *SELECT, '--export', str(out / 'actor.pt')]) == 0
     assert [r['iteration'] for r in read_csv(out / select_checkpoint.CSV_NAME)] == ['2']
@@ -252,11 +338,14 @@ def test_an_averaged_run_is_validated_and_exported_like_a_run_and_its_actor_name
 
 
 def test_averaging_refuses_an_empty_range_and_an_occupied_directory(run_dir, tmp_path, capsys):
-    assert average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '3',
-                                     '--out', str(tmp_path / 'none')]) == 2
+    assert (
+        average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '3', '--out', str(tmp_path / 'none')]) == 2
+    )
     assert 'no numbered checkpoint between iterations 3 and its end' in capsys.readouterr().err
-    assert average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '2',
-                                     '--out', str(tmp_path / 'one')]) == 0
-    assert average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '1',
-                                     '--out', str(tmp_path / 'one')]) == 2
+    assert (
+        average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '2', '--out', str(tmp_path / 'one')]) == 0
+    )
+    assert (
+        average_checkpoints.main(['--run', str(run_dir), '--from-iteration', '1', '--out', str(tmp_path / 'one')]) == 2
+    )
     assert 'already holds checkpoints' in capsys.readouterr().err

@@ -1,5 +1,6 @@
 """The skill library: demonstrations' fingerprints, the lineage a learned skill keeps, and which skills are
 offered as the start for a set."""
+
 import dataclasses
 
 import numpy as np
@@ -53,8 +54,10 @@ def test_the_library_is_the_shipped_skill_then_the_learned_ones_and_a_set_is_not
 
 def test_the_shipped_library_holds_networks_of_the_recipes_sizes_each_with_its_demonstrations():
     from stylepong_policy.training.learn_style import models_dir
+
     library = {s.name: s for s in skills.library(models_dir())}
     from stylepong_policy.rl.networks import ActorCritic, fit_value_streams, network_sizes
+
     shipped = torch.load(library[skills.SHIPPED].path, map_location='cpu', weights_only=False)
     # A run of the recipe: its critic has a value stream for the free follow-through.
     run = ActorCritic(**shipped['architecture'], value_streams=2)

@@ -1,4 +1,5 @@
 """The observation/action contract: the player's path and the training env's path give identical tensors."""
+
 import json
 import random
 
@@ -33,7 +34,7 @@ def test_decode_action_is_home_plus_scaled_clipped_action_within_limits():
     zero = spec.decode_action(torch.zeros(1, 6))
     assert torch.equal(zero[0], torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, dtype=torch.float32))
     big = spec.decode_action(torch.full((1, 6), 50.0))
-    assert torch.equal(big, spec.decode_action(torch.ones(1, 6)))   # clipped to the action range
+    assert torch.equal(big, spec.decode_action(torch.ones(1, 6)))  # clipped to the action range
     expected = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD) + torch.tensor(spec.ACTION_SCALE_RAD)
     expected = torch.minimum(expected, torch.tensor(limits.upper_rad, dtype=torch.float32))
     torch.testing.assert_close(big[0], expected.to(torch.float32))
@@ -46,17 +47,29 @@ def _player_inputs(env, i, order):
     names = [spec.JOINT_NAMES[k] for k in order] + ['gripper_joint']
     positions = [q[k] for k in order] + [0.3]
     velocities = [qd[k] for k in order] + [0.0]
-    return (names, positions, velocities, env.world.ball_pos_m[:, i].tolist(), env.world.ball_vel_m_s[:, i].tolist(),
-            env.goal_xy_m[i].tolist(), env.last_action[i].tolist())
+    return (
+        names,
+        positions,
+        velocities,
+        env.world.ball_pos_m[:, i].tolist(),
+        env.world.ball_vel_m_s[:, i].tolist(),
+        env.goal_xy_m[i].tolist(),
+        env.last_action[i].tolist(),
+    )
 
 
 def _player_observation(names, positions, velocities, ball_position_m, ball_velocity_m_s, goal_xy_m, last_action):
     """What the player builds from those messages: its joint order, then its observation."""
     index = player_core.JointOrder().index(names)
     assert index is not None, names
-    return player_core.build_observation(np.asarray(positions)[index], np.asarray(velocities)[index],
-                                         np.asarray(ball_position_m), np.asarray(ball_velocity_m_s),
-                                         np.asarray(goal_xy_m), np.asarray(last_action))
+    return player_core.build_observation(
+        np.asarray(positions)[index],
+        np.asarray(velocities)[index],
+        np.asarray(ball_position_m),
+        np.asarray(ball_velocity_m_s),
+        np.asarray(goal_xy_m),
+        np.asarray(last_action),
+    )
 
 
 def test_player_path_and_env_path_give_identical_observations():
@@ -86,11 +99,17 @@ def test_env_sends_the_decoded_action_to_the_servo():
 
 def test_player_path_rejects_bad_input():
     names, zeros = list(spec.JOINT_NAMES), np.zeros(6)
-    assert player_core.JointOrder().index(names[:5]) is None                       # an arm joint missing
+    assert player_core.JointOrder().index(names[:5]) is None  # an arm joint missing
     with pytest.raises(ValueError, match='goal_xy_m'):
         player_core.build_observation(zeros, zeros, np.zeros(3), np.zeros(3), np.zeros(3), zeros)
     with pytest.raises(ValueError, match='joint_velocity_rad_s'):
         player_core.build_observation(zeros, zeros[:4], np.zeros(3), np.zeros(3), np.zeros(2), zeros)
     with pytest.raises(ValueError, match='ball_position_m'):
-        spec.build_observation(torch.zeros(2, 6), torch.zeros(2, 6), torch.zeros(2, 2), torch.zeros(2, 3),
-                               torch.zeros(2, 2), torch.zeros(2, 6))
+        spec.build_observation(
+            torch.zeros(2, 6),
+            torch.zeros(2, 6),
+            torch.zeros(2, 2),
+            torch.zeros(2, 3),
+            torch.zeros(2, 2),
+            torch.zeros(2, 6),
+        )

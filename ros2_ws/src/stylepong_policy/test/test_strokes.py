@@ -1,4 +1,5 @@
 """Stroke directions from ball tracks, and the stroke file (stylepong_policy.evaluation.strokes)."""
+
 import numpy as np
 import pytest
 
@@ -28,8 +29,9 @@ def served_track(target_y_m: float, speed_xy_m_s: float = 5.0, vz_m_s: float = 1
         p = p + v * PHYSICS_DT_S
         if p[2] < contact_z and v[2] < 0 and world_spec.on_table(p[0], p[1]):
             p[2] = contact_z
-            v = world_spec.contact_response(v, np.array([0.0, 0.0, 1.0]), world_spec.TABLE_RESTITUTION,
-                                            world_spec.TABLE_TANGENTIAL_FACTOR)
+            v = world_spec.contact_response(
+                v, np.array([0.0, 0.0, 1.0]), world_spec.TABLE_RESTITUTION, world_spec.TABLE_TANGENTIAL_FACTOR
+            )
         fine_p.append(p.copy())
         fine_v.append(v.copy())
     fine_p, fine_v = np.array(fine_p), np.array(fine_v)
@@ -72,10 +74,18 @@ def test_track_cut_by_a_hit_before_the_plane_is_extrapolated_along_its_heading()
     assert strokes.arrival_y_m(positions, velocities, 5) == pytest.approx(fine_crossing_y(fine), abs=1e-6)
 
 
-@pytest.mark.parametrize('offset_m, expected', [
-    (0.0, 'forward'), (0.079, 'forward'), (0.081, 'leftward'), (0.4, 'leftward'),
-    (-0.089, 'forward'), (-0.091, 'rightward'), (-0.6, 'rightward'),
-])
+@pytest.mark.parametrize(
+    'offset_m, expected',
+    [
+        (0.0, 'forward'),
+        (0.079, 'forward'),
+        (0.081, 'leftward'),
+        (0.4, 'leftward'),
+        (-0.089, 'forward'),
+        (-0.091, 'rightward'),
+        (-0.6, 'rightward'),
+    ],
+)
 def test_direction_thresholds_around_the_paddles_home_y(offset_m, expected):
     home_y = strokes.paddle_home_position_m()[1]
     assert strokes.direction_of(home_y + offset_m) == expected
@@ -101,7 +111,7 @@ def test_thresholds_agree_with_the_demonstrations_hitting_points():
 
 def test_paddle_home_matches_the_world_spec():
     x, y, z = strokes.paddle_home_position_m()
-    assert (x, y, z) == pytest.approx((-1.47, 0.11, 0.89), abs=0.01)   # world_spec's stated home
+    assert (x, y, z) == pytest.approx((-1.47, 0.11, 0.89), abs=0.01)  # world_spec's stated home
 
 
 def test_stroke_ends_after_the_follow_through_or_at_the_verdict():
@@ -112,17 +122,32 @@ def test_stroke_ends_after_the_follow_through_or_at_the_verdict():
 
 def _stroke(seed, ball, frames, direction, success):
     rng = np.random.default_rng(seed * 100 + ball)
-    return strokes.Stroke(seed=seed, ball=ball, joint_positions_rad=rng.normal(size=(frames, 6)).astype(np.float32),
-                          ball_position_m=rng.normal(size=(frames, 3)).astype(np.float32), direction=direction,
-                          arrival_y_m=0.25, launch_velocity_m_s=np.array([-5.0, 0.3, 1.0]),
-                          outcome='returned' if success else 'net',
-                          success=success, hit=True, hit_frame=frames - 19, verdict_frame=frames + 10)
+    return strokes.Stroke(
+        seed=seed,
+        ball=ball,
+        joint_positions_rad=rng.normal(size=(frames, 6)).astype(np.float32),
+        ball_position_m=rng.normal(size=(frames, 3)).astype(np.float32),
+        direction=direction,
+        arrival_y_m=0.25,
+        launch_velocity_m_s=np.array([-5.0, 0.3, 1.0]),
+        outcome='returned' if success else 'net',
+        success=success,
+        hit=True,
+        hit_frame=frames - 19,
+        verdict_frame=frames + 10,
+    )
 
 
 def test_stroke_file_round_trip(tmp_path):
     written = [_stroke(1000, 0, 40, 'forward', True), _stroke(1000, 1, 55, 'rightward', False)]
-    path = strokes.save_strokes(tmp_path / 'strokes.npz', written, rate_hz=60.0,
-                                joint_names=[f'j{i}' for i in range(6)], actor='models/a.pt', speed='all')
+    path = strokes.save_strokes(
+        tmp_path / 'strokes.npz',
+        written,
+        rate_hz=60.0,
+        joint_names=[f'j{i}' for i in range(6)],
+        actor='models/a.pt',
+        speed='all',
+    )
     loaded = strokes.load_strokes(path)
     assert loaded.rate_hz == 60.0 and loaded.actor == 'models/a.pt' and loaded.speed == 'all'
     assert loaded.joint_names == tuple(f'j{i}' for i in range(6))
@@ -130,8 +155,18 @@ def test_stroke_file_round_trip(tmp_path):
     for original, back in zip(written, loaded.strokes):
         np.testing.assert_array_equal(original.joint_positions_rad, back.joint_positions_rad)
         np.testing.assert_array_equal(original.ball_position_m, back.ball_position_m)
-        for name in ('seed', 'ball', 'direction', 'arrival_y_m', 'outcome', 'success', 'hit', 'hit_frame',
-                     'verdict_frame', 'launch_speed_m_s'):
+        for name in (
+            'seed',
+            'ball',
+            'direction',
+            'arrival_y_m',
+            'outcome',
+            'success',
+            'hit',
+            'hit_frame',
+            'verdict_frame',
+            'launch_speed_m_s',
+        ):
             assert getattr(original, name) == getattr(back, name), name
     with np.load(path) as data:
         assert list(data['stroke_length']) == [40, 55] and list(data['stroke_start']) == [0, 40]

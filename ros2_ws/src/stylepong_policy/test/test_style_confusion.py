@@ -1,5 +1,6 @@
 """style_confusion on a tiny run (the shipped actors, one seed, a few balls, two sets), its verdict rule, and
 the report it writes of an actor named like a set."""
+
 import json
 import pathlib
 
@@ -44,11 +45,32 @@ def confusion(tmp_path_factory):
     folder = tmp_path_factory.mktemp('confusion')
     synthetic = write_reference(folder / 'synthetic.npz')
     forward = write_reference(folder / 'forward.npz', labels=('forward',))
-    argv = ['--actor', f'shipped={MODELS / "amp_actor.pt"}', '--actor', f'ppo={MODELS / "ppo_actor.pt"}',
-            '--actor', f'forward={MODELS / "amp_actor_checkpoint.pt"}',
-            '--set', f'shipped={SHIPPED_BAGS}', '--set', f'synthetic={synthetic}', '--set', f'forward={forward}',
-            '--baseline', str(MODELS / 'ppo_actor.pt'), '--seeds', '1', '--first-seed', str(SEED),
-            '--balls', str(BALLS), '--num-threads', '1', '--out', str(folder / 'out')]
+    argv = [
+        '--actor',
+        f'shipped={MODELS / "amp_actor.pt"}',
+        '--actor',
+        f'ppo={MODELS / "ppo_actor.pt"}',
+        '--actor',
+        f'forward={MODELS / "amp_actor_checkpoint.pt"}',
+        '--set',
+        f'shipped={SHIPPED_BAGS}',
+        '--set',
+        f'synthetic={synthetic}',
+        '--set',
+        f'forward={forward}',
+        '--baseline',
+        str(MODELS / 'ppo_actor.pt'),
+        '--seeds',
+        '1',
+        '--first-seed',
+        str(SEED),
+        '--balls',
+        str(BALLS),
+        '--num-threads',
+        '1',
+        '--out',
+        str(folder / 'out'),
+    ]
     assert style_confusion.run(argv) == 0
     return folder, json.loads((folder / 'out' / style_confusion.JSON_NAME).read_text())
 
@@ -56,8 +78,9 @@ def confusion(tmp_path_factory):
 def test_distances_are_evaluates_dtw_and_normalised_by_the_baseline(confusion):
     folder, record = confusion
     # evaluate --dtw on the same balls gives the same per-direction means for the synthetic set.
-    summary = evaluate.run_evaluation(MODELS / 'amp_actor.pt', seeds=1, first_seed=SEED, balls=BALLS,
-                                      dtw_dataset=folder / 'synthetic.npz')
+    summary = evaluate.run_evaluation(
+        MODELS / 'amp_actor.pt', seeds=1, first_seed=SEED, balls=BALLS, dtw_dataset=folder / 'synthetic.npz'
+    )
     measured = record['dtw_rad']['shipped']['synthetic']
     for direction, entry in summary['dtw'].items():
         assert measured[direction] == pytest.approx(entry['mean_rad'])
@@ -85,7 +108,7 @@ def test_outputs_name_each_actors_nearest_set(confusion):
     text = (folder / 'out' / style_confusion.MARKDOWN_NAME).read_text()
     for actor, v in record['verdicts'].items():
         row = {s: record['normalised'][actor][s][style_confusion.OVERALL] for s in record['sets']}
-        assert row[v['nearest']] == min(row.values())   # PPO's row ties at 1 everywhere: any of those
+        assert row[v['nearest']] == min(row.values())  # PPO's row ties at 1 everywhere: any of those
         assert f'| `{actor}` |' in text and f'`{v["nearest"]}`' in text
     assert (folder / 'out' / style_confusion.PNG_NAME).stat().st_size > 5_000
     assert '--set shipped=' in record['command'] and 'seed 1000 x 6 balls' in record['setting']
@@ -99,14 +122,16 @@ def test_outputs_name_each_actors_nearest_set(confusion):
 def test_an_actor_named_like_a_set_gets_its_report_and_onnx_from_the_same_evaluations(confusion):
     folder, record = confusion
     styles = folder / 'out' / style_confusion.STYLES_DIR
-    assert sorted(p.name for p in styles.iterdir()) == ['forward']   # not the shipped actor's own set
+    assert sorted(p.name for p in styles.iterdir()) == ['forward']  # not the shipped actor's own set
     assert record['reports'] == {'forward': {'report': 'styles/forward/report.md', 'onnx': 'styles/forward/actor.onnx'}}
     assert '[`forward`](styles/forward/report.md)' in (folder / 'out' / style_confusion.MARKDOWN_NAME).read_text()
     report = json.loads((styles / 'forward' / style_report.REPORT_JSON).read_text())
     # Its figures are the matrix's: the style actor's, the baseline's as PPO's, the shipped actor's.
-    assert report['success'] == {'style': {'all': record['actors']['forward']['success_rate'], 'high': None},
-                                 'ppo': {'all': record['baseline_success_rate'], 'high': None},
-                                 'shipped': {'all': record['actors']['shipped']['success_rate'], 'high': None}}
+    assert report['success'] == {
+        'style': {'all': record['actors']['forward']['success_rate'], 'high': None},
+        'ppo': {'all': record['baseline_success_rate'], 'high': None},
+        'shipped': {'all': record['actors']['shipped']['success_rate'], 'high': None},
+    }
     for role, actor in (('style', 'forward'), ('ppo', style_confusion.BASELINE)):
         for column, value in report['dtw_rad'][role].items():
             assert value == pytest.approx(record['dtw_rad'][actor]['forward'][column])
@@ -121,7 +146,7 @@ def test_an_actor_named_like_a_set_gets_its_report_and_onnx_from_the_same_evalua
     for picture in pictures:
         with Image.open(picture) as image:
             assert image.mode == 'P', picture.name
-    assert [strip['direction'] for strip in report['strips']] == ['forward']   # the set's one label
+    assert [strip['direction'] for strip in report['strips']] == ['forward']  # the set's one label
     for strip in report['strips']:
         assert strip['strip'] or strip['strip_missing']
         assert f']({strip["strip"] or strip["joints"]})' in text
@@ -158,11 +183,19 @@ def test_the_run_section_comes_from_the_record_beside_the_actor(tmp_path):
     run = tmp_path / 'run'
     run.mkdir()
     (run / 'actor.pt').write_bytes(b'')
-    (run / 'learn_style.json').write_text(json.dumps({'command': 'learn_style bags --out run', 'skill': 'start.pt',
-                                                      'stages': {'train': {'wall_time_s': 60.0}}}))
+    (run / 'learn_style.json').write_text(
+        json.dumps(
+            {'command': 'learn_style bags --out run', 'skill': 'start.pt', 'stages': {'train': {'wall_time_s': 60.0}}}
+        )
+    )
     assert style_confusion.learned_record(run / 'actor.pt') == (
-        run / 'learn_style.json', {'command': 'learn_style bags --out run', 'started_from': 'start.pt',
-                                   'stages': {'train': {'wall_time_s': 60.0}}})
+        run / 'learn_style.json',
+        {
+            'command': 'learn_style bags --out run',
+            'started_from': 'start.pt',
+            'stages': {'train': {'wall_time_s': 60.0}},
+        },
+    )
     assert style_confusion.learned_record(MODELS / 'amp_actor.pt') is None
 
 
@@ -177,25 +210,37 @@ def test_a_set_without_a_label_compares_only_the_strokes_it_has(tmp_path):
     assert distance.overall_rad == distance.by_direction_rad['forward']
 
 
-@pytest.mark.parametrize('change, message', [
-    (['--set', 'gone=/nowhere/bags'], 'set gone: /nowhere/bags does not exist'),
-    (['--set', 'empty={empty}'], 'set empty: build_dataset found no usable clip'),
-])
+@pytest.mark.parametrize(
+    'change, message',
+    [
+        (['--set', 'gone=/nowhere/bags'], 'set gone: /nowhere/bags does not exist'),
+        (['--set', 'empty={empty}'], 'set empty: build_dataset found no usable clip'),
+    ],
+)
 def test_a_set_that_gives_no_clips_exits_2_naming_it(tmp_path, capsys, change, message):
     (tmp_path / 'empty').mkdir()
-    argv = ['--actor', f'ppo={MODELS / "ppo_actor.pt"}', '--baseline', str(MODELS / 'ppo_actor.pt'),
-            '--out', str(tmp_path / 'out')] + [part.format(empty=tmp_path / 'empty') for part in change]
+    argv = [
+        '--actor',
+        f'ppo={MODELS / "ppo_actor.pt"}',
+        '--baseline',
+        str(MODELS / 'ppo_actor.pt'),
+        '--out',
+        str(tmp_path / 'out'),
+    ] + [part.format(empty=tmp_path / 'empty') for part in change]
     assert style_confusion.run(argv) == 2
     assert message.format(empty=tmp_path / 'empty') in capsys.readouterr().err
     assert not (tmp_path / 'out').exists()
 
 
-@pytest.mark.parametrize('argv', [
-    ['--actor', 'a=x.pt', '--actor', 'a=y.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
-    ['--actor', 'baseline=x.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
-    ['--actor', 'no-equals-sign', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
-    ['--actor', 'a=x.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o', '--balls', '0'],
-])
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['--actor', 'a=x.pt', '--actor', 'a=y.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
+        ['--actor', 'baseline=x.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
+        ['--actor', 'no-equals-sign', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o'],
+        ['--actor', 'a=x.pt', '--set', 's=d.npz', '--baseline', 'p.pt', '--out', 'o', '--balls', '0'],
+    ],
+)
 def test_bad_arguments_exit_2(argv):
     with pytest.raises(SystemExit) as stopped:
         style_confusion.run(argv)

@@ -1,4 +1,5 @@
 """DTW convention and smoothness measures (stylepong_policy.evaluation.style_metrics)."""
+
 import numpy as np
 import pytest
 
@@ -30,14 +31,14 @@ def test_hand_computed_example():
 def test_not_normalised_and_one_sided_repeats_add_their_cost():
     a = np.tile([[3.0, 4.0]], (3, 1))
     b = np.zeros((1, 2))
-    assert style_metrics.dtw_distance_rad(a, b) == pytest.approx(15.0)            # 3 frames x 5
+    assert style_metrics.dtw_distance_rad(a, b) == pytest.approx(15.0)  # 3 frames x 5
     distance, path = style_metrics.dtw_path(a, b)
     assert path == [(0, 0), (1, 0), (2, 0)]
 
 
 def test_identical_and_time_warped_copies_are_at_zero():
     t = np.linspace(0.0, 1.0, 40)
-    q = np.stack([np.sin(3 * t), t ** 2, np.cos(t)], axis=1)
+    q = np.stack([np.sin(3 * t), t**2, np.cos(t)], axis=1)
     assert style_metrics.dtw_distance_rad(q, q) == 0.0
     assert style_metrics.dtw_distance_rad(q, np.repeat(q, 2, axis=0)) == 0.0
 
@@ -69,8 +70,9 @@ def test_nearest_reference_takes_the_smallest_and_its_path_length():
 def test_reference_clips_of_a_label_include_every_speed_factor():
     q = np.linspace(0, 1, 30)[:, None] * np.ones((1, 6))
     clip = Clip(t=np.arange(30) / 60.0, q=q, qd=np.ones_like(q))
-    dataset = assemble_dataset([SourceClip(clip, 'forward', 'a'), SourceClip(clip, 'leftward', 'b')], (2, 3),
-                               [f'j{i}' for i in range(6)], 60.0)
+    dataset = assemble_dataset(
+        [SourceClip(clip, 'forward', 'a'), SourceClip(clip, 'leftward', 'b')], (2, 3), [f'j{i}' for i in range(6)], 60.0
+    )
     clips = style_metrics.reference_clips(dataset, 'forward')
     assert [len(c) for _, c in clips] == [30, 15, 10]
 
@@ -78,8 +80,8 @@ def test_reference_clips_of_a_label_include_every_speed_factor():
 def test_smoothness_of_a_cubic_is_exact():
     rate_hz = 60.0
     h = 1.0 / rate_hz
-    t = np.arange(61) * h                                  # 0 .. 1 s
-    c = np.array([1.0, -2.0, 0.5, 0.0, 3.0, -0.25])       # q_j = c_j t^3
+    t = np.arange(61) * h  # 0 .. 1 s
+    c = np.array([1.0, -2.0, 0.5, 0.0, 3.0, -0.25])  # q_j = c_j t^3
     q = t[:, None] ** 3 * c[None, :]
     s = style_metrics.smoothness(q, rate_hz)
     cmax = np.abs(c).max()
@@ -95,9 +97,9 @@ def test_smoothness_of_a_sine_is_near_its_derivatives():
     q = np.stack([amplitude * np.sin(omega * t)] + [np.zeros_like(t)] * 5, axis=1)
     s = style_metrics.smoothness(q, rate_hz)
     assert s.peak_joint_speed_rad_s == pytest.approx(amplitude * omega, rel=0.01)
-    assert s.peak_joint_acceleration_rad_s2 == pytest.approx(amplitude * omega ** 2, rel=0.02)
+    assert s.peak_joint_acceleration_rad_s2 == pytest.approx(amplitude * omega**2, rel=0.02)
     # |jerk| = A w^3 |cos|, mean over a whole number of periods 2/pi A w^3, over one joint in six.
-    assert s.mean_abs_jerk_rad_s3 == pytest.approx(2 / np.pi * amplitude * omega ** 3 / 6, rel=0.03)
+    assert s.mean_abs_jerk_rad_s3 == pytest.approx(2 / np.pi * amplitude * omega**3 / 6, rel=0.03)
 
 
 def test_smoothness_needs_four_frames():

@@ -1,5 +1,6 @@
 """style_report on a tiny real evaluation: the shipped actors on one seed and a few balls, DTW against the
 shipped clips (the shipped style actor stands in for a new one)."""
+
 import json
 import pathlib
 import shutil
@@ -21,8 +22,22 @@ BALLS = 6
 
 def run_evaluate(actor: str, files: report.EvalFiles, dataset: pathlib.Path, speed: str) -> None:
     first_seed = 1000 if speed == 'all' else 2000
-    args = ['--actor', str(MODELS / actor), '--seeds', '1', '--first-seed', str(first_seed), '--balls', str(BALLS),
-            '--speed', speed, '--dtw', str(dataset), '--num-threads', '1']
+    args = [
+        '--actor',
+        str(MODELS / actor),
+        '--seeds',
+        '1',
+        '--first-seed',
+        str(first_seed),
+        '--balls',
+        str(BALLS),
+        '--speed',
+        speed,
+        '--dtw',
+        str(dataset),
+        '--num-threads',
+        '1',
+    ]
     if speed == 'all':
         args += ['--json', str(files.all_speeds_json), '--save-strokes', str(files.strokes_npz)]
     else:
@@ -53,16 +68,26 @@ def test_the_file_names_are_the_constants(tmp_path):
 
 def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     saved = strokes.load_strokes(report.eval_files(run_dir, 'style').strokes_npz).strokes
-    shown = saved[0].direction    # one strip: each takes seconds to draw
-    path = report.write_report(run_dir, dataset_path=run_dir / 'dataset.npz',
-                               timings_s={'check': 0.4, 'dataset': 0.3, 'stage 1': 1234.0},
-                               checkpoints={'stage 1': [2450, 2850]}, notes=['a label note'],
-                               strip_directions=[shown])
+    shown = saved[0].direction  # one strip: each takes seconds to draw
+    path = report.write_report(
+        run_dir,
+        dataset_path=run_dir / 'dataset.npz',
+        timings_s={'check': 0.4, 'dataset': 0.3, 'stage 1': 1234.0},
+        checkpoints={'stage 1': [2450, 2850]},
+        notes=['a label note'],
+        strip_directions=[shown],
+    )
     assert path == run_dir / report.REPORT_MD
     text = path.read_text()
     assert 'Where the distance lies' in text and '| follow-through |' in text
-    for heading in ('## Success', '## DTW to the demonstrations', '## The blade at contact', '## Smoothness',
-                    '## Strokes beside the demonstrations', '## The run'):
+    for heading in (
+        '## Success',
+        '## DTW to the demonstrations',
+        '## The blade at contact',
+        '## Smoothness',
+        '## Strokes beside the demonstrations',
+        '## The run',
+    ):
         assert heading in text
     assert '- a label note' in text and '2450' in text and '| stage 1 | 1234 | 20.6 |' in text
     assert 'on the same balls.' in text
@@ -107,9 +132,12 @@ def test_overall_dtw_is_the_mean_over_every_stroke(run_dir):
     """Recomputed stroke by stroke from the strokes file and the dataset, not from the summary."""
     dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
     saved = strokes.load_strokes(report.eval_files(run_dir, 'ppo').strokes_npz).strokes
-    distances = [style_metrics.nearest_reference(s.joint_positions_rad,
-                                                 style_metrics.reference_clips(dataset, s.direction)).distance
-                 for s in saved]
+    distances = [
+        style_metrics.nearest_reference(
+            s.joint_positions_rad, style_metrics.reference_clips(dataset, s.direction)
+        ).distance
+        for s in saved
+    ]
     summary = json.loads(report.eval_files(run_dir, 'ppo').all_speeds_json.read_text())
     assert report.dtw_by_direction(summary)[report.OVERALL] == pytest.approx(np.mean(distances))
     # The phases split that mean: waiting, swing and follow-through add up to it.
@@ -121,7 +149,7 @@ def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp
     shutil.copytree(run_dir / report.EVAL_DIR, forward_only / report.EVAL_DIR)
     dataset = ReferenceDataset.load(run_dir / 'dataset.npz')
     keep = dataset.select(labels=['forward'])
-    for name in report.ACTORS:   # the summaries as evaluate --dtw writes them against forward clips only
+    for name in report.ACTORS:  # the summaries as evaluate --dtw writes them against forward clips only
         files = report.eval_files(forward_only, name)
         summary = json.loads(files.all_speeds_json.read_text())
         for d in ('leftward', 'rightward'):
@@ -129,8 +157,9 @@ def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp
         summary['dtw']['forward']['reference_clips'] = len(keep)
         files.all_speeds_json.write_text(json.dumps(summary))
     dataset.with_clips(keep).save(forward_only / 'forward.npz')
-    report.write_report(forward_only, dataset_path=forward_only / 'forward.npz', timings_s={}, checkpoints=None,
-                        render_strips=False)
+    report.write_report(
+        forward_only, dataset_path=forward_only / 'forward.npz', timings_s={}, checkpoints=None, render_strips=False
+    )
     text = (forward_only / report.REPORT_MD).read_text()
     assert 'No demonstration labelled leftward, rightward' in text
     record = json.loads((forward_only / report.REPORT_JSON).read_text())

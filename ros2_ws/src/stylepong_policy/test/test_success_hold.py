@@ -1,6 +1,7 @@
 """rl.success_hold: the motion terms' scale falls while training success is below the skill's own less the
 margin, climbs back as it recovers, weighs iterations by their episodes, and a resumed run continues
 where it was, and at the recipe's gain it settles on a policy whose success answers the scale late."""
+
 import math
 
 import pytest

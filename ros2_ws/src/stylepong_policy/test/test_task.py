@@ -1,4 +1,5 @@
 """The table-tennis task: interface, seeding, goals, randomisation, rewards and resets."""
+
 import math
 
 import pytest
@@ -42,6 +43,7 @@ def test_same_seed_same_episodes_other_seed_others():
             obs, _, reward, _, _ = env.step(torch.randn(6, 6, generator=generator))
             trace += [obs, reward[:, None]]
         return torch.cat(trace, dim=1)
+
     assert torch.equal(rollout(4), rollout(4))
     assert not torch.equal(rollout(4), rollout(5))
 
@@ -69,9 +71,11 @@ def test_domain_randomisation_within_ranges_and_off_when_disabled():
     env = task.make_env(cfg, 'cpu', 0)
     env.reset()
     p = env.world.params
-    for value, bounds in ((p.table_restitution, cfg.table_restitution_range),
-                          (p.paddle_restitution, cfg.paddle_restitution_range),
-                          (p.gravity_m_s2, cfg.gravity_range_m_s2)):
+    for value, bounds in (
+        (p.table_restitution, cfg.table_restitution_range),
+        (p.paddle_restitution, cfg.paddle_restitution_range),
+        (p.gravity_m_s2, cfg.gravity_range_m_s2),
+    ):
         assert value.min() >= bounds[0] and value.max() <= bounds[1] and value.std() > 0
     assert env.episode.noise_std.max() > 0 and env.episode.action_delay_physics_steps.max() > 0
     nominal = _env(16, randomize=False)
@@ -132,16 +136,16 @@ def _style_factors_until_verdict(env) -> list[float]:
 
 def test_style_weight_factor_holds_from_the_hit_to_the_verdict():
     _, _, _, _, extras = _env(2, randomize=False).step(torch.zeros(2, 6))
-    assert 'style_weight' not in extras                          # the default: no factor, the same weight throughout
+    assert 'style_weight' not in extras  # the default: no factor, the same weight throughout
     env = _env(2, randomize=False, style_weight_after_hit=5.0)
     env.reset()
     _, _, _, _, extras = env.step(torch.zeros(2, 6))
-    assert extras['style_weight'].tolist() == [1.0, 1.0]          # balls still incoming
+    assert extras['style_weight'].tolist() == [1.0, 1.0]  # balls still incoming
     _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
     factors = _style_factors_until_verdict(env)
-    assert set(factors) == {5.0}                                 # every step after the stroke, the verdict's too
+    assert set(factors) == {5.0}  # every step after the stroke, the verdict's too
     _, _, _, _, extras = env.step(torch.zeros(2, 6))
-    assert float(extras['style_weight'][0]) == 1.0                 # the next ball starts at the plain weight
+    assert float(extras['style_weight'][0]) == 1.0  # the next ball starts at the plain weight
     with pytest.raises(ValueError, match='style_weight_after_hit'):
         task.TaskConfig(style_weight_after_hit=-1.0)
 
@@ -151,9 +155,9 @@ def test_style_weight_factor_for_a_fixed_time_after_the_hit():
     env.reset()
     _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))
     factors = _style_factors_until_verdict(env)
-    assert len(factors) > 18                                     # the flight outlasts the window
-    assert factors[:18] == [5.0] * 18                            # 0.3 s at 60 Hz from the stroke
-    assert set(factors[18:]) == {1.0}                            # a longer flight earns no more of it
+    assert len(factors) > 18  # the flight outlasts the window
+    assert factors[:18] == [5.0] * 18  # 0.3 s at 60 Hz from the stroke
+    assert set(factors[18:]) == {1.0}  # a longer flight earns no more of it
     with pytest.raises(ValueError, match='style_weight_after_hit_s'):
         task.TaskConfig(style_weight_after_hit_s=-0.1)
 
@@ -162,8 +166,8 @@ def test_rewards_for_a_return_a_miss_and_illegal_contact():
     env = _env(3, randomize=False)
     env.reset()
     goal = env.goal_xy_m[0]
-    _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))     # returned over the net
-    _force_return(env, 1, (-0.5, 0.0, 0.9), (6.0, 0.0, 0.0))      # into the net
+    _force_return(env, 0, (-1.0, 0.0, 1.05), (5.0, 0.0, 1.0))  # returned over the net
+    _force_return(env, 1, (-0.5, 0.0, 0.9), (6.0, 0.0, 0.0))  # into the net
     kin = env.world.kinematics
     forearm = kin.origin_m[:, 2, 2] + 0.5 * (kin.origin_m[:, 3, 2] - kin.origin_m[:, 2, 2])
     env.world.ball_pos_m[:, 2] = forearm + torch.tensor([0.0, 0.0, 0.2])
@@ -176,9 +180,12 @@ def test_rewards_for_a_return_a_miss_and_illegal_contact():
             if outcome[i] is None:
                 totals[i] += reward[i]
                 if dones[i]:
-                    outcome[i] = (task.FAILURE_REASONS[int(info['outcome']['reason'][i])],
-                                  bool(info['outcome']['success'][i]),
-                                  float(info['reward_terms']['success'][i]), float(info['reward_terms']['illegal'][i]))
+                    outcome[i] = (
+                        task.FAILURE_REASONS[int(info['outcome']['reason'][i])],
+                        bool(info['outcome']['success'][i]),
+                        float(info['reward_terms']['success'][i]),
+                        float(info['reward_terms']['illegal'][i]),
+                    )
         if all(o is not None for o in outcome):
             break
     assert outcome[0][:2] == (referee.REASON_RETURNED, True) and outcome[0][2] == env.cfg.w_success
@@ -209,7 +216,7 @@ def test_regularisation_terms_only_ever_lower_the_reward():
 
 def test_a_command_below_the_table_top_costs_w_command_per_step_and_nothing_by_default():
     into = torch.zeros(2, 6)
-    into[1, 1] = 0.9 / spec.ACTION_SCALE_RAD[1]     # shoulder lift down and elbow stretched, env 1 only
+    into[1, 1] = 0.9 / spec.ACTION_SCALE_RAD[1]  # shoulder lift down and elbow stretched, env 1 only
     into[1, 2] = -0.6 / spec.ACTION_SCALE_RAD[2]
     for weight, expected in ((0.0, [0.0, 0.0]), (1.5, [0.0, -1.5])):
         env = _env(2, randomize=False, w_command=weight)
@@ -230,11 +237,12 @@ def test_done_envs_restart_with_a_new_ball_and_the_arm_near_home():
             assert float(env.world.time_s[i]) == 0.0 and bool(env.world.open[i])
             assert not bool(env.world.hit[i])
             home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD)
-            torch.testing.assert_close(obs[i, spec.observation_slice('joint_position_offset_rad')],
-                                       env.world.q_rad[:, i] - home)
+            torch.testing.assert_close(
+                obs[i, spec.observation_slice('joint_position_offset_rad')], env.world.q_rad[:, i] - home
+            )
             ball_x_m = obs[i, spec.observation_slice('ball_position_m')][0]
-            assert ball_x_m > 0.5   # the new ball starts on the opponent's side
-            assert (obs[i, spec.observation_slice('last_action')] == 0).all()   # no previous action in a new episode
+            assert ball_x_m > 0.5  # the new ball starts on the opponent's side
+            assert (obs[i, spec.observation_slice('last_action')] == 0).all()  # no previous action in a new episode
             break
     assert seen
 
@@ -264,7 +272,7 @@ def test_style_frames_are_the_arm_state_before_a_reset_and_after_it():
             break
     assert dones.all()
     home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD)
-    assert (extras['style_state'][:, :6] - home).abs().max() > 0.05        # moved towards the target
+    assert (extras['style_state'][:, :6] - home).abs().max() > 0.05  # moved towards the target
     torch.testing.assert_close(env.style_state()[:, :6], home.expand(2, -1))  # reset to home
 
 
@@ -283,7 +291,7 @@ def test_config_validation():
         task.TaskConfig(speed_range_m_s=(6.0, 4.0))
     with pytest.raises(ValueError):
         task.TaskConfig(bat_axes='w')
-    cfg = task.TaskConfig(speed_range_m_s=[4.0, 4.8])          # YAML gives lists
+    cfg = task.TaskConfig(speed_range_m_s=[4.0, 4.8])  # YAML gives lists
     assert cfg.speed_range_m_s == (4.0, 4.8)
     assert math.isclose(task.TaskConfig().goal_radius_m, 0.25)
 
@@ -299,7 +307,7 @@ def test_aim_credits_a_stroke_towards_the_goal_only_over_the_net():
     vz = (world_spec.TABLE_CONTACT_HEIGHT_M - 1.0 + 0.5 * world_spec.GRAVITY_M_S2 * t * t) / t
     w.ball_vel_m_s[:] = torch.tensor([[4.0, 0.0, vz], [-4.0, 0.0, vz], [6.0, 0.0, -1.0]]).T
     quality = env._aim_quality(torch.ones(3, dtype=torch.bool))
-    assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0   # over, away, into the net
+    assert quality[0] > 0.99 and quality[1] == 0.0 and quality[2] == 0.0  # over, away, into the net
     assert (env._aim_quality(torch.zeros(3, dtype=torch.bool)) == 0).all()
 
 
@@ -310,7 +318,7 @@ def test_bad_actions_are_refused_with_a_clear_error():
         env.step(torch.tensor([[0.0] * 6, [float('nan')] + [0.0] * 5]))
     with pytest.raises(ValueError, match='shape'):
         env.step(torch.zeros(2, 5))
-    env.step(torch.zeros(2, 6))   # and the env still works
+    env.step(torch.zeros(2, 6))  # and the env still works
 
 
 def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
@@ -319,6 +327,7 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
     strokes.direction_of labels the same way, in the nominal and in the randomised world (drag, gravity and
     restitution change the flight, not its heading)."""
     from stylepong_policy.evaluation import strokes
+
     plane_x_m, home_y_m, _ = strokes.paddle_home_position_m()
     for randomize in (False, True):
         env = _env(256, seed=3, randomize=randomize, reset_joint_noise_rad=0.0)
@@ -333,7 +342,7 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
             _, _, _, dones, extras = env.step(torch.zeros(256, 6))
             label = extras['style_label']
             live = ~done
-            assert torch.equal(label[live], asked[live])       # the episode's label, before its reset
+            assert torch.equal(label[live], asked[live])  # the episode's label, before its reset
             now = extras['ball_state'][:, :3].double()
             through = live & torch.isnan(crossed) & (previous[:, 0] > plane_x_m) & (now[:, 0] <= plane_x_m)
             share = (previous[:, 0] - plane_x_m) / (previous[:, 0] - now[:, 0])
@@ -347,7 +356,7 @@ def test_each_step_asks_for_the_stroke_its_ball_needs_as_evaluate_labels_it():
         assert int(checked.sum()) > 150
         expected = [strokes.DIRECTIONS.index(strokes.direction_of(float(y), home_y_m)) for y in crossed[checked]]
         agree = (asked[checked] == torch.tensor(expected)).float().mean()
-        assert agree > 0.98, (randomize, float(agree))    # a ball a hair from a threshold may fall either side
+        assert agree > 0.98, (randomize, float(agree))  # a ball a hair from a threshold may fall either side
         assert set(asked.tolist()) == {0, 1, 2}
 
 
@@ -387,4 +396,4 @@ def test_the_style_clock_counts_down_to_the_ball_and_up_from_the_touch_and_the_s
         ends.append(bool(extras['style_stroke_end'][0]))
         assert not dones[0]
     assert clock[:3] == pytest.approx([1 / 60, 2 / 60, 3 / 60])
-    assert ends == [False] * 17 + [True, False]                  # the 18th step after the touch: 0.3 s
+    assert ends == [False] * 17 + [True, False]  # the 18th step after the touch: 0.3 s

@@ -1,4 +1,5 @@
 """The progress CSV: columns that appear late are kept, and a resume never leaves two histories."""
+
 import math
 
 from stylepong_policy.rl.logger import TrainingLog, read_progress

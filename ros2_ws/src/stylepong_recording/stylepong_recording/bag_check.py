@@ -6,6 +6,7 @@ sqlite3 files Python's sqlite3 module with a CDR decoder written here (the .db3 
 as rosbag2's sqlite3 storage defines them). Joint states are identified by their header stamps, so a
 test can say exactly which published messages a bag holds.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -34,17 +35,19 @@ def stamp_ns(header) -> int:
 
 def joint_state_cdr(stamp: int) -> bytes:
     """A serialized JointState whose header stamp (ns) identifies it and whose positions derive from it."""
-    return joint_state_bags.joint_state_cdr(STORE, stamp, JOINT_NAMES, np.full(6, stamp * 1e-9), np.zeros(6),
-                                            np.zeros(6))
+    return joint_state_bags.joint_state_cdr(
+        STORE, stamp, JOINT_NAMES, np.full(6, stamp * 1e-9), np.zeros(6), np.zeros(6)
+    )
 
 
 @dataclasses.dataclass
 class BagContent:
     """What a bag holds, read back through rosbags: its label data and every message's stamps and values."""
+
     custom_data: dict
-    stamps: dict[str, list[int]]          # header stamps per topic (ns), in log-time order
+    stamps: dict[str, list[int]]  # header stamps per topic (ns), in log-time order
     log_times: dict[str, list[int]]
-    metadata_counts: dict[str, int]       # message counts metadata.yaml gives per topic
+    metadata_counts: dict[str, int]  # message counts metadata.yaml gives per topic
 
 
 def read_with_rosbags(bag_dir: Path) -> BagContent:
@@ -68,6 +71,7 @@ def read_with_mcap_ros2(mcap_path: Path) -> BagContent:
     """Through the mcap library's indexed reader (it needs a valid summary and footer)."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
+
     stamps: dict[str, list[int]] = {}
     log_times: dict[str, list[int]] = {}
     with open(mcap_path, 'rb') as stream:
@@ -75,8 +79,7 @@ def read_with_mcap_ros2(mcap_path: Path) -> BagContent:
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None, 'mcap file without summary'
         for _, channel, message, ros_msg in reader.iter_decoded_messages():
-            stamps.setdefault(channel.topic, []).append(
-                stamp_ns(ros_msg.header) if hasattr(ros_msg, 'header') else -1)
+            stamps.setdefault(channel.topic, []).append(stamp_ns(ros_msg.header) if hasattr(ros_msg, 'header') else -1)
             log_times.setdefault(channel.topic, []).append(message.log_time)
         counts = {summary.channels[cid].topic: n for cid, n in summary.statistics.channel_message_counts.items()}
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
@@ -115,8 +118,8 @@ class CdrReader:
         return self._read('d', 8)
 
     def string(self) -> str:
-        length = self.uint32()                  # including the terminating NUL
-        raw = self.data[self.offset:self.offset + length]
+        length = self.uint32()  # including the terminating NUL
+        raw = self.data[self.offset : self.offset + length]
         self.offset += length
         assert raw.endswith(b'\x00'), 'CDR string without its NUL'
         return raw[:-1].decode()
@@ -130,6 +133,7 @@ class CdrReader:
 @dataclasses.dataclass
 class JointStateCdr:
     """A JointState decoded field by field from its CDR bytes."""
+
     stamp_ns: int
     frame_id: str
     name: list[str]
@@ -162,15 +166,20 @@ def read_with_sqlite3(db3_path: Path) -> tuple[BagContent, list[JointStateCdr]]:
     """
     connection = sqlite3.connect(f'file:{Path(db3_path)}?mode=ro', uri=True)
     try:
-        topics = {tid: (name, msgtype) for tid, name, msgtype, encoding in
-                  connection.execute('SELECT id, name, type, serialization_format FROM topics')
-                  if encoding == 'cdr' or _fail(f'{name}: serialization {encoding}')}
+        topics = {
+            tid: (name, msgtype)
+            for tid, name, msgtype, encoding in connection.execute(
+                'SELECT id, name, type, serialization_format FROM topics'
+            )
+            if encoding == 'cdr' or _fail(f'{name}: serialization {encoding}')
+        }
         definitions = dict(connection.execute('SELECT topic_type, encoded_message_definition FROM message_definitions'))
         stamps: dict[str, list[int]] = {name: [] for name, _ in topics.values()}
         log_times: dict[str, list[int]] = {name: [] for name, _ in topics.values()}
         joint_states: list[JointStateCdr] = []
         for topic_id, log_time, data in connection.execute(
-                'SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id'):
+            'SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id'
+        ):
             name, msgtype = topics[topic_id]
             if msgtype == JOINT_STATE_TYPE:
                 joint_states.append(decode_joint_state(bytes(data)))

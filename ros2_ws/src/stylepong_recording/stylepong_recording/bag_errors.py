@@ -1,4 +1,5 @@
 """How reading a bag fails: `BagError` and the one-line reasons it carries (no rclpy)."""
+
 from __future__ import annotations
 
 REASON_MAX_CHARS = 240
@@ -14,4 +15,4 @@ def one_line(error: BaseException | str, max_chars: int = REASON_MAX_CHARS) -> s
     if isinstance(error, BaseException) and not isinstance(error, BagError) and type(error).__name__ not in text:
         text = f'{type(error).__name__}: {text}'
     line = text.splitlines()[0] if text else ''
-    return line if len(line) <= max_chars else line[:max_chars - 3] + '...'
+    return line if len(line) <= max_chars else line[: max_chars - 3] + '...'

@@ -6,6 +6,7 @@ counts and free-form `custom_data`. The recorder writes bags in this layout (cli
 rebuilds it after a crash and stylepong_policy's bag reader reads it, so all three take the names from
 here and cannot drift apart.
 """
+
 from __future__ import annotations
 
 # --- metadata.yaml ----------------------------------------------------------------------------------
@@ -14,9 +15,9 @@ METADATA_ROOT_KEY = 'rosbag2_bagfile_information'
 STORAGE_IDENTIFIER_KEY = 'storage_identifier'
 RELATIVE_FILE_PATHS_KEY = 'relative_file_paths'
 TOPICS_WITH_MESSAGE_COUNT_KEY = 'topics_with_message_count'
-TOPIC_METADATA_KEY = 'topic_metadata'     # inside each entry of topics_with_message_count
-TOPIC_NAME_KEY = 'name'                   # inside topic_metadata
-MESSAGE_COUNT_KEY = 'message_count'       # beside topic_metadata
+TOPIC_METADATA_KEY = 'topic_metadata'  # inside each entry of topics_with_message_count
+TOPIC_NAME_KEY = 'name'  # inside topic_metadata
+MESSAGE_COUNT_KEY = 'message_count'  # beside topic_metadata
 CUSTOM_DATA_KEY = 'custom_data'
 # The clip's label inside custom_data: the key `ros2 bag record --custom-data label=...` writes too, so
 # bags recorded with rosbag2 itself carry their labels the same way.

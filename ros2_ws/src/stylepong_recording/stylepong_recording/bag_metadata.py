@@ -3,6 +3,7 @@
 rosbags' own errors about a missing, empty or cut storage file often do not name the file; these checks
 do, and name the way out for a recording that was never closed.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -82,5 +83,7 @@ def check_mcap_ends(path: pathlib.Path) -> None:
     if head != MCAP_MAGIC:
         raise BagError(f'{path}: not an mcap file (bad magic)')
     if tail != MCAP_MAGIC or size < 2 * len(MCAP_MAGIC) + 37:
-        raise BagError(f'{path}: truncated mcap file (no footer: the recording was not closed; '
-                       'ros2 run stylepong_recording recover_bag can rebuild it)')
+        raise BagError(
+            f'{path}: truncated mcap file (no footer: the recording was not closed; '
+            'ros2 run stylepong_recording recover_bag can rebuild it)'
+        )

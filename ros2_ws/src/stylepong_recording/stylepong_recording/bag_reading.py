@@ -17,6 +17,7 @@ The pieces: finding bags (bag_search), metadata.yaml and storage-file checks (ba
 CDR reader (joint_state_cdr) and decoding with its fallbacks (joint_state_decoding); this module opens
 a bag, picks its JointState topic and assembles one time line in the requested joint order.
 """
+
 from __future__ import annotations
 
 import heapq
@@ -47,6 +48,7 @@ class JointStateRecording:
 
     velocity_rad_s is NaN where a message carried no velocity for that joint.
     """
+
     bag: pathlib.Path
     topic: str
     joint_names: tuple[str, ...]
@@ -56,8 +58,8 @@ class JointStateRecording:
     velocity_rad_s: np.ndarray
     label: str | None = None
     storage: str = ''
-    problems: list[str] = field(default_factory=list)   # data was lost or may be wrong
-    notes: list[str] = field(default_factory=list)      # handled quirks worth knowing
+    problems: list[str] = field(default_factory=list)  # data was lost or may be wrong
+    notes: list[str] = field(default_factory=list)  # handled quirks worth knowing
 
     @property
     def message_count(self) -> int:
@@ -67,6 +69,7 @@ class JointStateRecording:
 @dataclass
 class _Source:
     """A rosbags Reader over a whole bag directory or over one storage file."""
+
     reader: object
     path: pathlib.Path
     has_metadata: bool
@@ -74,18 +77,23 @@ class _Source:
 
 def _open_sources(bag: pathlib.Path, info: dict | None) -> list[_Source]:
     from rosbags.rosbag2 import Reader
+
     if info is not None:
         return [_Source(Reader(bag), bag, True)]
     if bag.is_dir() and (bag / IN_PROGRESS_NAME).is_file():
-        raise BagError(f'a recording still in progress or never closed ({IN_PROGRESS_NAME} is there, {METADATA_NAME} '
-                       'is not): let it finish, or rebuild it with ros2 run stylepong_recording recover_bag')
+        raise BagError(
+            f'a recording still in progress or never closed ({IN_PROGRESS_NAME} is there, {METADATA_NAME} '
+            'is not): let it finish, or rebuild it with ros2 run stylepong_recording recover_bag'
+        )
     files = [bag] if bag.is_file() else storage_files(bag)
     for path in files:
         if path.suffix == MCAP_SUFFIX:
             check_mcap_ends(path)
     if any(f.name.endswith(COMPRESSED_STORAGE_SUFFIXES) for f in files):
-        raise BagError(f'{bag}: compressed storage files without metadata.yaml cannot be read '
-                       '(the compression mode is only recorded there)')
+        raise BagError(
+            f'{bag}: compressed storage files without metadata.yaml cannot be read '
+            '(the compression mode is only recorded there)'
+        )
     return [_Source(Reader(f), f, False) for f in files]
 
 
@@ -110,7 +118,7 @@ def _select_topic(connections: list, topic: str | None) -> tuple[str, list]:
     if len(joint_topics) > 1:
         listing = ', '.join(f'{t} ({sum(c.msgcount for c in cs)} msgs)' for t, cs in sorted(joint_topics.items()))
         raise BagError(f'several JointState topics: {listing}; choose one with --topic')
-    (name, conns), = joint_topics.items()
+    ((name, conns),) = joint_topics.items()
     return name, conns
 
 
@@ -124,6 +132,7 @@ def _messages_by_storage(source: _Source, topic: str) -> Iterator[tuple[int, byt
     decompress = None
     if getattr(directory.metadata, 'compression_mode', None) == 'message':
         from rosbags.rosbag2.reader import zstd
+
         decompress = zstd.decompress
     streams = []
     for storage in directory.storages:
@@ -141,13 +150,19 @@ def joint_name_prefix(names: Sequence[str], joints: Sequence[str]) -> str | None
     if all(j in names for j in joints):
         return ''
     first = joints[0]
-    candidates = {n[:-len(first)] for n in names if n.endswith(first) and len(n) > len(first)}
+    candidates = {n[: -len(first)] for n in names if n.endswith(first) and len(n) > len(first)}
     fitting = [p for p in candidates if all(p + j in names for j in joints)]
     return fitting[0] if len(fitting) == 1 else None
 
 
-def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_order: bool, topic: str,
-              problems: list[str], notes: list[str]) -> list[tuple[np.ndarray, ...]]:
+def _assemble(
+    collector: JointStateCollector,
+    joints: Sequence[str],
+    assume_order: bool,
+    topic: str,
+    problems: list[str],
+    notes: list[str],
+) -> list[tuple[np.ndarray, ...]]:
     """(stamps, receive times, positions, velocities) per block, columns in `joints` order."""
     n_joints = len(joints)
     parts = []
@@ -159,8 +174,10 @@ def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_orde
         count = len(block.stamp_ns)
         if not names:
             if not assume_order:
-                raise BagError(f'{topic}: messages have an empty name[]; pass --assume-order to take '
-                               f'positions in --joints order ({", ".join(joints)})')
+                raise BagError(
+                    f'{topic}: messages have an empty name[]; pass --assume-order to take '
+                    f'positions in --joints order ({", ".join(joints)})'
+                )
             columns, width = np.arange(n_joints), n_joints
         else:
             prefix = joint_name_prefix(names, joints)
@@ -169,13 +186,14 @@ def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_orde
                 continue
             if prefix and prefix not in prefixes:
                 prefixes.add(prefix)
-                notes.append(f'{topic}: joints named with the prefix {prefix!r} (a driver\'s tf_prefix)')
+                notes.append(f"{topic}: joints named with the prefix {prefix!r} (a driver's tf_prefix)")
             columns, width = np.array([names.index(prefix + j) for j in joints]), len(names)
         if block.position.shape[1] != width:
             mismatched += count
             continue
-        velocity = (block.velocity[:, columns] if block.velocity.shape[1] == width
-                    else np.full((count, n_joints), np.nan))
+        velocity = (
+            block.velocity[:, columns] if block.velocity.shape[1] == width else np.full((count, n_joints), np.nan)
+        )
         parts.append((block.stamp_ns, block.receive_ns, block.position[:, columns], velocity))
     if mismatched:
         what = 'their name list' if assume_order is False else 'their name list (or --joints)'
@@ -183,19 +201,23 @@ def _assemble(collector: JointStateCollector, joints: Sequence[str], assume_orde
     if unusable:
         listing = '; '.join(f'{n} messages with joints [{", ".join(names)}]' for names, n in unusable.items())
         if not parts:
-            raise BagError(f'{topic}: no message carries all of the joints {", ".join(joints)} ({listing}); '
-                           'choose them with --joints')
+            raise BagError(
+                f'{topic}: no message carries all of the joints {", ".join(joints)} ({listing}); '
+                'choose them with --joints'
+            )
         notes.append(f'{topic}: ignored {listing} (they lack some of --joints)')
     return parts
 
 
-def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
-                      joints: Sequence[str], assume_order: bool = False) -> JointStateRecording:
+def read_joint_states(
+    bag: str | os.PathLike, *, topic: str | None = None, joints: Sequence[str], assume_order: bool = False
+) -> JointStateRecording:
     """All JointState messages of one bag's JointState topic, columns in `joints` order.
 
     Raises BagError (one-line reason) when the bag cannot be used at all.
     """
     from rosbags.typesys import Stores, get_typestore
+
     bag = pathlib.Path(bag)
     info = read_metadata(bag)
     if info is not None:
@@ -209,7 +231,7 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
         sources = _open_sources(bag, info)
     except BagError:
         raise
-    except Exception as error:   # noqa: BLE001  rosbags raises several types for unreadable bags
+    except Exception as error:  # noqa: BLE001  rosbags raises several types for unreadable bags
         raise BagError(f'cannot open: {one_line(error)}') from None
 
     chosen_topic = topic
@@ -218,7 +240,7 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
     for source in sources:
         try:
             source.reader.open()
-        except Exception as error:   # noqa: BLE001
+        except Exception as error:  # noqa: BLE001
             where = '' if source.path == bag else f' {source.path}'
             raise BagError(f'cannot open{where}: {one_line(error)}') from None
         try:
@@ -229,12 +251,13 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
         finally:
             try:
                 source.reader.close()
-            except Exception:   # noqa: BLE001  closing a half-open reader must not hide the real error
+            except Exception:  # noqa: BLE001  closing a half-open reader must not hide the real error
                 pass
 
     parts = [part for c in collectors for part in _assemble(c, joints, assume_order, chosen_topic, problems, notes)]
-    stamps, receive, position, velocity = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0)
-                                           for i in range(4))
+    stamps, receive, position, velocity = (
+        np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(4)
+    )
     if parts:
         finite = np.isfinite(position).all(axis=1)
         if not finite.all():
@@ -245,15 +268,25 @@ def read_joint_states(bag: str | os.PathLike, *, topic: str | None = None,
             raise BagError(f'{chosen_topic}: no messages recorded on it')
         lost = f' ({"; ".join(problems)})' if problems else ''
         raise BagError(f'{chosen_topic}: no usable JointState message{lost}')
-    order = np.argsort(receive, kind='stable')   # several blocks, connections or files: one time line
+    order = np.argsort(receive, kind='stable')  # several blocks, connections or files: one time line
     return JointStateRecording(
-        bag=bag, topic=chosen_topic, joint_names=tuple(joints), header_stamp_ns=stamps[order],
-        receive_time_ns=receive[order], position_rad=position[order], velocity_rad_s=velocity[order],
-        label=metadata_label(info), storage='+'.join(sorted(storage_ids)), problems=problems, notes=notes)
+        bag=bag,
+        topic=chosen_topic,
+        joint_names=tuple(joints),
+        header_stamp_ns=stamps[order],
+        receive_time_ns=receive[order],
+        position_rad=position[order],
+        velocity_rad_s=velocity[order],
+        label=metadata_label(info),
+        storage='+'.join(sorted(storage_ids)),
+        problems=problems,
+        notes=notes,
+    )
 
 
-def _read_connection(source: _Source, conn, topic: str, jazzy, problems: list[str],
-                     notes: list[str]) -> JointStateCollector:
+def _read_connection(
+    source: _Source, conn, topic: str, jazzy, problems: list[str], notes: list[str]
+) -> JointStateCollector:
     """Decode one connection, checking the yielded count against the one in metadata.yaml."""
     fast = is_standard_joint_state(conn, jazzy)
     if not fast:
@@ -261,28 +294,32 @@ def _read_connection(source: _Source, conn, topic: str, jazzy, problems: list[st
     collector = JointStateCollector(conn, jazzy, fast)
     try:
         collector.add_all((ts, raw) for _c, ts, raw in source.reader.messages([conn]))
-    except Exception as error:   # noqa: BLE001  a storage that fails part-way
-        problems.append(f'{source.path}: reading {topic} stopped after {collector.yielded} messages: '
-                        f'{one_line(error)}')
+    except Exception as error:  # noqa: BLE001  a storage that fails part-way
+        problems.append(f'{source.path}: reading {topic} stopped after {collector.yielded} messages: {one_line(error)}')
     expected = int(conn.msgcount)
     if collector.yielded != expected:
         where = 'metadata.yaml' if source.has_metadata else 'the file index'
-        message = (f'{source.path}: {topic}: rosbags yielded {collector.yielded} of the {expected} messages '
-                   f'listed in {where}')
+        message = (
+            f'{source.path}: {topic}: rosbags yielded {collector.yielded} of the {expected} messages listed in {where}'
+        )
         if collector.yielded < expected and source.has_metadata:
             recovered = JointStateCollector(conn, jazzy, fast)
             try:
                 recovered.add_all(_messages_by_storage(source, topic))
-            except Exception as error:   # noqa: BLE001
+            except Exception as error:  # noqa: BLE001
                 message += f' (reading the storage directly failed too: {one_line(error)})'
             if recovered.yielded > collector.yielded:
                 collector = recovered
-                message += (f'; metadata.yaml and the storage disagree (QoS?): read {recovered.yielded} '
-                            'from the storage directly')
+                message += (
+                    f'; metadata.yaml and the storage disagree (QoS?): read {recovered.yielded} '
+                    'from the storage directly'
+                )
         problems.append(message)
     if collector.failed:
-        problems.append(f'{source.path}: {topic}: {collector.failed} of {collector.yielded} messages could not '
-                        f'be decoded (first: {collector.first_failure})')
+        problems.append(
+            f'{source.path}: {topic}: {collector.failed} of {collector.yielded} messages could not '
+            f'be decoded (first: {collector.first_failure})'
+        )
     return collector
 
 

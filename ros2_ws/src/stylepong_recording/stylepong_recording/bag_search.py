@@ -1,4 +1,5 @@
 """Finding rosbag2 bags under the paths a user gives: bag directories, single storage files (no rclpy)."""
+
 from __future__ import annotations
 
 import os
@@ -12,6 +13,7 @@ from stylepong_recording.bag_layout import COMPRESSED_STORAGE_SUFFIXES, METADATA
 @dataclass
 class BagSearch:
     """Bags found under the paths a user gave, and the paths that held none (with the reason)."""
+
     bags: list[pathlib.Path] = field(default_factory=list)
     rejected: list[tuple[pathlib.Path, str]] = field(default_factory=list)
 
@@ -19,8 +21,11 @@ class BagSearch:
 def storage_files(directory: pathlib.Path) -> list[pathlib.Path]:
     """The storage files (plain or compressed) directly in `directory`, sorted; none when it is unreadable."""
     try:
-        return sorted(p for p in directory.iterdir()
-                      if p.is_file() and p.name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES))
+        return sorted(
+            p
+            for p in directory.iterdir()
+            if p.is_file() and p.name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES)
+        )
     except OSError:
         return []
 
@@ -66,7 +71,7 @@ def find_bags(paths: Sequence[str | os.PathLike]) -> BagSearch:
                 here = pathlib.Path(root)
                 if here != path and is_bag_directory(here):
                     found.append(here)
-                    dirs[:] = []   # a bag's folder holds its files, not further bags
+                    dirs[:] = []  # a bag's folder holds its files, not further bags
             if not found:
                 search.rejected.append((path, 'no rosbag2 bag found in this directory or below it'))
             for bag in found:

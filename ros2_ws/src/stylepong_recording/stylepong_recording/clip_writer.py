@@ -17,6 +17,7 @@ While a clip is open its directory also holds `recording_in_progress.yaml` (labe
 time): it names a crashed recording for what it is and keeps its label for `recover_bag`. A clean close
 removes it.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -73,8 +74,9 @@ def label_problem(label: str) -> str | None:
     if '/' in label or '\\' in label or label in ('.', '..'):
         return f'the label {label!r} contains a path separator or is a relative path'
     if not _LABEL_RE.fullmatch(label):
-        return (f'the label {label!r} has characters other than letters, digits, "_", "-", "." '
-                'or starts with "_", "-", "."')
+        return (
+            f'the label {label!r} has characters other than letters, digits, "_", "-", "." or starts with "_", "-", "."'
+        )
     return None
 
 
@@ -129,15 +131,16 @@ class TopicSpec:
     """What a bag needs to know about a topic: type, definition for readers, offered QoS."""
 
     topic: str
-    msgtype: str          # e.g. 'sensor_msgs/msg/JointState'
-    msgdef: str           # ros2msg text with its dependencies (rosbags' generate_msgdef format)
-    rihs01: str           # 'RIHS01_<hex>' type hash
+    msgtype: str  # e.g. 'sensor_msgs/msg/JointState'
+    msgdef: str  # ros2msg text with its dependencies (rosbags' generate_msgdef format)
+    rihs01: str  # 'RIHS01_<hex>' type hash
     offered_qos: tuple[Qos, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
 class ClipSummary:
     """What a closed clip holds: its bag directory, storage, custom data and message counts per topic."""
+
     bag_dir: Path
     storage: str
     custom_data: dict[str, str]
@@ -207,9 +210,14 @@ class ClipWriter:
     the file system raises ClipError after closing the file; what was flushed before stays recoverable.
     """
 
-    def __init__(self, bag_dir: Path, storage: str = MCAP_STORAGE, custom_data: dict[str, str] | None = None,
-                 flush_period_s: float = DEFAULT_FLUSH_PERIOD_S,
-                 monotonic_s: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        bag_dir: Path,
+        storage: str = MCAP_STORAGE,
+        custom_data: dict[str, str] | None = None,
+        flush_period_s: float = DEFAULT_FLUSH_PERIOD_S,
+        monotonic_s: Callable[[], float] = time.monotonic,
+    ):
         if not flush_period_s > 0.0:
             raise ClipError(f'flush_period_s must be > 0, got {flush_period_s}')
         self.bag_dir = Path(bag_dir)
@@ -245,7 +253,7 @@ class ClipWriter:
             for key, value in self.custom_data.items():
                 self._writer.set_custom_data(key, value)
             self._writer.open()
-        except WriterError as err:      # the directory appeared meanwhile: not ours to remove
+        except WriterError as err:  # the directory appeared meanwhile: not ours to remove
             self._state = 'failed'
             raise ClipError(f'cannot create the bag {self.bag_dir}: {err}') from err
         except OSError as err:
@@ -267,8 +275,12 @@ class ClipWriter:
             return
         try:
             self._connections[spec.topic] = self._writer.add_connection(
-                spec.topic, spec.msgtype, msgdef=spec.msgdef, rihs01=spec.rihs01,
-                offered_qos_profiles=list(spec.offered_qos))
+                spec.topic,
+                spec.msgtype,
+                msgdef=spec.msgdef,
+                rihs01=spec.rihs01,
+                offered_qos_profiles=list(spec.offered_qos),
+            )
         except OSError as err:
             self._fail(err)
         self._counts[spec.topic] = 0
@@ -327,8 +339,9 @@ class ClipWriter:
                 pass
 
     def summary(self) -> ClipSummary:
-        return ClipSummary(self.bag_dir, self.storage, dict(self.custom_data), dict(self._counts),
-                           self._first_ns, self._last_ns)
+        return ClipSummary(
+            self.bag_dir, self.storage, dict(self.custom_data), dict(self._counts), self._first_ns, self._last_ns
+        )
 
     def _require_open(self) -> None:
         if self._state != 'open':
@@ -337,8 +350,10 @@ class ClipWriter:
     def _fail(self, err: OSError | WriterError, action: str = 'writing') -> None:
         self.abort()
         reason = describe_os_error(err) if isinstance(err, OSError) else str(err)
-        raise ClipError(f'{action} {self.bag_dir} failed: {reason}; what was flushed before is kept '
-                        f'(make it readable with `ros2 run stylepong_recording recover_bag {self.bag_dir}`)') from err
+        raise ClipError(
+            f'{action} {self.bag_dir} failed: {reason}; what was flushed before is kept '
+            f'(make it readable with `ros2 run stylepong_recording recover_bag {self.bag_dir}`)'
+        ) from err
 
     def _write_in_progress_note(self) -> None:
         note = {
@@ -348,7 +363,7 @@ class ClipWriter:
             'host': socket.gethostname(),
             'pid': os.getpid(),
             'note': 'This clip was not closed. If its recorder is gone, make the bag readable with '
-                    f'`ros2 run stylepong_recording recover_bag {self.bag_dir}`.',
+            f'`ros2 run stylepong_recording recover_bag {self.bag_dir}`.',
         }
         (self.bag_dir / IN_PROGRESS_NAME).write_text(yaml.safe_dump(note, sort_keys=False))
 
@@ -360,9 +375,15 @@ class ClipWriter:
             shutil.rmtree(self.bag_dir, ignore_errors=True)
 
 
-def open_clip(output_dir: Path, label: str, storage: str, topics: Sequence[TopicSpec],
-              flush_period_s: float = DEFAULT_FLUSH_PERIOD_S, min_free_space_mb: float = 0.0,
-              now: datetime.datetime | None = None) -> ClipWriter:
+def open_clip(
+    output_dir: Path,
+    label: str,
+    storage: str,
+    topics: Sequence[TopicSpec],
+    flush_period_s: float = DEFAULT_FLUSH_PERIOD_S,
+    min_free_space_mb: float = 0.0,
+    now: datetime.datetime | None = None,
+) -> ClipWriter:
     """Start a labelled clip `<output_dir>/<label>_<time>` with `topics` declared, or raise ClipError
     with the reason (bad label, unusable output_dir, too little free space, storage failure)."""
     if (problem := label_problem(label)) is not None:
@@ -379,8 +400,9 @@ def open_clip(output_dir: Path, label: str, storage: str, topics: Sequence[Topic
         raise ClipError(f'output_dir {output_dir} is not writable')
     free_mb = free_space_mb(output_dir)
     if free_mb < min_free_space_mb:
-        raise ClipError(f'disk full: only {free_mb:.1f} MB free in {output_dir} '
-                        f'(min_free_space_mb is {min_free_space_mb:g})')
+        raise ClipError(
+            f'disk full: only {free_mb:.1f} MB free in {output_dir} (min_free_space_mb is {min_free_space_mb:g})'
+        )
     when = now or datetime.datetime.now()
     clip = ClipWriter(output_dir / bag_dir_name(label, when), storage, {LABEL_KEY: label}, flush_period_s)
     clip.open()

@@ -9,6 +9,7 @@
 
 Motions are given as functions of time returning (position, velocity) in URDF joint order.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,10 +22,16 @@ import numpy as np
 from stylepong_description.robot_model import JOINT_NAMES as URDF_JOINTS
 
 # The order ur_robot_driver's joint_state_broadcaster publishes (seen in real UR3e recordings).
-DRIVER_JOINTS = ('shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint', 'wrist_2_joint', 'wrist_3_joint',
-                 'shoulder_pan_joint')
+DRIVER_JOINTS = (
+    'shoulder_lift_joint',
+    'elbow_joint',
+    'wrist_1_joint',
+    'wrist_2_joint',
+    'wrist_3_joint',
+    'shoulder_pan_joint',
+)
 GRIPPER_JOINT = 'robotiq_85_left_knuckle_joint'
-EPOCH_NS = 1_763_700_000_000_000_000   # a date in 2025, as a real recording would carry
+EPOCH_NS = 1_763_700_000_000_000_000  # a date in 2025, as a real recording would carry
 
 Motion = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
@@ -41,8 +48,9 @@ def min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class Swing:
     """Rest, one minimum-jerk swing from start to end, rest: a demonstration-like motion."""
+
     start_rad: tuple[float, ...] = (0.0, -1.9, 1.7, -1.4, -1.6, 2.8)
-    end_rad: tuple[float, ...] = (0.6, -1.3, 1.1, -0.8, -1.2, 4.1)   # wrist_3 turns past pi
+    end_rad: tuple[float, ...] = (0.6, -1.3, 1.1, -0.8, -1.2, 4.1)  # wrist_3 turns past pi
     rest_before_s: float = 0.5
     duration_s: float = 1.5
     rest_after_s: float = 0.5
@@ -70,33 +78,57 @@ def wrap_to_pi(angle_rad: np.ndarray) -> np.ndarray:
 def jazzy_typestore():
     """rosbags' ROS 2 Jazzy type store."""
     from rosbags.typesys import Stores, get_typestore
+
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def joint_state_cdr(store, stamp_ns: int, names: Sequence[str], position, velocity=(), effort=(),
-                    frame_id: str = '', little_endian: bool = True) -> bytes:
+def joint_state_cdr(
+    store,
+    stamp_ns: int,
+    names: Sequence[str],
+    position,
+    velocity=(),
+    effort=(),
+    frame_id: str = '',
+    little_endian: bool = True,
+) -> bytes:
     """A sensor_msgs/JointState serialized by rosbags (CDR, either byte order)."""
     msgs = store.types
     message = msgs['sensor_msgs/msg/JointState'](
         header=msgs['std_msgs/msg/Header'](
-            stamp=msgs['builtin_interfaces/msg/Time'](sec=int(stamp_ns // 1_000_000_000),
-                                                      nanosec=int(stamp_ns % 1_000_000_000)),
-            frame_id=frame_id),
-        name=list(names), position=np.asarray(position, dtype=np.float64),
-        velocity=np.asarray(velocity, dtype=np.float64), effort=np.asarray(effort, dtype=np.float64))
+            stamp=msgs['builtin_interfaces/msg/Time'](
+                sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)
+            ),
+            frame_id=frame_id,
+        ),
+        name=list(names),
+        position=np.asarray(position, dtype=np.float64),
+        velocity=np.asarray(velocity, dtype=np.float64),
+        effort=np.asarray(effort, dtype=np.float64),
+    )
     return bytes(store.serialize_cdr(message, 'sensor_msgs/msg/JointState', little_endian=little_endian))
 
 
-def write_recorder_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float, *, rate_hz: float = 500.0,
-                       label: str | None = 'forward', storage: str = 'mcap', topic: str = '/joint_states',
-                       compression: str | None = None, start_ns: int = EPOCH_NS,
-                       raw_messages: Callable[[int, bytes], bytes] | None = None) -> int:
+def write_recorder_bag(
+    bag_dir: pathlib.Path,
+    motion: Motion,
+    duration_s: float,
+    *,
+    rate_hz: float = 500.0,
+    label: str | None = 'forward',
+    storage: str = 'mcap',
+    topic: str = '/joint_states',
+    compression: str | None = None,
+    start_ns: int = EPOCH_NS,
+    raw_messages: Callable[[int, bytes], bytes] | None = None,
+) -> int:
     """A bag as StylePong's recorder writes it (rosbags Writer); returns the number of messages.
 
     raw_messages(index, cdr) may replace a message's bytes (to plant a corrupt one).
     """
     from rosbags.rosbag2 import Writer
     from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+
     store = jazzy_typestore()
     plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
     times_s = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
@@ -117,11 +149,18 @@ def write_recorder_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float,
     return len(times_s)
 
 
-def write_raw_bag(bag_dir: pathlib.Path, topics: dict[str, Sequence[tuple[int, bytes]]], *, storage: str = 'mcap',
-                  msgtypes: dict[str, str] | None = None, label: str | None = None) -> None:
+def write_raw_bag(
+    bag_dir: pathlib.Path,
+    topics: dict[str, Sequence[tuple[int, bytes]]],
+    *,
+    storage: str = 'mcap',
+    msgtypes: dict[str, str] | None = None,
+    label: str | None = None,
+) -> None:
     """A bag (rosbags Writer) holding exactly these (receive_ns, serialized bytes) messages per topic."""
     from rosbags.rosbag2 import Writer
     from rosbags.rosbag2.enums import StoragePlugin
+
     store = jazzy_typestore()
     plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
     with Writer(bag_dir, version=9, storage_plugin=plugin) as writer:
@@ -172,15 +211,24 @@ uint32 nanosec
 @dataclass
 class DriverRecording:
     """What write_driver_bag wrote: the true motion at the header stamps, for comparison."""
+
     stamps_ns: np.ndarray
     receive_ns: np.ndarray
-    q_true: np.ndarray     # URDF order, continuous
+    q_true: np.ndarray  # URDF order, continuous
     qd_true: np.ndarray
 
 
-def write_driver_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float, *, rate_hz: float = 125.0,
-                     label: str | None = 'forward', seed: int = 0, qos_in_mcap: bool = True,
-                     topic: str = '/joint_states') -> DriverRecording:
+def write_driver_bag(
+    bag_dir: pathlib.Path,
+    motion: Motion,
+    duration_s: float,
+    *,
+    rate_hz: float = 125.0,
+    label: str | None = 'forward',
+    seed: int = 0,
+    qos_in_mcap: bool = True,
+    topic: str = '/joint_states',
+) -> DriverRecording:
     """A recording in the style of a real UR driver, written with the mcap libraries (not rosbags).
 
     qos_in_mcap=False leaves the QoS out of the mcap channel (as mcap_ros2's own Writer does) while
@@ -211,27 +259,52 @@ def write_driver_bag(bag_dir: pathlib.Path, motion: Motion, duration_s: float, *
         for i, stamp in enumerate(stamps_ns):
             positions = list(q_true[i, order]) + [0.4]
             positions[DRIVER_JOINTS.index('wrist_3_joint')] = float(wrap_to_pi(q_true[i, 5]))
-            data = encode({'header': {'stamp': {'sec': int(stamp // 10**9), 'nanosec': int(stamp % 10**9)},
-                                      'frame_id': 'base_link'},
-                           'name': list(DRIVER_JOINTS) + [GRIPPER_JOINT], 'position': positions,
-                           'velocity': [], 'effort': [float(e) for e in rng.normal(0, 2, 7)]})
-            writer.add_message(channel, log_time=int(receive_ns[i]), data=data, publish_time=int(receive_ns[i]),
-                               sequence=i)
+            data = encode(
+                {
+                    'header': {
+                        'stamp': {'sec': int(stamp // 10**9), 'nanosec': int(stamp % 10**9)},
+                        'frame_id': 'base_link',
+                    },
+                    'name': list(DRIVER_JOINTS) + [GRIPPER_JOINT],
+                    'position': positions,
+                    'velocity': [],
+                    'effort': [float(e) for e in rng.normal(0, 2, 7)],
+                }
+            )
+            writer.add_message(
+                channel, log_time=int(receive_ns[i]), data=data, publish_time=int(receive_ns[i]), sequence=i
+            )
         writer.finish()
     duration_ns = int(receive_ns[-1] - receive_ns[0])
     info = {
-        'version': 9, 'storage_identifier': 'mcap',
+        'version': 9,
+        'storage_identifier': 'mcap',
         'duration': {'nanoseconds': duration_ns},
         'starting_time': {'nanoseconds_since_epoch': int(receive_ns[0])},
         'message_count': len(stamps_ns),
-        'topics_with_message_count': [{
-            'topic_metadata': {'name': topic, 'type': 'sensor_msgs/msg/JointState', 'serialization_format': 'cdr',
-                               'offered_qos_profiles': yaml.safe_load(QOS_YAML), 'type_description_hash': rihs},
-            'message_count': len(stamps_ns)}],
-        'compression_format': '', 'compression_mode': '',
+        'topics_with_message_count': [
+            {
+                'topic_metadata': {
+                    'name': topic,
+                    'type': 'sensor_msgs/msg/JointState',
+                    'serialization_format': 'cdr',
+                    'offered_qos_profiles': yaml.safe_load(QOS_YAML),
+                    'type_description_hash': rihs,
+                },
+                'message_count': len(stamps_ns),
+            }
+        ],
+        'compression_format': '',
+        'compression_mode': '',
         'relative_file_paths': [file_name],
-        'files': [{'path': file_name, 'starting_time': {'nanoseconds_since_epoch': int(receive_ns[0])},
-                   'duration': {'nanoseconds': duration_ns}, 'message_count': len(stamps_ns)}],
+        'files': [
+            {
+                'path': file_name,
+                'starting_time': {'nanoseconds_since_epoch': int(receive_ns[0])},
+                'duration': {'nanoseconds': duration_ns},
+                'message_count': len(stamps_ns),
+            }
+        ],
         'custom_data': {'label': label} if label is not None else None,
         'ros_distro': 'jazzy',
     }
@@ -245,6 +318,7 @@ def read_with_rosbags(bag: pathlib.Path, joints: Sequence[str] = URDF_JOINTS):
     The independent reference the tests compare build_dataset's output with.
     """
     from rosbags.highlevel import AnyReader
+
     stamps, positions, velocities = [], [], []
     with AnyReader([pathlib.Path(bag)], default_typestore=jazzy_typestore()) as reader:
         for connection, _t, raw in reader.messages(reader.connections):
@@ -261,4 +335,4 @@ def read_with_rosbags(bag: pathlib.Path, joints: Sequence[str] = URDF_JOINTS):
 def truncate_file(path: pathlib.Path, keep_fraction: float = 0.6) -> None:
     """Cut a file short, as a process killed while writing leaves it."""
     data = path.read_bytes()
-    path.write_bytes(data[:int(len(data) * keep_fraction)])
+    path.write_bytes(data[: int(len(data) * keep_fraction)])

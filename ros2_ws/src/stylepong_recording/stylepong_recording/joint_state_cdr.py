@@ -6,6 +6,7 @@ full message object per message, which caps a dataset build at the deserializer'
 position/velocity doubles, and raises CdrLayoutError for any message it cannot lay out exactly, which
 the caller then hands to the generic deserializer (joint_state_decoding).
 """
+
 from __future__ import annotations
 
 import struct
@@ -42,7 +43,7 @@ def _decode_names(block: memoryview | bytes) -> tuple[str, ...]:
     for _ in range(count):
         offset = (offset + 3) & ~3
         (length,) = _U32.unpack_from(block, offset)
-        raw = bytes(block[offset + 4:offset + 4 + length])
+        raw = bytes(block[offset + 4 : offset + 4 + length])
         names.append(raw.rstrip(b'\x00').decode('utf-8', errors='replace'))
         offset += 4 + length
     return tuple(names)
@@ -51,9 +52,10 @@ def _decode_names(block: memoryview | bytes) -> tuple[str, ...]:
 @dataclass(frozen=True)
 class CdrLayout:
     """Where one message's fields lie (byte offsets from the start of the message)."""
+
     size: int
     name_id: int
-    layout_bytes: tuple[tuple[int, int], ...]   # (start, stop) spans that fix every offset below
+    layout_bytes: tuple[tuple[int, int], ...]  # (start, stop) spans that fix every offset below
     position_offset: int
     position_count: int
     velocity_offset: int
@@ -82,8 +84,11 @@ class JointStateCdrReader:
         """Where `raw`'s fields lie: the previous message's layout when `raw` has its length and every byte
         that decides an offset (a live topic's messages nearly always do), else a fresh walk."""
         last = self._last_layout
-        if last is not None and len(raw) == last.size and all(
-                raw[start:stop] == self._last_raw[start:stop] for start, stop in last.layout_bytes):
+        if (
+            last is not None
+            and len(raw) == last.size
+            and all(raw[start:stop] == self._last_raw[start:stop] for start, stop in last.layout_bytes)
+        ):
             return last
         try:
             layout = self._layout(raw)
@@ -115,7 +120,7 @@ class JointStateCdrReader:
                 pos += 4 + length
                 if pos > size:
                     raise CdrLayoutError('a joint name runs past the end of the message')
-            block = raw[start:_PAYLOAD + pos]
+            block = raw[start : _PAYLOAD + pos]
             name_id = self._name_ids.get(block)
             if name_id is None:
                 name_id = self._name_ids[block] = len(self.name_lists)
@@ -123,7 +128,7 @@ class JointStateCdrReader:
             self._last_block, self._last_id = block, name_id
         spans = [(0, _PAYLOAD), (_PAYLOAD + 8, _PAYLOAD + 12), (start, _PAYLOAD + pos)]
         arrays = []
-        for _ in range(3):   # position, velocity, effort
+        for _ in range(3):  # position, velocity, effort
             pos = (pos + 3) & ~3
             (count,) = _U32.unpack_from(raw, _PAYLOAD + pos)
             spans.append((_PAYLOAD + pos, _PAYLOAD + pos + 4))
@@ -136,9 +141,15 @@ class JointStateCdrReader:
             pos += 8 * count
         if not 0 <= size - pos <= _MAX_TRAILING_PADDING:
             raise CdrLayoutError(f'layout ends at byte {pos + _PAYLOAD} of {len(raw)}: not a standard JointState')
-        return CdrLayout(size=len(raw), name_id=name_id, layout_bytes=tuple(spans),
-                         position_offset=arrays[0][0], position_count=arrays[0][1],
-                         velocity_offset=arrays[1][0], velocity_count=arrays[1][1])
+        return CdrLayout(
+            size=len(raw),
+            name_id=name_id,
+            layout_bytes=tuple(spans),
+            position_offset=arrays[0][0],
+            position_count=arrays[0][1],
+            velocity_offset=arrays[1][0],
+            velocity_count=arrays[1][1],
+        )
 
     def read(self, raw: bytes) -> tuple[int, int, tuple, tuple]:
         """(stamp_ns, name_id, positions, velocities) of one message."""
@@ -148,8 +159,9 @@ class JointStateCdrReader:
         velocities = _doubles(layout.velocity_count).unpack_from(raw, layout.velocity_offset)
         return sec * NS_PER_S + nanosec, layout.name_id, positions, velocities
 
-    def read_batch(self, raws: Sequence[bytes], template: bytes) -> tuple[CdrLayout, np.ndarray, np.ndarray,
-                                                                           np.ndarray, np.ndarray]:
+    def read_batch(
+        self, raws: Sequence[bytes], template: bytes
+    ) -> tuple[CdrLayout, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Messages laid out like `template`: (layout, row indices, stamps_ns, positions, velocities)."""
         layout = self.layout(template)
         lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
@@ -158,17 +170,23 @@ class JointStateCdrReader:
         columns = np.concatenate([np.arange(a, b) for a, b in layout.layout_bytes])
         same = (matrix[:, columns] == np.frombuffer(template, dtype=np.uint8)[columns]).all(axis=1)
         rows, matrix = rows[same], matrix[same]
-        sec = np.ascontiguousarray(matrix[:, _PAYLOAD:_PAYLOAD + 4]).view('<i4').ravel().astype(np.int64)
-        nanosec = np.ascontiguousarray(matrix[:, _PAYLOAD + 4:_PAYLOAD + 8]).view('<u4').ravel().astype(np.int64)
+        sec = np.ascontiguousarray(matrix[:, _PAYLOAD : _PAYLOAD + 4]).view('<i4').ravel().astype(np.int64)
+        nanosec = np.ascontiguousarray(matrix[:, _PAYLOAD + 4 : _PAYLOAD + 8]).view('<u4').ravel().astype(np.int64)
 
         def doubles(offset: int, count: int) -> np.ndarray:
-            return np.ascontiguousarray(matrix[:, offset:offset + 8 * count]).view('<f8').reshape(len(rows), count)
-        return (layout, rows, sec * NS_PER_S + nanosec, doubles(layout.position_offset, layout.position_count),
-                doubles(layout.velocity_offset, layout.velocity_count))
+            return np.ascontiguousarray(matrix[:, offset : offset + 8 * count]).view('<f8').reshape(len(rows), count)
+
+        return (
+            layout,
+            rows,
+            sec * NS_PER_S + nanosec,
+            doubles(layout.position_offset, layout.position_count),
+            doubles(layout.velocity_offset, layout.velocity_count),
+        )
 
     def name_id_for(self, names: Sequence[str]) -> int:
         """Register a name list decoded elsewhere (the generic deserializer)."""
-        key = b'\xff' + '\x00'.join(names).encode()   # cannot collide with a CDR block (starts with a count)
+        key = b'\xff' + '\x00'.join(names).encode()  # cannot collide with a CDR block (starts with a count)
         name_id = self._name_ids.get(key)
         if name_id is None:
             name_id = self._name_ids[key] = len(self.name_lists)

@@ -6,6 +6,7 @@ bag's own definition, else the ROS 2 Jazzy typestore (`GenericJointStateDecoder`
 definition is ever parsed, so bags whose other topics carry definitions rosbags cannot parse (service
 events) still open. A message no decoder can read is counted as a failure and skipped.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ def is_standard_joint_state(connection, jazzy_store) -> bool:
         return True
     try:
         types = _types_from_definition(connection)
-    except Exception:   # noqa: BLE001  an unparsable definition: trust the standard layout, per message checked
+    except Exception:  # noqa: BLE001  an unparsable definition: trust the standard layout, per message checked
         return True
     for name in ('sensor_msgs/msg/JointState', 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time'):
         if name in types and types[name] != jazzy_store.fielddefs.get(name):
@@ -44,6 +45,7 @@ def is_standard_joint_state(connection, jazzy_store) -> bool:
 def _types_from_definition(connection) -> dict:
     from rosbags.interfaces import MessageDefinitionFormat
     from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
     msgdef = connection.msgdef
     if msgdef.format == MessageDefinitionFormat.MSG:
         return dict(get_types_from_msg(msgdef.data, connection.msgtype))
@@ -67,11 +69,12 @@ class GenericJointStateDecoder:
 
     def __init__(self, connection, jazzy_store) -> None:
         from rosbags.typesys import Stores, get_typestore
+
         self.msgtype = _normalise_type_name(connection.msgtype)
         self.error: str | None = None
         try:
             types = _types_from_definition(connection)
-        except Exception as error:   # noqa: BLE001
+        except Exception as error:  # noqa: BLE001
             types = {}
             self.error = f'definition in the bag is unparsable ({one_line(error)})'
         if types:
@@ -83,18 +86,24 @@ class GenericJointStateDecoder:
     def decode(self, raw: bytes) -> tuple[int, int, tuple[str, ...], np.ndarray, np.ndarray]:
         msg = self.store.deserialize_cdr(raw, self.msgtype)
         stamp = msg.header.stamp
-        return (int(stamp.sec), int(stamp.nanosec), tuple(msg.name), np.asarray(msg.position, float),
-                np.asarray(msg.velocity, float))
+        return (
+            int(stamp.sec),
+            int(stamp.nanosec),
+            tuple(msg.name),
+            np.asarray(msg.position, float),
+            np.asarray(msg.velocity, float),
+        )
 
 
 @dataclass
 class JointStateBlock:
     """Messages sharing one name list and array lengths, as arrays."""
+
     name_id: int
     stamp_ns: np.ndarray
     receive_ns: np.ndarray
-    position: np.ndarray   # (n, P) in the message's own joint order
-    velocity: np.ndarray   # (n, V); V is 0 when the messages carry no velocities
+    position: np.ndarray  # (n, P) in the message's own joint order
+    velocity: np.ndarray  # (n, V); V is 0 when the messages carry no velocities
 
 
 class JointStateCollector:
@@ -161,16 +170,27 @@ class JointStateCollector:
             fresh = pending[rows]
             rows = rows[fresh]
             pending[rows] = False
-            self.blocks.append(JointStateBlock(name_id=layout.name_id, stamp_ns=stamps[fresh], receive_ns=receive[rows],
-                                      position=pos[fresh], velocity=vel[fresh]))
+            self.blocks.append(
+                JointStateBlock(
+                    name_id=layout.name_id,
+                    stamp_ns=stamps[fresh],
+                    receive_ns=receive[rows],
+                    position=pos[fresh],
+                    velocity=vel[fresh],
+                )
+            )
         for i in np.flatnonzero(pending):
             decode_slowly(int(i))
         for (name_id, n_pos, n_vel), items in slow.items():
-            self.blocks.append(JointStateBlock(
-                name_id=name_id, stamp_ns=np.array([x[0] for x in items], dtype=np.int64),
-                receive_ns=np.array([x[1] for x in items], dtype=np.int64),
-                position=np.array([x[2] for x in items], dtype=float).reshape(len(items), n_pos),
-                velocity=np.array([x[3] for x in items], dtype=float).reshape(len(items), n_vel)))
+            self.blocks.append(
+                JointStateBlock(
+                    name_id=name_id,
+                    stamp_ns=np.array([x[0] for x in items], dtype=np.int64),
+                    receive_ns=np.array([x[1] for x in items], dtype=np.int64),
+                    position=np.array([x[2] for x in items], dtype=float).reshape(len(items), n_pos),
+                    velocity=np.array([x[3] for x in items], dtype=float).reshape(len(items), n_vel),
+                )
+            )
 
     def _decode_one(self, raw: bytes) -> tuple[int, int, tuple, tuple] | None:
         fast_error = None
@@ -183,7 +203,7 @@ class JointStateCollector:
             self.generic = GenericJointStateDecoder(self.connection, self.jazzy_store)
         try:
             sec, nanosec, names, pos, vel = self.generic.decode(raw)
-        except Exception as error:   # noqa: BLE001  any decoder failure is one bad message
+        except Exception as error:  # noqa: BLE001  any decoder failure is one bad message
             self.failed += 1
             if self.first_failure is None:
                 reason = one_line(error)

@@ -5,6 +5,7 @@ bag and rosbags checks it against the RIHS01 hash in metadata.yaml, so both must
 type on the wire. Standard types come from rosbags' Jazzy type store; any other type (this project's
 stylepong_msgs, for one) from the `.msg` files its package installed, found through the ament index.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -17,6 +18,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 def installed_msg_file(msgtype: str) -> Path | None:
     """`<share>/<pkg>/msg/<Name>.msg` of an installed ROS package, or None."""
     from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
     package, kind, name = msgtype.split('/')
     try:
         path = Path(get_package_share_directory(package)) / kind / f'{name}.msg'
@@ -37,6 +39,7 @@ def _referenced_types(fields: list) -> set[str]:
 
 class UnknownMessageType(LookupError):
     """No message definition could be found for a message type."""
+
     pass
 
 

@@ -15,6 +15,7 @@ whose publishers offer nothing better. Parameters: PARAMETERS below, defaults in
 a bad one stops the node with one line on stderr and exit code 2 (stylepong_common.node_support).
 Writing and crash safety are in clip_writer; this module is wiring.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -39,21 +40,35 @@ from stylepong_recording.msg_definitions import MessageDefinitions, UnknownMessa
 PROGRAM = 'recorder'
 JOINT_STATES_TOPIC = '/joint_states'
 JOINT_STATES_TYPE = 'sensor_msgs/msg/JointState'
-MAX_FLUSH_PERIOD_S = 0.2   # the recorder's promise: a SIGKILL loses at most this much
+MAX_FLUSH_PERIOD_S = 0.2  # the recorder's promise: a SIGKILL loses at most this much
 DISCOVERY_PERIOD_S = 1.0
 # A topic published with several types is named at most this often while it stays so.
 SEVERAL_TYPES_WARN_PERIOD_S = 30.0
 
 PARAMETERS = (
-    Param('output_dir', 'ros2_ws/bags', 'where clips go; a relative path is taken from the directory holding the '
-          'colcon workspace (the project root)'),
+    Param(
+        'output_dir',
+        'ros2_ws/bags',
+        'where clips go; a relative path is taken from the directory holding the colcon workspace (the project root)',
+    ),
     Param('storage', MCAP_STORAGE, 'bag storage format', choices=STORAGES),
-    Param('flush_period_s', DEFAULT_FLUSH_PERIOD_S, 'seconds between hand-overs of written data to the OS; a '
-          'SIGKILL loses at most about this much', low=0.01, high=MAX_FLUSH_PERIOD_S),
-    Param('queue_depth', 1000, 'subscription queue depth per topic (messages kept while the node is busy)',
-          low=10, high=100000),
-    Param('min_free_space_mb', 100.0, 'a clip does not start with less free disk space than this (MB)',
-          low=0.0, high=1e9),
+    Param(
+        'flush_period_s',
+        DEFAULT_FLUSH_PERIOD_S,
+        'seconds between hand-overs of written data to the OS; a SIGKILL loses at most about this much',
+        low=0.01,
+        high=MAX_FLUSH_PERIOD_S,
+    ),
+    Param(
+        'queue_depth',
+        1000,
+        'subscription queue depth per topic (messages kept while the node is busy)',
+        low=10,
+        high=100000,
+    ),
+    Param(
+        'min_free_space_mb', 100.0, 'a clip does not start with less free disk space than this (MB)', low=0.0, high=1e9
+    ),
     # An empty default: rcl cannot parse an empty list from a parameters file, so the YAML leaves it out.
     Param('topics', [], 'topics recorded besides /joint_states (types found in the graph)'),
 )
@@ -68,29 +83,37 @@ def resolve_output_dir(output_dir: str, install_prefix: Path | None, cwd: Path) 
         return path
     base = cwd
     if install_prefix is not None:
-        if install_prefix.parent.name == 'install':      # isolated install: <ws>/install/<pkg>
+        if install_prefix.parent.name == 'install':  # isolated install: <ws>/install/<pkg>
             base = install_prefix.parent.parent.parent
-        elif install_prefix.name == 'install':           # merged install: <ws>/install
+        elif install_prefix.name == 'install':  # merged install: <ws>/install
             base = install_prefix.parent.parent
     return base / path
 
 
 def rosbags_qos(profile: QoSProfile) -> Qos:
     """A publisher's offered QoS in the form rosbag2 metadata stores (enum values are rmw's)."""
+
     def duration(d: Duration) -> QosTime:
         sec, nsec = divmod(d.nanoseconds, 1_000_000_000)
         return QosTime(sec, nsec)
-    return Qos(QosHistory(int(profile.history)), int(profile.depth), QosReliability(int(profile.reliability)),
-               QosDurability(int(profile.durability)), duration(profile.deadline), duration(profile.lifespan),
-               QosLiveliness(int(profile.liveliness)), duration(profile.liveliness_lease_duration),
-               bool(profile.avoid_ros_namespace_conventions))
+
+    return Qos(
+        QosHistory(int(profile.history)),
+        int(profile.depth),
+        QosReliability(int(profile.reliability)),
+        QosDurability(int(profile.durability)),
+        duration(profile.deadline),
+        duration(profile.lifespan),
+        QosLiveliness(int(profile.liveliness)),
+        duration(profile.liveliness_lease_duration),
+        bool(profile.avoid_ros_namespace_conventions),
+    )
 
 
 def subscription_reliability(offered: list[ReliabilityPolicy]) -> ReliabilityPolicy:
     """Reliable (no drops) unless a publisher only offers best effort, which a reliable reader
     would not match at all."""
-    return (ReliabilityPolicy.BEST_EFFORT if ReliabilityPolicy.BEST_EFFORT in offered
-            else ReliabilityPolicy.RELIABLE)
+    return ReliabilityPolicy.BEST_EFFORT if ReliabilityPolicy.BEST_EFFORT in offered else ReliabilityPolicy.RELIABLE
 
 
 def extra_topics(value: list[Any]) -> list[str]:
@@ -106,6 +129,7 @@ def output_dir_path(output_dir: str) -> Path:
         raise ParameterError(f'parameter output_dir must not be empty, got {output_dir!r}')
     try:
         from ament_index_python.packages import get_package_prefix
+
         prefix = Path(get_package_prefix('stylepong_recording'))
     except Exception:  # noqa: BLE001 - not installed through an ament index: fall back to cwd
         prefix = None
@@ -120,6 +144,7 @@ def message_class(msgtype: str):
 
 class RecorderNode(Node):
     """The recorder node: writes /joint_states (and any extra topics) of each clip to a rosbag2 bag."""
+
     def __init__(self, **kwargs):
         super().__init__(PROGRAM, **kwargs)
         values = declare_parameters(self, PARAMETERS)
@@ -151,7 +176,8 @@ class RecorderNode(Node):
         name = self.get_fully_qualified_name()
         self.get_logger().info(
             f'ready: {name}/start and {name}/stop record {", ".join(self.topics)} into '
-            f'{self.output_dir} ({self.storage}, flushed every {self.flush_period_s:g} s)')
+            f'{self.output_dir} ({self.storage}, flushed every {self.flush_period_s:g} s)'
+        )
 
     # --- subscriptions ------------------------------------------------------------------------------
     def _publisher_qos(self, topic: str) -> list[QoSProfile]:
@@ -165,10 +191,15 @@ class RecorderNode(Node):
             self.get_logger().error(f'cannot record {topic} ({msgtype}): {err}', once=True)
             return
         reliability = subscription_reliability([q.reliability for q in self._publisher_qos(topic)])
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.queue_depth, reliability=reliability,
-                         durability=DurabilityPolicy.VOLATILE)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=self.queue_depth,
+            reliability=reliability,
+            durability=DurabilityPolicy.VOLATILE,
+        )
         subscription = self.create_subscription(
-            msg_class, topic, lambda data, info: self._on_message(topic, data, info), qos, raw=True)
+            msg_class, topic, lambda data, info: self._on_message(topic, data, info), qos, raw=True
+        )
         self._recorded[topic] = (subscription, msgtype, reliability)
 
     def _discover(self) -> None:
@@ -205,7 +236,7 @@ class RecorderNode(Node):
         # The middleware's reception time is free of executor delays; 0 where an rmw does not fill it.
         log_time_ns = info.get('received_timestamp') or time.time_ns()
         if log_time_ns < self._clip_start_ns:
-            return      # received before the clip started, taken from the queue only now
+            return  # received before the clip started, taken from the queue only now
         try:
             if not clip.has_topic(topic):
                 clip.add_topic(self._topic_spec(topic))
@@ -229,14 +260,16 @@ class RecorderNode(Node):
         if self._clip is not None:
             response.success = False
             response.bag_path = str(self._clip.bag_dir)
-            response.message = (f'already recording {self._clip_label!r} into {self._clip.bag_dir}; '
-                                'call /recorder/stop first')
+            response.message = (
+                f'already recording {self._clip_label!r} into {self._clip.bag_dir}; call /recorder/stop first'
+            )
             return response
         try:
             specs = [self._topic_spec(topic) for topic in self._recorded]
             self._clip_start_ns = time.time_ns()
-            self._clip = open_clip(self.output_dir, request.label, self.storage, specs,
-                                   self.flush_period_s, self.min_free_space_mb)
+            self._clip = open_clip(
+                self.output_dir, request.label, self.storage, specs, self.flush_period_s, self.min_free_space_mb
+            )
         except ClipError as err:
             response.success = False
             response.message = f'not recording: {err}'

@@ -12,6 +12,7 @@ left untouched, so running the tool twice, or on a healthy bag, changes nothing.
 every bag is readable afterwards, 1 when one could not be recovered (the reason is printed), 2 for a
 usage error.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,11 +67,12 @@ class RecoveryError(Exception):
 @dataclasses.dataclass
 class StoredConnection:
     """A connection (topic) as found in a bag's storage file."""
+
     id: int
     topic: str
     msgtype: str
     msgdef: str
-    msgdef_encoding: str     # 'ros2msg' or 'ros2idl'
+    msgdef_encoding: str  # 'ros2msg' or 'ros2idl'
     serialization_format: str
     offered_qos: list[Qos]
     digest: str = ''
@@ -99,9 +101,10 @@ class StorageScan:
 @dataclasses.dataclass
 class RecoveryReport:
     """What recover_bag found and did for one bag."""
+
     bag_dir: Path
     storage: str
-    outcome: str             # 'healthy' (left untouched), 'recovered', or 'needs recovery' (--check)
+    outcome: str  # 'healthy' (left untouched), 'recovered', or 'needs recovery' (--check)
     message_counts: dict[str, int]
     custom_data: dict[str, str]
     problems: list[str]
@@ -119,6 +122,7 @@ class RecoveryReport:
 
 
 # --- reading what was written -------------------------------------------------------------------------
+
 
 def _mcap_records(path: Path, problems: list[str], state: dict) -> Iterator[object]:
     """Schema, Channel and Message records of an mcap file, in file order, up to the first cut or
@@ -141,8 +145,10 @@ def _mcap_records(path: Path, problems: list[str], state: dict) -> Iterator[obje
                 if state.get('footer'):
                     problems.append('the mcap footer is damaged')
                 elif size > good_end:
-                    problems.append(f'the mcap file has no summary or footer and ends in an unfinished '
-                                    f'record ({size - good_end} bytes after byte {good_end} dropped)')
+                    problems.append(
+                        f'the mcap file has no summary or footer and ends in an unfinished '
+                        f'record ({size - good_end} bytes after byte {good_end} dropped)'
+                    )
                 else:
                     problems.append('the mcap file has no summary or footer')
                 return
@@ -183,16 +189,29 @@ def _scan_mcap(path: Path) -> StorageScan:
                     problems.append(f'channel {record.topic} has no schema; its messages cannot be kept')
                     continue
                 connections[record.id] = StoredConnection(
-                    record.id, record.topic, schema.name, schema.data.decode(), schema.encoding,
-                    record.message_encoding, parse_qos(record.metadata.get('offered_qos_profiles', '')))
+                    record.id,
+                    record.topic,
+                    schema.name,
+                    schema.data.decode(),
+                    schema.encoding,
+                    record.message_encoding,
+                    parse_qos(record.metadata.get('offered_qos_profiles', '')),
+                )
         elif record.channel_id in connections:
             counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
         else:
             orphans += 1
     if orphans:
         problems.append(f'{orphans} messages of unknown channels were dropped')
-    return StorageScan(MCAP_STORAGE, path, connections, counts, state.get('intact', False), problems,
-                       state.get('chunk_compression') or '')
+    return StorageScan(
+        MCAP_STORAGE,
+        path,
+        connections,
+        counts,
+        state.get('intact', False),
+        problems,
+        state.get('chunk_compression') or '',
+    )
 
 
 def _mcap_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
@@ -216,8 +235,10 @@ def _scan_sqlite3(path: Path) -> StorageScan:
     problems: list[str] = []
     side_files = [s for s in _SQLITE_SIDE_FILES if Path(f'{path}{s}').exists()]
     if side_files:
-        problems.append(f'the sqlite3 database was not closed ({", ".join(side_files)} left): committed '
-                        'transactions kept, an unfinished one dropped')
+        problems.append(
+            f'the sqlite3 database was not closed ({", ".join(side_files)} left): committed '
+            'transactions kept, an unfinished one dropped'
+        )
     try:
         with contextlib.closing(_sqlite_connect(path)) as db:
             check = db.execute('PRAGMA quick_check').fetchone()[0]
@@ -228,17 +249,23 @@ def _scan_sqlite3(path: Path) -> StorageScan:
                 raise RecoveryError(f'{path} has no rosbag2 topics/messages tables')
             definitions = {}
             if 'message_definitions' in tables:
-                definitions = {t: (enc, text) for t, enc, text in db.execute(
-                    'SELECT topic_type, encoding, encoded_message_definition FROM message_definitions')}
+                definitions = {
+                    t: (enc, text)
+                    for t, enc, text in db.execute(
+                        'SELECT topic_type, encoding, encoded_message_definition FROM message_definitions'
+                    )
+                }
             topic_columns = {row[1] for row in db.execute('PRAGMA table_info(topics)')}
             digest_column = 'type_description_hash' if 'type_description_hash' in topic_columns else "''"
             connections = {}
             for cid, topic, msgtype, fmt, qos, digest in db.execute(
-                    f'SELECT id, name, type, serialization_format, offered_qos_profiles, {digest_column} '
-                    'FROM topics ORDER BY id'):
+                f'SELECT id, name, type, serialization_format, offered_qos_profiles, {digest_column} '
+                'FROM topics ORDER BY id'
+            ):
                 encoding, text = definitions.get(msgtype, ('', ''))
-                connections[cid] = StoredConnection(cid, topic, msgtype, text, encoding, fmt,
-                                                    parse_qos(qos or ''), digest or '')
+                connections[cid] = StoredConnection(
+                    cid, topic, msgtype, text, encoding, fmt, parse_qos(qos or ''), digest or ''
+                )
             counts = dict(db.execute('SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id'))
     except sqlite3.DatabaseError as err:
         raise RecoveryError(f'{path} is not a readable sqlite3 bag ({err})') from err
@@ -251,6 +278,7 @@ def _sqlite3_messages(scan: StorageScan) -> Iterator[tuple[int, int, bytes]]:
 
 
 # --- deciding and rewriting ---------------------------------------------------------------------------
+
 
 def _load_yaml(path: Path) -> dict | None:
     try:
@@ -281,8 +309,10 @@ def find_storage(bag_dir: Path, metadata: dict | None) -> tuple[str, Path]:
             raise RecoveryError(f'{bag_dir}: file-compressed bags ({", ".join(compressed)}) are not supported')
         raise RecoveryError(f'{bag_dir} holds no .mcap or .db3 file: nothing to recover')
     if len(files) > 1:
-        raise RecoveryError(f'{bag_dir} holds several storage files ({", ".join(p.name for p in files)}); '
-                            'bags split into several files are not supported')
+        raise RecoveryError(
+            f'{bag_dir} holds several storage files ({", ".join(p.name for p in files)}); '
+            'bags split into several files are not supported'
+        )
     return by_suffix[files[0].suffix], files[0]
 
 
@@ -321,8 +351,11 @@ def _definition_hash(conn: StoredConnection) -> str:
     try:
         if conn.msgdef_encoding == 'ros2idl':
             sep = '=' * 80 + '\n'
-            parts = ([p.split('\n', 1)[1] for p in conn.msgdef.split(sep)[1:]]
-                     if conn.msgdef.startswith(sep + 'IDL: ') else [conn.msgdef])
+            parts = (
+                [p.split('\n', 1)[1] for p in conn.msgdef.split(sep)[1:]]
+                if conn.msgdef.startswith(sep + 'IDL: ')
+                else [conn.msgdef]
+            )
             types = {}
             for idl in parts:
                 types.update(get_types_from_idl(idl))
@@ -334,8 +367,7 @@ def _definition_hash(conn: StoredConnection) -> str:
     except Exception as err:  # noqa: BLE001 - rosbags raises several kinds on a bad definition
         if conn.digest:
             return conn.digest
-        raise RecoveryError(f'the message definition of {conn.topic} ({conn.msgtype}) cannot be parsed: '
-                            f'{err}') from err
+        raise RecoveryError(f'the message definition of {conn.topic} ({conn.msgtype}) cannot be parsed: {err}') from err
 
 
 def complete_definitions(scan: StorageScan) -> None:
@@ -345,8 +377,7 @@ def complete_definitions(scan: StorageScan) -> None:
         if not conn.msgdef:
             store = store or get_typestore(Stores.ROS2_JAZZY)
             if conn.msgtype not in store.fielddefs:
-                raise RecoveryError(f'{scan.path} stores no definition of {conn.msgtype} and rosbags does '
-                                    'not know it')
+                raise RecoveryError(f'{scan.path} stores no definition of {conn.msgtype} and rosbags does not know it')
             conn.msgdef, conn.msgdef_encoding = store.generate_msgdef(conn.msgtype, ros_version=2)[0], 'ros2msg'
         conn.digest = _definition_hash(conn)
 
@@ -363,17 +394,24 @@ def _write_copy(new_bag: Path, scan: StorageScan, custom_data: dict[str, str]) -
     messages = _mcap_messages(scan) if scan.storage == MCAP_STORAGE else _sqlite3_messages(scan)
     with writer:
         connections = {
-            cid: writer.add_connection(conn.topic, conn.msgtype, msgdef=conn.msgdef, rihs01=conn.digest,
-                                       serialization_format=conn.serialization_format,
-                                       offered_qos_profiles=conn.offered_qos)
-            for cid, conn in scan.connections.items()}
+            cid: writer.add_connection(
+                conn.topic,
+                conn.msgtype,
+                msgdef=conn.msgdef,
+                rihs01=conn.digest,
+                serialization_format=conn.serialization_format,
+                offered_qos_profiles=conn.offered_qos,
+            )
+            for cid, conn in scan.connections.items()
+        }
         for cid, log_time_ns, data in messages:
             if cid in connections:
                 writer.write(connections[cid], log_time_ns, data)
 
 
-def rewrite_bag(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str],
-                check: Callable[[Path], None] | None = None) -> None:
+def rewrite_bag(
+    bag_dir: Path, scan: StorageScan, custom_data: dict[str, str], check: Callable[[Path], None] | None = None
+) -> None:
     """Write what `scan` found as a new bag beside the old one, `check` it (it raises to keep the old
     bag), then swap it in."""
     work = bag_dir / _WORK_DIR_NAME
@@ -386,7 +424,7 @@ def rewrite_bag(bag_dir: Path, scan: StorageScan, custom_data: dict[str, str],
         if check is not None:
             check(new_bag)
     except BaseException:
-        shutil.rmtree(work, ignore_errors=True)     # a full disk must not stay fuller
+        shutil.rmtree(work, ignore_errors=True)  # a full disk must not stay fuller
         raise
     new_storage = new_bag / scan.path.name
     for suffix in _SQLITE_SIDE_FILES:
@@ -409,8 +447,10 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
     note = _load_yaml(bag_dir / IN_PROGRESS_NAME)
     if note and not force and recording_process_alive(note):
         # Re-writing the file under a live recorder would make it write into a deleted file.
-        raise RecoveryError(f'{bag_dir} is still being recorded by process {note["pid"]}: stop the recorder '
-                            'first (or pass --force if that process is not the recorder)')
+        raise RecoveryError(
+            f'{bag_dir} is still being recorded by process {note["pid"]}: stop the recorder '
+            'first (or pass --force if that process is not the recorder)'
+        )
     metadata = _read_metadata(bag_dir)
     storage, path = find_storage(bag_dir, metadata)
     scan = scan_storage(storage, path)
@@ -432,8 +472,7 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
         try:
             rewrite_bag(bag_dir, scan, custom_data)
         except (OSError, WriterError) as err:
-            raise RecoveryError(f'{bag_dir}: writing the recovered bag failed ({err}); the bag is unchanged') \
-                from err
+            raise RecoveryError(f'{bag_dir}: writing the recovered bag failed ({err}); the bag is unchanged') from err
     outcome = 'needs recovery' if check_only else 'recovered'
     return RecoveryReport(bag_dir, storage, outcome, scan.counts_by_topic(), custom_data, problems)
 
@@ -441,13 +480,16 @@ def recover_bag(bag_dir: Path, check_only: bool = False, force: bool = False) ->
 def main(argv: list[str] | None = None) -> int:
     """Command line of recover_bag: check or recover each bag directory given."""
     parser = argparse.ArgumentParser(
-        prog='recover_bag', description='Make rosbag2 bags left by a killed recorder readable: rebuild '
+        prog='recover_bag',
+        description='Make rosbag2 bags left by a killed recorder readable: rebuild '
         'metadata.yaml and re-write the mcap (summary, index, footer) or sqlite3 file with every complete '
-        'record. Healthy bags are left untouched.')
+        'record. Healthy bags are left untouched.',
+    )
     parser.add_argument('bag_dirs', nargs='+', type=Path, metavar='bag_dir', help='rosbag2 bag directory')
     parser.add_argument('--check', action='store_true', help='only report what would be done')
-    parser.add_argument('--force', action='store_true',
-                        help='recover even if the recording note names a process that still runs')
+    parser.add_argument(
+        '--force', action='store_true', help='recover even if the recording note names a process that still runs'
+    )
     args = parser.parse_args(argv)
     status = 0
     for bag_dir in args.bag_dirs:

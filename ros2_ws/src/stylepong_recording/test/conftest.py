@@ -3,6 +3,7 @@
 The suite runs in pytest's importlib mode (test files of different packages share basenames), which
 puts no test folder on sys.path; this one is added so the tests can `import offline_clips`.
 """
+
 import pathlib
 import sys
 

@@ -1,5 +1,6 @@
 """Test helper: clips written without a ROS graph, on a clock the test moves by hand (for the ClipWriter and
 recover_bag tests)."""
+
 from pathlib import Path
 
 from stylepong_recording.bag_check import JOINT_STATE_TYPE, JOINT_STATES, WRENCH, WRENCH_TYPE
@@ -27,8 +28,9 @@ def topic_spec(topic: str, msgtype: str) -> TopicSpec:
     return TopicSpec(topic, msgtype, *DEFINITIONS.definition(msgtype))
 
 
-def open_writer(bag_dir: Path, storage: str = 'mcap', label: str = 'forward',
-                topics=JOINT_STATES_AND_WRENCH) -> tuple[ClipWriter, FakeClock]:
+def open_writer(
+    bag_dir: Path, storage: str = 'mcap', label: str = 'forward', topics=JOINT_STATES_AND_WRENCH
+) -> tuple[ClipWriter, FakeClock]:
     """An open ClipWriter on a FakeClock at 0, its topics added and flushed to disk (a copy of the bag
     directory now holds them, as a crash would leave it)."""
     clock = FakeClock()

@@ -1,4 +1,5 @@
 """Reading JointState out of rosbag2 bags of every kind (stylepong_recording.bag_reading)."""
+
 import shutil
 
 import numpy as np
@@ -36,8 +37,14 @@ def random_message(rng):
     n_vel = int(rng.choice([0, n_pos, 1]))
     stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 999_999_999))
     frame_id = 'f' * int(rng.integers(0, 10))
-    return (stamp, names, rng.normal(size=n_pos), rng.normal(size=n_vel), rng.normal(size=int(rng.integers(0, 4))),
-            frame_id)
+    return (
+        stamp,
+        names,
+        rng.normal(size=n_pos),
+        rng.normal(size=n_vel),
+        rng.normal(size=int(rng.integers(0, 4))),
+        frame_id,
+    )
 
 
 def test_fast_reader_equals_rosbags_deserializer_on_random_messages():
@@ -55,18 +62,22 @@ def test_fast_reader_equals_rosbags_deserializer_on_random_messages():
 
 def test_batch_reader_takes_only_messages_with_the_template_layout():
     reader = JointStateCdrReader()
-    raws = [joint_state_cdr(STORE, EPOCH_NS + i, URDF_JOINTS, np.full(6, i), np.full(6, -i), frame_id='base')
-            for i in range(20)]
-    raws[5] = joint_state_cdr(STORE, EPOCH_NS + 5, URDF_JOINTS, np.full(6, 5.0), frame_id='base')   # no velocity
+    raws = [
+        joint_state_cdr(STORE, EPOCH_NS + i, URDF_JOINTS, np.full(6, i), np.full(6, -i), frame_id='base')
+        for i in range(20)
+    ]
+    raws[5] = joint_state_cdr(STORE, EPOCH_NS + 5, URDF_JOINTS, np.full(6, 5.0), frame_id='base')  # no velocity
     raws[7] = joint_state_cdr(STORE, EPOCH_NS + 7, URDF_JOINTS, np.full(6, 7.0), np.ones(6), frame_id='bose')
     layout, rows, stamps, pos, vel = reader.read_batch(raws, raws[0])
-    assert 5 not in rows and 7 in rows   # frame_id's characters do not decide any offset
+    assert 5 not in rows and 7 in rows  # frame_id's characters do not decide any offset
     assert np.array_equal(stamps, EPOCH_NS + rows)
     assert np.array_equal(pos[:, 0], rows.astype(float)) and pos.shape == (len(rows), 6) and vel.shape[1] == 6
 
 
-@pytest.mark.parametrize('storage,compression', [('mcap', None), ('sqlite3', None), ('sqlite3', 'message'),
-                                                 ('sqlite3', 'file'), ('mcap', 'file')])
+@pytest.mark.parametrize(
+    'storage,compression',
+    [('mcap', None), ('sqlite3', None), ('sqlite3', 'message'), ('sqlite3', 'file'), ('mcap', 'file')],
+)
 def test_recorder_bags_read_back_exactly(tmp_path, storage, compression):
     bag = tmp_path / 'forward_20251121_101112_123'
     count = write_recorder_bag(bag, SWING, SWING.total_s, storage=storage, compression=compression)
@@ -87,7 +98,7 @@ def test_driver_order_gripper_and_empty_velocities(tmp_path):
     assert np.array_equal(recording.header_stamp_ns, truth.stamps_ns)
     assert np.array_equal(recording.receive_time_ns, truth.receive_ns)
     expected = truth.q_true.copy()
-    expected[:, 5] = wrap_to_pi(expected[:, 5])   # as recorded; continuity is the dataset's job
+    expected[:, 5] = wrap_to_pi(expected[:, 5])  # as recorded; continuity is the dataset's job
     assert np.abs(recording.position_rad - expected).max() < 1e-12
     assert np.isnan(recording.velocity_rad_s).all()
     # Joints can be asked for in any order, including the driver's.
@@ -106,8 +117,10 @@ def test_metadata_qos_that_differs_from_the_storage_is_reported_and_read_past(tm
 
 def test_big_endian_messages_go_through_the_generic_decoder(tmp_path):
     stamps = EPOCH_NS + np.arange(50) * 2_000_000
-    messages = [(s, joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, i * 0.01), little_endian=(i % 2 == 0)))
-                for i, s in enumerate(stamps)]
+    messages = [
+        (s, joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, i * 0.01), little_endian=(i % 2 == 0)))
+        for i, s in enumerate(stamps)
+    ]
     write_raw_bag(tmp_path / 'bag', {'/joint_states': messages})
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert not recording.problems
@@ -117,8 +130,9 @@ def test_big_endian_messages_go_through_the_generic_decoder(tmp_path):
 def test_undecodable_messages_are_counted_and_the_rest_kept(tmp_path):
     bag = tmp_path / 'bag'
     bad = {10, 11, 200}
-    count = write_recorder_bag(bag, SWING, SWING.total_s, storage='sqlite3',
-                               raw_messages=lambda i, raw: raw[:30] if i in bad else raw)
+    count = write_recorder_bag(
+        bag, SWING, SWING.total_s, storage='sqlite3', raw_messages=lambda i, raw: raw[:30] if i in bad else raw
+    )
     recording = read_joint_states(bag, joints=URDF_JOINTS)
     assert recording.message_count == count - len(bad)
     (problem,) = recording.problems
@@ -127,8 +141,9 @@ def test_undecodable_messages_are_counted_and_the_rest_kept(tmp_path):
 
 def test_nan_positions_are_dropped_and_reported(tmp_path):
     stamps = EPOCH_NS + np.arange(20) * 2_000_000
-    messages = [(s, joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, np.nan if i == 4 else 0.1))) for i, s in
-                enumerate(stamps)]
+    messages = [
+        (s, joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, np.nan if i == 4 else 0.1))) for i, s in enumerate(stamps)
+    ]
     write_raw_bag(tmp_path / 'bag', {'/joint_states': messages})
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert recording.message_count == 19 and any('NaN' in p for p in recording.problems)
@@ -146,8 +161,15 @@ def test_empty_names_need_assume_order(tmp_path):
 
 def test_messages_without_the_requested_joints_are_ignored(tmp_path):
     stamps = EPOCH_NS + np.arange(40) * 2_000_000
-    messages = [(s, joint_state_cdr(STORE, s, ['gripper'], [0.2]) if i % 2 else
-                 joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, i))) for i, s in enumerate(stamps)]
+    messages = [
+        (
+            s,
+            joint_state_cdr(STORE, s, ['gripper'], [0.2])
+            if i % 2
+            else joint_state_cdr(STORE, s, URDF_JOINTS, np.full(6, i)),
+        )
+        for i, s in enumerate(stamps)
+    ]
     write_raw_bag(tmp_path / 'bag', {'/joint_states': messages})
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert recording.message_count == 20 and any('gripper' in n for n in recording.notes)
@@ -155,12 +177,12 @@ def test_messages_without_the_requested_joints_are_ignored(tmp_path):
         read_joint_states(tmp_path / 'bag', joints=('elbow_joint', 'missing_joint'))
 
 
-
 def test_a_drivers_tf_prefix_on_the_joint_names_is_read_past_and_noted(tmp_path):
     stamps = EPOCH_NS + np.arange(20) * 8_000_000
     prefixed = ['ur5_' + j for j in reversed(URDF_JOINTS)] + ['ur5_gripper_joint']
-    messages = [(s, joint_state_cdr(STORE, s, prefixed, [*np.arange(6.0)[::-1] + i, 0.5]))
-                for i, s in enumerate(stamps)]
+    messages = [
+        (s, joint_state_cdr(STORE, s, prefixed, [*np.arange(6.0)[::-1] + i, 0.5])) for i, s in enumerate(stamps)
+    ]
     write_raw_bag(tmp_path / 'bag', {'/joint_states': messages})
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert np.array_equal(recording.position_rad, np.arange(6.0) + np.arange(20)[:, None])
@@ -168,18 +190,25 @@ def test_a_drivers_tf_prefix_on_the_joint_names_is_read_past_and_noted(tmp_path)
 
     # Two arms in one message: no telling which is meant.
     two_arms = [('left_' + j) for j in URDF_JOINTS] + [('right_' + j) for j in URDF_JOINTS]
-    write_raw_bag(tmp_path / 'two', {'/joint_states': [(s, joint_state_cdr(STORE, s, two_arms, np.zeros(12)))
-                                                       for s in stamps]})
+    write_raw_bag(
+        tmp_path / 'two', {'/joint_states': [(s, joint_state_cdr(STORE, s, two_arms, np.zeros(12))) for s in stamps]}
+    )
     with pytest.raises(BagError, match='no message carries all of the joints'):
         read_joint_states(tmp_path / 'two', joints=URDF_JOINTS)
+
 
 def test_topic_choice(tmp_path):
     stamps = EPOCH_NS + np.arange(5) * 2_000_000
     js = [(s, joint_state_cdr(STORE, s, URDF_JOINTS, np.zeros(6))) for s in stamps]
-    text = [(s, bytes(STORE.serialize_cdr(STORE.types['std_msgs/msg/String'](data='x'), 'std_msgs/msg/String')))
-            for s in stamps]
-    write_raw_bag(tmp_path / 'bag', {'/a/joint_states': js, '/b/joint_states': js[:2], '/chatter': text},
-                  msgtypes={'/chatter': 'std_msgs/msg/String'})
+    text = [
+        (s, bytes(STORE.serialize_cdr(STORE.types['std_msgs/msg/String'](data='x'), 'std_msgs/msg/String')))
+        for s in stamps
+    ]
+    write_raw_bag(
+        tmp_path / 'bag',
+        {'/a/joint_states': js, '/b/joint_states': js[:2], '/chatter': text},
+        msgtypes={'/chatter': 'std_msgs/msg/String'},
+    )
     with pytest.raises(BagError, match='several JointState topics.*--topic'):
         read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS, topic='/b/joint_states').message_count == 2
@@ -247,9 +276,16 @@ def test_find_bags_searches_parents_and_reports_what_holds_none(tmp_path):
         write_recorder_bag(tmp_path / name, SWING, SWING.total_s, storage='sqlite3')
     (tmp_path / 'empty').mkdir()
     (tmp_path / 'notes.txt').write_text('x')
-    search = find_bags([tmp_path / 'a', tmp_path / 'b' / 'rightward_3',
-                        tmp_path / 'b' / 'rightward_3' / 'metadata.yaml',
-                        tmp_path / 'empty', tmp_path / 'nope', tmp_path / 'notes.txt'])
+    search = find_bags(
+        [
+            tmp_path / 'a',
+            tmp_path / 'b' / 'rightward_3',
+            tmp_path / 'b' / 'rightward_3' / 'metadata.yaml',
+            tmp_path / 'empty',
+            tmp_path / 'nope',
+            tmp_path / 'notes.txt',
+        ]
+    )
     assert [b.name for b in search.bags] == ['leftward_2', 'forward_1', 'rightward_3']
     assert {p.name: r for p, r in search.rejected}.keys() == {'empty', 'nope', 'notes.txt'}
     shutil.rmtree(tmp_path / 'a')
@@ -263,26 +299,35 @@ def test_a_non_standard_joint_state_definition_is_decoded_with_the_bags_own(tmp_
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     from stylepong_recording.joint_state_bags import JOINT_STATE_MSGDEF
+
     msgdef = JOINT_STATE_MSGDEF.replace('float64[] velocity', 'float32[] velocity')
     custom = get_typestore(Stores.EMPTY)
     custom.register(get_types_from_msg(msgdef, 'sensor_msgs/msg/JointState'))
     types = custom.types
     with Writer(tmp_path / 'bag', version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        connection = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', msgdef=msgdef,
-                                           rihs01=custom.hash_rihs01('sensor_msgs/msg/JointState'))
+        connection = writer.add_connection(
+            '/joint_states',
+            'sensor_msgs/msg/JointState',
+            msgdef=msgdef,
+            rihs01=custom.hash_rihs01('sensor_msgs/msg/JointState'),
+        )
         for i in range(10):
             message = types['sensor_msgs/msg/JointState'](
-                header=types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](sec=1000 + i, nanosec=0),
-                                                    frame_id=''),
-                name=list(URDF_JOINTS), position=np.full(6, 0.5 * i), velocity=np.full(6, i, dtype=np.float32),
-                effort=np.zeros(0))
-            writer.write(connection, (1000 + i) * 10**9,
-                         bytes(custom.serialize_cdr(message, 'sensor_msgs/msg/JointState')))
+                header=types['std_msgs/msg/Header'](
+                    stamp=types['builtin_interfaces/msg/Time'](sec=1000 + i, nanosec=0), frame_id=''
+                ),
+                name=list(URDF_JOINTS),
+                position=np.full(6, 0.5 * i),
+                velocity=np.full(6, i, dtype=np.float32),
+                effort=np.zeros(0),
+            )
+            writer.write(
+                connection, (1000 + i) * 10**9, bytes(custom.serialize_cdr(message, 'sensor_msgs/msg/JointState'))
+            )
     recording = read_joint_states(tmp_path / 'bag', joints=URDF_JOINTS)
     assert not recording.problems and any('differs from the standard' in n for n in recording.notes)
     assert np.array_equal(recording.position_rad[:, 2], 0.5 * np.arange(10))
     assert np.array_equal(recording.velocity_rad_s[:, 2], np.arange(10.0))
-
 
 
 def write_clip(output_dir, storage, killed=False):

@@ -1,6 +1,7 @@
 """compress_bag: a finished mcap clip rewritten with zstd chunks holds exactly what it held (read back by
 rosbags and, independently, by the mcap library); nothing else is touched; recover_bag keeps chunks
 compressed; a bag that is not whole, or not mcap, is refused with the reason."""
+
 import pytest
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
@@ -60,7 +61,7 @@ def test_a_clip_is_compressed_with_its_content_and_metadata_unchanged(tmp_path):
     assert (clip.bag_dir / 'metadata.yaml').read_text() == metadata_before
     assert compression.bag_content(clip.bag_dir) == before
     assert read_with_rosbags(clip.bag_dir).stamps[JOINT_STATES] == STAMPS
-    assert read_with_mcap_ros2(mcap).stamps[JOINT_STATES] == STAMPS     # the mcap library, through the index
+    assert read_with_mcap_ros2(mcap).stamps[JOINT_STATES] == STAMPS  # the mcap library, through the index
 
 
 def test_a_compressed_bag_is_left_untouched_and_recover_bag_keeps_it_compressed(tmp_path, capsys):
@@ -89,8 +90,11 @@ def test_a_copy_that_reads_back_differently_never_replaces_the_bag(tmp_path, mon
     def second_read_loses_a_message(bag_dir):
         content = read(bag_dir)
         reads.append(bag_dir)
-        return content if len(reads) == 1 else compression.BagContent(
-            content.custom_data, content.connections, content.messages[:-1])
+        return (
+            content
+            if len(reads) == 1
+            else compression.BagContent(content.custom_data, content.connections, content.messages[:-1])
+        )
 
     monkeypatch.setattr(compression, 'bag_content', second_read_loses_a_message)
     with pytest.raises(compression.CompressionError, match='reads back differently; the bag is unchanged'):
@@ -98,11 +102,14 @@ def test_a_copy_that_reads_back_differently_never_replaces_the_bag(tmp_path, mon
     assert files_of(clip.bag_dir) == before
 
 
-@pytest.mark.parametrize('case, reason', [
-    ('no_metadata', 'is not a whole bag (no readable metadata.yaml): make it readable with recover_bag first'),
-    ('sqlite3', 'is a sqlite3 bag: only mcap bags have compressed chunks'),
-    ('missing', 'does not exist'),
-])
+@pytest.mark.parametrize(
+    'case, reason',
+    [
+        ('no_metadata', 'is not a whole bag (no readable metadata.yaml): make it readable with recover_bag first'),
+        ('sqlite3', 'is a sqlite3 bag: only mcap bags have compressed chunks'),
+        ('missing', 'does not exist'),
+    ],
+)
 def test_what_cannot_be_compressed_is_refused_with_the_reason(tmp_path, capsys, case, reason):
     bag_dir = tmp_path / case
     if case != 'missing':

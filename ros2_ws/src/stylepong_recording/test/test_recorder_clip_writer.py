@@ -1,4 +1,5 @@
 """ClipWriter: labelled rosbag2 clips through rosbags, flushed often, clear errors (no ROS graph)."""
+
 import datetime
 import errno
 
@@ -33,11 +34,22 @@ def test_safe_labels_are_accepted(label):
     assert label_problem(label) is None
 
 
-@pytest.mark.parametrize('label, why', [
-    ('', 'empty'), ('a/b', 'separator'), ('../up', 'separator'), ('a\\b', 'separator'), ('..', 'separator'),
-    ('.hidden', 'starts with'), ('-x', 'starts with'), ('with space', 'characters'), ('tab\there', 'characters'),
-    ('nul\0', 'characters'), ('A' * 65, 'longer than'),
-])
+@pytest.mark.parametrize(
+    'label, why',
+    [
+        ('', 'empty'),
+        ('a/b', 'separator'),
+        ('../up', 'separator'),
+        ('a\\b', 'separator'),
+        ('..', 'separator'),
+        ('.hidden', 'starts with'),
+        ('-x', 'starts with'),
+        ('with space', 'characters'),
+        ('tab\there', 'characters'),
+        ('nul\0', 'characters'),
+        ('A' * 65, 'longer than'),
+    ],
+)
 def test_unsafe_labels_are_refused_with_the_reason(label, why):
     assert why in label_problem(label)
 
@@ -65,8 +77,7 @@ def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, st
     assert summary.message_counts == {JOINT_STATES: 1500, WRENCH: 0}
     assert summary.duration_s == pytest.approx(1499 * 0.002)
     suffix = {'mcap': '.mcap', 'sqlite3': '.db3'}[storage]
-    assert sorted(p.name for p in clip.bag_dir.iterdir()) == ['forward_20250102_030405_000' + suffix,
-                                                               'metadata.yaml']
+    assert sorted(p.name for p in clip.bag_dir.iterdir()) == ['forward_20250102_030405_000' + suffix, 'metadata.yaml']
     content = read_with_rosbags(clip.bag_dir)
     assert content.custom_data == {'label': 'forward'}
     assert content.stamps[JOINT_STATES] == stamps
@@ -77,7 +88,7 @@ def test_clip_reads_back_with_every_message_its_log_times_and_label(tmp_path, st
         assert mcap.stamps[JOINT_STATES] == stamps
         assert mcap.metadata_counts[JOINT_STATES] == 1500
         assert 'rosbag2' in mcap.custom_data
-    else:   # the .db3 file through Python's sqlite3 and a CDR decoder of its own
+    else:  # the .db3 file through Python's sqlite3 and a CDR decoder of its own
         sql, joint_states = read_with_sqlite3(storage_file(clip.bag_dir, '.db3'))
         assert sql.custom_data == {'label': 'forward'}
         assert sql.stamps == {JOINT_STATES: stamps, WRENCH: []}
@@ -90,7 +101,7 @@ def test_topics_can_join_a_running_clip(tmp_path):
     clip = open_clip(tmp_path, 'forward', 'mcap', [topic_spec(JOINT_STATES, JOINT_STATE_TYPE)])
     clip.write(JOINT_STATES, 10, joint_state_cdr(1))
     clip.add_topic(topic_spec(WRENCH, WRENCH_TYPE))
-    clip.add_topic(topic_spec(WRENCH, WRENCH_TYPE))       # idempotent
+    clip.add_topic(topic_spec(WRENCH, WRENCH_TYPE))  # idempotent
     clip.write(JOINT_STATES, 20, joint_state_cdr(2))
     assert clip.close().message_counts == {JOINT_STATES: 2, WRENCH: 0}
     assert read_with_rosbags(clip.bag_dir).stamps == {JOINT_STATES: [1, 2], WRENCH: []}
@@ -102,16 +113,16 @@ def test_flush_happens_once_per_period_while_writing(tmp_path):
     clip.write(JOINT_STATES, 1, joint_state_cdr(1))
     clock.now_s = 0.09
     clip.write(JOINT_STATES, 2, joint_state_cdr(2))
-    assert clip.storage_path.stat().st_size == size       # still in memory
+    assert clip.storage_path.stat().st_size == size  # still in memory
     clock.now_s = 0.1
     clip.write(JOINT_STATES, 3, joint_state_cdr(3))
-    assert clip.storage_path.stat().st_size > size        # period over: all three went to the OS
+    assert clip.storage_path.stat().st_size > size  # period over: all three went to the OS
     size = clip.storage_path.stat().st_size
     clip.write(JOINT_STATES, 4, joint_state_cdr(4))
     clip.flush_if_due()
     assert clip.storage_path.stat().st_size == size
     clock.now_s = 0.25
-    clip.flush_if_due()                                  # the node's timer, when no message comes
+    clip.flush_if_due()  # the node's timer, when no message comes
     assert clip.storage_path.stat().st_size > size
     clip.close()
     assert read_with_rosbags(clip.bag_dir).stamps[JOINT_STATES] == [1, 2, 3, 4]
@@ -151,6 +162,7 @@ def test_a_full_disk_while_writing_stops_the_clip_with_the_reason(tmp_path, stor
 
     def no_space():
         raise OSError(errno.ENOSPC, 'No space left on device')
+
     monkeypatch.setattr(clip._writer.storage, 'flush', no_space)
     clock.now_s = 1.0
     with pytest.raises(ClipError, match='disk full') as failure:

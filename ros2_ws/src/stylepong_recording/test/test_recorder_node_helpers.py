@@ -1,5 +1,6 @@
 """The recorder node's small decisions: where a relative output_dir goes, which QoS it subscribes with,
 how offered QoS is stored."""
+
 from pathlib import Path
 
 from rclpy.duration import Infinite
@@ -24,8 +25,10 @@ def test_a_relative_output_dir_is_taken_from_the_project_root_not_the_current_di
 def test_reliable_unless_a_publisher_only_offers_best_effort():
     assert subscription_reliability([]) == ReliabilityPolicy.RELIABLE
     assert subscription_reliability([ReliabilityPolicy.RELIABLE]) == ReliabilityPolicy.RELIABLE
-    assert subscription_reliability([ReliabilityPolicy.RELIABLE, ReliabilityPolicy.BEST_EFFORT]) == \
-        ReliabilityPolicy.BEST_EFFORT
+    assert (
+        subscription_reliability([ReliabilityPolicy.RELIABLE, ReliabilityPolicy.BEST_EFFORT])
+        == ReliabilityPolicy.BEST_EFFORT
+    )
 
 
 def test_offered_qos_is_stored_as_rosbag2_writes_it():

@@ -1,5 +1,6 @@
 """The recorder's parameters: the YAML file and the node's table agree; bad ones are refused in one line
 naming them, with stylepong_common's exit code, by the command and by its old stylepong_fdcc name."""
+
 import pathlib
 
 import pytest
@@ -26,9 +27,13 @@ def test_the_yaml_file_holds_every_parameter_with_the_node_default():
 def test_integers_pass_for_floats_and_extra_topics_are_resolved(tmp_path):
     rclpy.init()
     try:
-        node = RecorderNode(parameter_overrides=[Parameter('output_dir', value=str(tmp_path)),
-                                                 Parameter('min_free_space_mb', value=5),
-                                                 Parameter('topics', value=['/ball/state', 'joint_states'])])
+        node = RecorderNode(
+            parameter_overrides=[
+                Parameter('output_dir', value=str(tmp_path)),
+                Parameter('min_free_space_mb', value=5),
+                Parameter('topics', value=['/ball/state', 'joint_states']),
+            ]
+        )
         assert node.output_dir == tmp_path and node.min_free_space_mb == 5.0
         assert node.topics == ['/joint_states', '/ball/state']
         node.destroy_node()
@@ -36,12 +41,17 @@ def test_integers_pass_for_floats_and_extra_topics_are_resolved(tmp_path):
         rclpy.try_shutdown()
 
 
-@pytest.mark.parametrize('override', [Parameter('flush_period_s', value=-0.1),
-                                      Parameter('flush_period_s', value=0.5),
-                                      Parameter('storage', value='zip'),
-                                      Parameter('queue_depth', value=2.5),
-                                      Parameter('output_dir', value=''),
-                                      Parameter('topics', value=[1, 2])])
+@pytest.mark.parametrize(
+    'override',
+    [
+        Parameter('flush_period_s', value=-0.1),
+        Parameter('flush_period_s', value=0.5),
+        Parameter('storage', value='zip'),
+        Parameter('queue_depth', value=2.5),
+        Parameter('output_dir', value=''),
+        Parameter('topics', value=[1, 2]),
+    ],
+)
 def test_the_node_refuses_bad_parameters_with_their_name(override):
     rclpy.init()
     try:

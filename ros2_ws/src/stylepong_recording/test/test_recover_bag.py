@@ -1,6 +1,7 @@
 """recover_bag: bags left by a killed recorder become readable with everything flushed; healthy bags stay
 untouched; clear errors. A crash is reproduced exactly by copying the bag directory while its writer is
 still open: the copy holds what the OS had (a SIGKILL keeps that and loses the process's memory)."""
+
 import os
 import random
 import shutil
@@ -60,7 +61,7 @@ def test_a_killed_clip_is_recovered_with_everything_flushed_and_its_label(tmp_pa
     clip, clock = open_writer(tmp_path / 'forward_20250101_120000_000', storage)
     flushed = list(range(1, 1001))
     write_flushed(clip, clock, flushed)
-    for stamp in range(1001, 1031):                    # in memory only (mcap) / uncommitted (sqlite3)
+    for stamp in range(1001, 1031):  # in memory only (mcap) / uncommitted (sqlite3)
         clip.write(JOINT_STATES, stamp, joint_state_cdr(stamp))
     crashed = crash_copy(clip, tmp_path / 'crashed')
     clip.abort()
@@ -83,7 +84,7 @@ def test_a_killed_clip_is_recovered_with_everything_flushed_and_its_label(tmp_pa
     assert content.metadata_counts == {JOINT_STATES: 1000, WRENCH: 0}
     if storage == 'mcap':
         assert read_with_mcap_ros2(storage_file(crashed, '.mcap')).stamps[JOINT_STATES] == flushed
-    else:   # the .db3 file alone, through Python's sqlite3: the WAL was folded in, nothing uncommitted kept
+    else:  # the .db3 file alone, through Python's sqlite3: the WAL was folded in, nothing uncommitted kept
         sql, joint_states = read_with_sqlite3(storage_file(crashed, '.db3'))
         assert sql.stamps[JOINT_STATES] == flushed
         assert [js.position[0] for js in joint_states] == [stamp * 1e-9 for stamp in flushed]
@@ -107,7 +108,7 @@ def test_an_mcap_cut_anywhere_keeps_every_whole_chunk_before_the_cut(tmp_path):
     whole = storage_file(clip.bag_dir, '.mcap')
     data = whole.read_bytes()
     ends = mcap_chunk_ends(whole)
-    first_chunk_end = ends[0][0]                        # schemas and channels only
+    first_chunk_end = ends[0][0]  # schemas and channels only
     rng = random.Random(4)
     cuts = [first_chunk_end, ends[5][0], ends[5][0] + 1, ends[-1][0], len(data) - 1]
     cuts += rng.sample(range(first_chunk_end, len(data)), 10)
@@ -118,9 +119,9 @@ def test_an_mcap_cut_anywhere_keeps_every_whole_chunk_before_the_cut(tmp_path):
         report = recover_bag(bag)
         expected = sum(n for end, n in ends if end <= cut)
         recovered = read_with_rosbags(bag).stamps[JOINT_STATES]
-        assert recovered == stamps[:len(recovered)], f'cut at {cut}: not a prefix of what was written'
+        assert recovered == stamps[: len(recovered)], f'cut at {cut}: not a prefix of what was written'
         assert len(recovered) >= expected, f'cut at {cut}: {len(recovered)} < {expected} messages'
-        assert report.custom_data == {}                  # no metadata, no note, name not <label>_<time>
+        assert report.custom_data == {}  # no metadata, no note, name not <label>_<time>
 
 
 def test_a_healthy_bag_is_left_untouched_and_recovery_is_idempotent(tmp_path):
@@ -201,9 +202,14 @@ def test_unrecoverable_input_gives_a_clear_error_and_exit_status_1(tmp_path, cap
     (tmp_path / 'notdb').mkdir()
     (tmp_path / 'notdb' / 'x.db3').write_bytes(b'not sqlite either, but long enough to be read as a header' * 4)
     (tmp_path / 'file').write_text('')
-    cases = [('missing', 'does not exist'), ('file', 'is not a directory'), ('empty', 'no .mcap or .db3'),
-             ('garbage', 'not an MCAP file'), ('two', 'several storage files'),
-             ('notdb', 'not a readable sqlite3 bag')]
+    cases = [
+        ('missing', 'does not exist'),
+        ('file', 'is not a directory'),
+        ('empty', 'no .mcap or .db3'),
+        ('garbage', 'not an MCAP file'),
+        ('two', 'several storage files'),
+        ('notdb', 'not a readable sqlite3 bag'),
+    ]
     for name, reason in cases:
         with pytest.raises(RecoveryError, match=reason):
             recover_bag(tmp_path / name)

@@ -24,6 +24,7 @@ a graph that never gets there is read 10 s later at the latest.
 Stopping. SIGINT (Ctrl-C) and SIGTERM (`timeout`, `kill`) end every verb quietly with status 0; a
 second signal during the clean-up exits at once.
 """
+
 import argparse
 import collections
 import math
@@ -32,10 +33,10 @@ import signal
 import sys
 import time
 
-DEFAULT_SPIN_TIME_S = 3.5   # Fast DDS's default announcement period (3 s) and a margin
-GRAPH_SETTLE_S = 0.5        # after --spin-time, a complete graph must also be unchanged this long
-GRAPH_MAX_EXTRA_S = 10.0    # a graph that stays incomplete or keeps changing is read this long after --spin-time
-DISCOVERY_INFO_TOPIC = 'ros_discovery_info'   # a DDS topic name, without the rt/ of ROS topics
+DEFAULT_SPIN_TIME_S = 3.5  # Fast DDS's default announcement period (3 s) and a margin
+GRAPH_SETTLE_S = 0.5  # after --spin-time, a complete graph must also be unchanged this long
+GRAPH_MAX_EXTRA_S = 10.0  # a graph that stays incomplete or keeps changing is read this long after --spin-time
+DISCOVERY_INFO_TOPIC = 'ros_discovery_info'  # a DDS topic name, without the rt/ of ROS topics
 
 
 def _hand_over_to_real_ros2cli() -> None:
@@ -49,8 +50,10 @@ def _hand_over_to_real_ros2cli() -> None:
 # ---------------------------------------------------------------------------------------------
 # ros2 run / pkg: the ament resource index, exactly as ros2run / ros2pkg use it.
 
+
 def _package_prefix(package: str) -> str:
     from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
     try:
         return get_package_prefix(package)
     except PackageNotFoundError:
@@ -72,10 +75,13 @@ def _executables(package: str) -> list:
 def cmd_run(argv: list) -> int:
     """ros2 run: execute a package's executable."""
     parser = argparse.ArgumentParser(prog='ros2 run', description='Run a package specific executable')
-    parser.add_argument('--prefix', metavar='PREFIX',
-                        help="Prefix command, which should go before the executable. "
-                             "Command must be wrapped in quotes if it contains spaces "
-                             "(e.g. --prefix 'gdb -ex run --args').")
+    parser.add_argument(
+        '--prefix',
+        metavar='PREFIX',
+        help='Prefix command, which should go before the executable. '
+        'Command must be wrapped in quotes if it contains spaces '
+        "(e.g. --prefix 'gdb -ex run --args').",
+    )
     parser.add_argument('package_name', help='Name of the ROS package')
     parser.add_argument('executable_name', help='Name of the executable')
     parser.add_argument('argv', nargs=argparse.REMAINDER, help='Pass arbitrary arguments to the executable')
@@ -110,6 +116,7 @@ def cmd_pkg(argv: list) -> int:
     p_exe.add_argument('package_name', nargs='?')
     args = parser.parse_args(argv)
     from ament_index_python.packages import get_packages_with_prefixes
+
     if args.verb == 'list':
         for name in sorted(get_packages_with_prefixes()):
             print(name)
@@ -126,11 +133,12 @@ def cmd_pkg(argv: list) -> int:
 # ---------------------------------------------------------------------------------------------
 # ros2 topic / node: a short-lived node on the graph.
 
+
 class _Stopped(Exception):
     """SIGINT or SIGTERM arrived: the verb ends quietly."""
 
 
-_stop_signal: str | None = None   # the name of the SIGINT or SIGTERM that arrived, once one has
+_stop_signal: str | None = None  # the name of the SIGINT or SIGTERM that arrived, once one has
 
 
 def _stop_on_signals() -> None:
@@ -139,6 +147,7 @@ def _stop_on_signals() -> None:
     rclpy's own handlers are not installed (see _start_node): on SIGTERM they shut the context down
     under a spinning node, which surfaces as an ExternalShutdownException traceback.
     """
+
     def on_signal(signum, _frame):
         global _stop_signal
         _stop_signal = signal.Signals(signum).name
@@ -156,15 +165,18 @@ def _stop_on_signals() -> None:
 def _start_node(name: str):
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(name, start_parameter_services=False, enable_rosout=False)
     return rclpy, node
 
 
 def _graph_snapshot(node):
-    return (sorted((name, tuple(types)) for name, types in node.get_topic_names_and_types()),
-            sorted(node.get_node_names_and_namespaces()),
-            sorted((name, tuple(types)) for name, types in node.get_service_names_and_types()))
+    return (
+        sorted((name, tuple(types)) for name, types in node.get_topic_names_and_types()),
+        sorted(node.get_node_names_and_namespaces()),
+        sorted((name, tuple(types)) for name, types in node.get_service_names_and_types()),
+    )
 
 
 class _DiscoveryInfoReader:
@@ -188,20 +200,35 @@ class _DiscoveryInfoReader:
         class RmwTime(ctypes.Structure):
             _fields_ = [('sec', ctypes.c_uint64), ('nsec', ctypes.c_uint64)]
 
-        class RmwQosProfile(ctypes.Structure):   # rmw/types.h, rmw_qos_profile_t
-            _fields_ = [('history', ctypes.c_int), ('depth', ctypes.c_size_t), ('reliability', ctypes.c_int),
-                        ('durability', ctypes.c_int), ('deadline', RmwTime), ('lifespan', RmwTime),
-                        ('liveliness', ctypes.c_int), ('liveliness_lease_duration', RmwTime),
-                        ('avoid_ros_namespace_conventions', ctypes.c_bool)]
+        class RmwQosProfile(ctypes.Structure):  # rmw/types.h, rmw_qos_profile_t
+            _fields_ = [
+                ('history', ctypes.c_int),
+                ('depth', ctypes.c_size_t),
+                ('reliability', ctypes.c_int),
+                ('durability', ctypes.c_int),
+                ('deadline', RmwTime),
+                ('lifespan', RmwTime),
+                ('liveliness', ctypes.c_int),
+                ('liveliness_lease_duration', RmwTime),
+                ('avoid_ros_namespace_conventions', ctypes.c_bool),
+            ]
 
-        class Allocator(ctypes.Structure):       # rcutils/allocator.h, rcutils_allocator_t
-            _fields_ = [('allocate', ctypes.c_void_p), ('deallocate', ctypes.c_void_p),
-                        ('reallocate', ctypes.c_void_p), ('zero_allocate', ctypes.c_void_p),
-                        ('state', ctypes.c_void_p)]
+        class Allocator(ctypes.Structure):  # rcutils/allocator.h, rcutils_allocator_t
+            _fields_ = [
+                ('allocate', ctypes.c_void_p),
+                ('deallocate', ctypes.c_void_p),
+                ('reallocate', ctypes.c_void_p),
+                ('zero_allocate', ctypes.c_void_p),
+                ('state', ctypes.c_void_p),
+            ]
 
-        class SerializedMessage(ctypes.Structure):   # rcutils/types/uint8_array.h, rmw_serialized_message_t
-            _fields_ = [('buffer', ctypes.c_void_p), ('buffer_length', ctypes.c_size_t),
-                        ('buffer_capacity', ctypes.c_size_t), ('allocator', Allocator)]
+        class SerializedMessage(ctypes.Structure):  # rcutils/types/uint8_array.h, rmw_serialized_message_t
+            _fields_ = [
+                ('buffer', ctypes.c_void_p),
+                ('buffer_length', ctypes.c_size_t),
+                ('buffer_capacity', ctypes.c_size_t),
+                ('allocator', Allocator),
+            ]
 
         self._ctypes, self._message_type = ctypes, ParticipantEntitiesInfo
         # rclpy has loaded librcl; symbols looked up through it are found in the libraries it links
@@ -221,14 +248,20 @@ class _DiscoveryInfoReader:
 
         check_for_type_support(ParticipantEntitiesInfo)
         type_support = ctypes.pythonapi.PyCapsule_GetPointer(ParticipantEntitiesInfo._TYPE_SUPPORT, None)
-        qos = RmwQosProfile(history=1, depth=100, reliability=1, durability=1,   # keep last, reliable, transient local
-                            avoid_ros_namespace_conventions=True)
+        qos = RmwQosProfile(
+            history=1,
+            depth=100,
+            reliability=1,
+            durability=1,  # keep last, reliable, transient local
+            avoid_ros_namespace_conventions=True,
+        )
         # rmw_subscription_options_t, all defaults (null payload, local publications delivered, no
         # content filter) are zeros; the buffer is larger than the struct in any rmw version.
         options = (ctypes.c_uint8 * 128)()
         self._rmw_node = lib.rcl_node_get_rmw_handle(node.handle.pointer)
         self._subscription = lib.rmw_create_subscription(
-            self._rmw_node, type_support, DISCOVERY_INFO_TOPIC.encode(), ctypes.byref(qos), options)
+            self._rmw_node, type_support, DISCOVERY_INFO_TOPIC.encode(), ctypes.byref(qos), options
+        )
         if not self._subscription:
             lib.rcutils_reset_error()
             raise OSError(f'rmw_create_subscription({DISCOVERY_INFO_TOPIC}) failed')
@@ -242,9 +275,14 @@ class _DiscoveryInfoReader:
         """The ParticipantEntitiesInfo messages received since the last call."""
         ctypes, messages, taken = self._ctypes, [], self._ctypes.c_bool()
         from rclpy.serialization import deserialize_message
-        while (self._lib.rmw_take_serialized_message(
-                self._subscription, ctypes.byref(self._message), ctypes.byref(taken), None) == 0
-               and taken.value):
+
+        while (
+            self._lib.rmw_take_serialized_message(
+                self._subscription, ctypes.byref(self._message), ctypes.byref(taken), None
+            )
+            == 0
+            and taken.value
+        ):
             data = ctypes.string_at(self._message.buffer, self._message.buffer_length)
             messages.append(deserialize_message(data, self._message_type))
         return messages
@@ -262,14 +300,17 @@ def _open_discovery_info_reader(node):
     the graph being unchanged for GRAPH_SETTLE_S alone)."""
     try:
         return _DiscoveryInfoReader(node)
-    except (OSError, AttributeError):   # no librcl by that name, a missing symbol, or rmw refused
+    except (OSError, AttributeError):  # no librcl by that name, a missing symbol, or rmw refused
         return None
 
 
 def _named_endpoints(info) -> set:
     """The GIDs of every reader and writer a ParticipantEntitiesInfo names, as bytes."""
-    return {bytes(gid.data) for node_info in info.node_entities_info_seq
-            for gid in (*node_info.reader_gid_seq, *node_info.writer_gid_seq)}
+    return {
+        bytes(gid.data)
+        for node_info in info.node_entities_info_seq
+        for gid in (*node_info.reader_gid_seq, *node_info.writer_gid_seq)
+    }
 
 
 def _discovered_endpoints(node):
@@ -307,8 +348,9 @@ def _wait_for_graph(node, spin_time: float) -> None:
     endpoints are discovered and the graph has been unchanged for GRAPH_SETTLE_S (at most
     GRAPH_MAX_EXTRA_S more)."""
     import rclpy
+
     reader = _open_discovery_info_reader(node)
-    named = {}   # participant GUID prefix -> endpoint GIDs of its latest discovery info
+    named = {}  # participant GUID prefix -> endpoint GIDs of its latest discovery info
     start = time.monotonic()
     seen = _graph_snapshot(node)
     last_change = start
@@ -337,17 +379,26 @@ def _wait_for_graph(node, spin_time: float) -> None:
 
 
 def _add_spin_time(parser) -> None:
-    parser.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME_S, metavar='SECONDS',
-                        help='Spin time in seconds to wait for discovery; the wait goes on until every '
-                             "node's endpoints are discovered and the graph has settled "
-                             f'(default: {DEFAULT_SPIN_TIME_S})')
-    parser.add_argument('--no-daemon', action='store_true',
-                        help='Accepted for compatibility with ros2cli; this command never uses a daemon')
+    parser.add_argument(
+        '--spin-time',
+        type=float,
+        default=DEFAULT_SPIN_TIME_S,
+        metavar='SECONDS',
+        help='Spin time in seconds to wait for discovery; the wait goes on until every '
+        "node's endpoints are discovered and the graph has settled "
+        f'(default: {DEFAULT_SPIN_TIME_S})',
+    )
+    parser.add_argument(
+        '--no-daemon',
+        action='store_true',
+        help='Accepted for compatibility with ros2cli; this command never uses a daemon',
+    )
 
 
 def _topic_type(node, topic: str, wait_s: float):
     deadline = time.monotonic() + wait_s
     import rclpy
+
     while True:
         for name, types in node.get_topic_names_and_types():
             if name == topic:
@@ -360,6 +411,7 @@ def _topic_type(node, topic: str, wait_s: float):
 def _subscription_qos(node, topic: str):
     """Match the publishers: best effort if any publisher is best effort (what ros2cli does)."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
     infos = node.get_publishers_info_by_topic(topic)
     qos = QoSProfile(depth=10)
     if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
@@ -389,8 +441,13 @@ def cmd_topic(argv: list) -> int:
     p_echo.add_argument('--flow-style', action='store_true', help='Print collections in the block style')
     p_hz = sub.add_parser('hz', help='Print the average publishing rate to screen')
     p_hz.add_argument('topic_name')
-    p_hz.add_argument('-w', '--window', type=int, default=10000,
-                      help='window size, in # of messages, for calculating rate (default: 10000)')
+    p_hz.add_argument(
+        '-w',
+        '--window',
+        type=int,
+        default=10000,
+        help='window size, in # of messages, for calculating rate (default: 10000)',
+    )
     p_info = sub.add_parser('info', help='Print information about a topic')
     p_info.add_argument('topic_name')
     for verb_parser in (p_list, p_echo, p_hz, p_info):
@@ -405,7 +462,7 @@ def cmd_topic(argv: list) -> int:
         if args.verb == 'list':
             _wait_for_graph(node, args.spin_time)
             for name, types in sorted(node.get_topic_names_and_types()):
-                print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+                print(f'{name} [{", ".join(types)}]' if args.show_types else name)
             return 0
         topic = _resolve(args.topic_name)
         if args.verb == 'info':
@@ -413,7 +470,7 @@ def cmd_topic(argv: list) -> int:
             types = dict(node.get_topic_names_and_types()).get(topic)
             if types is None:
                 raise SystemExit(f"Unknown topic '{topic}'")
-            print(f"Type: {'; '.join(types)}")
+            print(f'Type: {"; ".join(types)}')
             print(f'Publisher count: {node.count_publishers(topic)}')
             print(f'Subscription count: {node.count_subscribers(topic)}')
             return 0
@@ -440,6 +497,7 @@ def _stop_node(rclpy, node) -> None:
 def _message_class(type_name: str):
     """'sensor_msgs/msg/JointState' -> the Python class (rosidl_runtime_py is not among the wheels)."""
     import importlib
+
     package, interface, name = type_name.split('/')
     return getattr(importlib.import_module(f'{package}.{interface}'), name)
 
@@ -468,11 +526,11 @@ def _to_plain(value, no_arr: bool):
 def message_to_yaml(msg, no_arr: bool = False, flow_style: bool = False) -> str:
     """A message as YAML, the way ros2 topic echo prints it."""
     import yaml
+
     plain = _to_plain(msg, no_arr)
     if not isinstance(plain, (dict, list)):
         return f'{plain}\n'
-    return yaml.dump(plain, sort_keys=False, default_flow_style=flow_style,
-                     allow_unicode=True, width=float('inf'))
+    return yaml.dump(plain, sort_keys=False, default_flow_style=flow_style, allow_unicode=True, width=float('inf'))
 
 
 def _echo(rclpy, node, topic, msg_class, qos, args) -> int:
@@ -511,9 +569,11 @@ def _hz(rclpy, node, topic, msg_class, qos, window: int) -> int:
         periods = [b - a for a, b in zip(stamps, stamps[1:])]
         mean = sum(periods) / len(periods)
         std = math.sqrt(sum((p - mean) ** 2 for p in periods) / len(periods))
-        print(f'average rate: {1.0 / mean:.3f}\n'
-              f'\tmin: {min(periods):.3f}s max: {max(periods):.3f}s std dev: {std:.5f}s window: {len(periods) + 1}',
-              flush=True)
+        print(
+            f'average rate: {1.0 / mean:.3f}\n'
+            f'\tmin: {min(periods):.3f}s max: {max(periods):.3f}s std dev: {std:.5f}s window: {len(periods) + 1}',
+            flush=True,
+        )
     return 0
 
 
@@ -535,38 +595,78 @@ def _add_pub_arguments(parser) -> None:
     """ros2cli's `ros2 topic pub` arguments (Jazzy), with the same names, defaults and meaning."""
     parser.add_argument('topic_name', help="Name of the ROS topic to publish to (e.g. '/chatter')")
     parser.add_argument('message_type', help="Type of the ROS message (e.g. 'std_msgs/msg/String')")
-    parser.add_argument('values', nargs='?', default='{}',
-                        help='Values to fill the message with in YAML format (e.g. "{data: true}"), '
-                             'otherwise the message is published with default values')
-    parser.add_argument('-r', '--rate', metavar='N', type=_positive_float, default=1.0,
-                        help='Publishing rate in Hz (default: 1)')
-    parser.add_argument('-p', '--print', metavar='N', type=int, default=1,
-                        help='Only print every N-th published message (default: 1; 0: none)')
+    parser.add_argument(
+        'values',
+        nargs='?',
+        default='{}',
+        help='Values to fill the message with in YAML format (e.g. "{data: true}"), '
+        'otherwise the message is published with default values',
+    )
+    parser.add_argument(
+        '-r', '--rate', metavar='N', type=_positive_float, default=1.0, help='Publishing rate in Hz (default: 1)'
+    )
+    parser.add_argument(
+        '-p',
+        '--print',
+        metavar='N',
+        type=int,
+        default=1,
+        help='Only print every N-th published message (default: 1; 0: none)',
+    )
     once_or_times = parser.add_mutually_exclusive_group()
     once_or_times.add_argument('-1', '--once', action='store_true', help='Publish one message and exit')
-    once_or_times.add_argument('-t', '--times', type=_nonnegative_int, default=0,
-                               help='Publish this number of times and then exit')
-    parser.add_argument('-w', '--wait-matching-subscriptions', type=_nonnegative_int, default=None,
-                        help='Wait until finding the specified number of matching subscriptions. '
-                             'Defaults to 1 when using "-1"/"--once"/"--times", otherwise defaults to 0.')
-    parser.add_argument('--max-wait-time-secs', type=_positive_float, default=None,
-                        help='Give up waiting for matching subscriptions after this many seconds and '
-                             'publish anyway (default: wait for ever)')
-    parser.add_argument('--keep-alive', metavar='N', type=_positive_float, default=0.1,
-                        help='Keep publishing node alive for N seconds after the last msg (default: 0.1)')
+    once_or_times.add_argument(
+        '-t', '--times', type=_nonnegative_int, default=0, help='Publish this number of times and then exit'
+    )
+    parser.add_argument(
+        '-w',
+        '--wait-matching-subscriptions',
+        type=_nonnegative_int,
+        default=None,
+        help='Wait until finding the specified number of matching subscriptions. '
+        'Defaults to 1 when using "-1"/"--once"/"--times", otherwise defaults to 0.',
+    )
+    parser.add_argument(
+        '--max-wait-time-secs',
+        type=_positive_float,
+        default=None,
+        help='Give up waiting for matching subscriptions after this many seconds and '
+        'publish anyway (default: wait for ever)',
+    )
+    parser.add_argument(
+        '--keep-alive',
+        metavar='N',
+        type=_positive_float,
+        default=0.1,
+        help='Keep publishing node alive for N seconds after the last msg (default: 0.1)',
+    )
     parser.add_argument('-n', '--node-name', help='Name of the created publishing node')
-    parser.add_argument('--qos-depth', metavar='N', type=_nonnegative_int, default=10,
-                        help='Queue size setting to publish with (default: 10)')
-    parser.add_argument('--qos-reliability', choices=('reliable', 'best_effort'), default='reliable',
-                        help='Quality of service reliability setting to publish with (default: reliable)')
-    parser.add_argument('--qos-durability', choices=('volatile', 'transient_local'), default='volatile',
-                        help='Quality of service durability setting to publish with (default: volatile)')
+    parser.add_argument(
+        '--qos-depth',
+        metavar='N',
+        type=_nonnegative_int,
+        default=10,
+        help='Queue size setting to publish with (default: 10)',
+    )
+    parser.add_argument(
+        '--qos-reliability',
+        choices=('reliable', 'best_effort'),
+        default='reliable',
+        help='Quality of service reliability setting to publish with (default: reliable)',
+    )
+    parser.add_argument(
+        '--qos-durability',
+        choices=('volatile', 'transient_local'),
+        default='volatile',
+        help='Quality of service durability setting to publish with (default: volatile)',
+    )
 
 
 def _pub(args) -> int:
     """ros2 topic pub: the message is built (and any error in it reported) before a node exists."""
     import yaml
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
     msg_class = _message_class(args.message_type)
     msg = msg_class()
     stamp_fields = []
@@ -579,9 +679,11 @@ def _pub(args) -> int:
     wait_for = args.wait_matching_subscriptions
     if wait_for is None:
         wait_for = 1 if times else 0
-    qos = QoSProfile(depth=args.qos_depth,
-                     reliability=ReliabilityPolicy[args.qos_reliability.upper()],
-                     durability=DurabilityPolicy[args.qos_durability.upper()])
+    qos = QoSProfile(
+        depth=args.qos_depth,
+        reliability=ReliabilityPolicy[args.qos_reliability.upper()],
+        durability=DurabilityPolicy[args.qos_durability.upper()],
+    )
 
     rclpy, node = _start_node(args.node_name or '_ros2cli_%d' % os.getpid())
     try:
@@ -634,7 +736,8 @@ def cmd_node(argv: list) -> int:
         _wait_for_graph(node, args.spin_time)
         own = node.get_name()
         names = sorted(
-            (ns.rstrip('/') + '/' + name) for name, ns in node.get_node_names_and_namespaces() if name != own)
+            (ns.rstrip('/') + '/' + name) for name, ns in node.get_node_names_and_namespaces() if name != own
+        )
         for name in names:
             print(name)
     finally:
@@ -654,8 +757,10 @@ def _set_fields(msg, values, stamp_fields: list | None = None) -> None:
     if values is None:
         return
     if not isinstance(values, dict):
-        raise SystemExit(f"Failed to populate message '{type(msg).__name__}': expected a mapping of "
-                         f"field names to values, got {values!r}")
+        raise SystemExit(
+            f"Failed to populate message '{type(msg).__name__}': expected a mapping of "
+            f'field names to values, got {values!r}'
+        )
     fields = msg.get_fields_and_field_types()
     for name, value in values.items():
         if name not in fields:
@@ -665,12 +770,21 @@ def _set_fields(msg, values, stamp_fields: list | None = None) -> None:
             setattr(msg, name, _field_value(current, fields[name], value, stamp_fields))
         except (AssertionError, TypeError, ValueError) as error:
             detail = f': {error}' if str(error) else ''
-            raise SystemExit(f"Failed to populate field '{name}' of '{type(msg).__name__}' "
-                             f'({fields[name]}) with {value!r}{detail}')
+            raise SystemExit(
+                f"Failed to populate field '{name}' of '{type(msg).__name__}' ({fields[name]}) with {value!r}{detail}"
+            )
 
 
-_BASIC_TYPES = {'float': float, 'double': float, 'boolean': bool, 'string': str, 'wstring': str,
-                'char': int, 'octet': bytes, 'byte': bytes}
+_BASIC_TYPES = {
+    'float': float,
+    'double': float,
+    'boolean': bool,
+    'string': str,
+    'wstring': str,
+    'char': int,
+    'octet': bytes,
+    'byte': bytes,
+}
 
 
 def _basic_converter(type_name: str):
@@ -686,13 +800,14 @@ def _basic_converter(type_name: str):
 def _element_type(type_name: str) -> str:
     """'sequence<double, 6>' -> 'double', 'double[6]' -> 'double', 'sequence<geometry_msgs/Point>' -> ..."""
     if type_name.startswith('sequence<'):
-        return type_name[len('sequence<'):-1].split(',')[0].strip()
+        return type_name[len('sequence<') : -1].split(',')[0].strip()
     return type_name.split('[')[0]
 
 
 def _now_setter(stamp) -> callable:
     def set_now(now_ns: int) -> None:
         stamp.sec, stamp.nanosec = divmod(now_ns, 1_000_000_000)
+
     return set_now
 
 
@@ -753,9 +868,10 @@ def cmd_service(argv: list) -> int:
             for name, types in sorted(node.get_service_names_and_types()):
                 if name.startswith(own):
                     continue
-                print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+                print(f'{name} [{", ".join(types)}]' if args.show_types else name)
             return 0
         import yaml
+
         srv_class = _message_class(args.service_type)
         request = srv_class.Request()
         stamp_fields = []
@@ -776,20 +892,22 @@ def cmd_service(argv: list) -> int:
 
 
 VERBS = {'run': cmd_run, 'topic': cmd_topic, 'service': cmd_service, 'node': cmd_node, 'pkg': cmd_pkg}
-GRAPH_VERBS = ('topic', 'service', 'node')   # the verbs that start a node; `run` execs, `pkg` reads files
+GRAPH_VERBS = ('topic', 'service', 'node')  # the verbs that start a node; `run` execs, `pkg` reads files
 
 
 def main() -> int:
     """Dispatch to the real ros2cli if installed, else to this command's verbs."""
     _hand_over_to_real_ros2cli()
     if len(sys.argv) < 2 or sys.argv[1] in ('-h', '--help') or sys.argv[1] not in VERBS:
-        print('usage: ros2 <command> [<args>]\n\nCommands (StylePong minimal ros2cli for PyPI wheels):\n'
-              '  run    Run a package specific executable\n'
-              '  topic  Various topic related sub-commands (list, echo, hz, info, pub)\n'
-              '  service  Various service related sub-commands (list, call)\n'
-              '  node   Various node related sub-commands (list)\n'
-              '  pkg    Various package related sub-commands (list, prefix, executables)',
-              file=sys.stderr if len(sys.argv) >= 2 and sys.argv[1] not in ('-h', '--help') else sys.stdout)
+        print(
+            'usage: ros2 <command> [<args>]\n\nCommands (StylePong minimal ros2cli for PyPI wheels):\n'
+            '  run    Run a package specific executable\n'
+            '  topic  Various topic related sub-commands (list, echo, hz, info, pub)\n'
+            '  service  Various service related sub-commands (list, call)\n'
+            '  node   Various node related sub-commands (list)\n'
+            '  pkg    Various package related sub-commands (list, prefix, executables)',
+            file=sys.stderr if len(sys.argv) >= 2 and sys.argv[1] not in ('-h', '--help') else sys.stdout,
+        )
         return 0 if len(sys.argv) >= 2 and sys.argv[1] in ('-h', '--help') else 2
     if sys.argv[1] not in GRAPH_VERBS:
         return VERBS[sys.argv[1]](sys.argv[2:])

@@ -2,6 +2,7 @@
 
 World spec, referee, virtual teacher, batched training world.
 """
+
 import os
 
 # MuJoCo picks its GL back end when it is first imported, and every module here that imports it does so

@@ -42,6 +42,7 @@ Rules, applied in the order the events happen (the first that gives a verdict en
 A hit before the ball's own-side bounce (a volley) is allowed: the protocol judges the return only.
 After RALLY_END the referee stays silent about that ball.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,9 +67,16 @@ TIMEOUT = RallyEventMessage.TIMEOUT
 RALLY_END = RallyEventMessage.RALLY_END
 
 EVENT_NAMES = {
-    LAUNCHED: 'LAUNCHED', BOUNCE_OWN_SIDE: 'BOUNCE_OWN_SIDE', PADDLE_HIT: 'PADDLE_HIT',
-    BOUNCE_OPPONENT_SIDE: 'BOUNCE_OPPONENT_SIDE', NET: 'NET', ROBOT_CONTACT: 'ROBOT_CONTACT',
-    TABLE_CONTACT_BY_ROBOT: 'TABLE_CONTACT_BY_ROBOT', OUT: 'OUT', TIMEOUT: 'TIMEOUT', RALLY_END: 'RALLY_END',
+    LAUNCHED: 'LAUNCHED',
+    BOUNCE_OWN_SIDE: 'BOUNCE_OWN_SIDE',
+    PADDLE_HIT: 'PADDLE_HIT',
+    BOUNCE_OPPONENT_SIDE: 'BOUNCE_OPPONENT_SIDE',
+    NET: 'NET',
+    ROBOT_CONTACT: 'ROBOT_CONTACT',
+    TABLE_CONTACT_BY_ROBOT: 'TABLE_CONTACT_BY_ROBOT',
+    OUT: 'OUT',
+    TIMEOUT: 'TIMEOUT',
+    RALLY_END: 'RALLY_END',
 }
 
 REASON_RETURNED = 'returned'
@@ -86,8 +94,16 @@ REASON_ABORTED = 'aborted'
 # The verdicts a rule can give, as indices for arrays of balls (the batched world); 'aborted' is not among
 # them: only a simulator that removes a ball gives it.
 REASONS: tuple[str, ...] = (
-    REASON_RETURNED, REASON_NO_HIT, REASON_SECOND_BOUNCE_OWN_SIDE, REASON_OWN_SIDE, REASON_NET,
-    REASON_DOUBLE_HIT, REASON_ROBOT_CONTACT, REASON_OUT, REASON_TABLE_CONTACT_BY_ROBOT, REASON_TIMEOUT,
+    REASON_RETURNED,
+    REASON_NO_HIT,
+    REASON_SECOND_BOUNCE_OWN_SIDE,
+    REASON_OWN_SIDE,
+    REASON_NET,
+    REASON_DOUBLE_HIT,
+    REASON_ROBOT_CONTACT,
+    REASON_OUT,
+    REASON_TABLE_CONTACT_BY_ROBOT,
+    REASON_TIMEOUT,
 )
 REASON_INDEX = {name: i for i, name in enumerate(REASONS)}
 NO_VERDICT = -1
@@ -98,6 +114,7 @@ _STATE_VERDICT_EVENTS = {REASON_OUT: OUT, REASON_TIMEOUT: TIMEOUT}
 @dataclass(frozen=True)
 class RallyEvent:
     """An event of a rally (launch, bounce, hit, end); an end carries the verdict and its reason."""
+
     ball_id: int
     type: int
     time_s: float
@@ -118,9 +135,9 @@ def _xyz(position_m) -> tuple[float, float, float]:
 # A mask is a bool, a numpy bool array or a torch bool tensor; a position is indexable by axis (x, y, z
 # first: a sequence, an array [3, ...] or a tensor [3, N]). A rule's verdicts are (reason, mask) pairs in
 # the order the rules apply: the first whose mask holds is the verdict.
-Mask = Any        # bool | numpy bool array | torch bool tensor
-Values = Any      # float | numpy array | torch tensor (one value per ball)
-Position = Any    # (x, y, z) sequence | numpy array [3, ...] | torch tensor [3, N]
+Mask = Any  # bool | numpy bool array | torch bool tensor
+Values = Any  # float | numpy array | torch tensor (one value per ball)
+Position = Any  # (x, y, z) sequence | numpy array [3, ...] | torch tensor [3, N]
 Verdicts = tuple[tuple[str, Mask], ...]
 
 
@@ -131,8 +148,11 @@ def logical_not(mask: Mask) -> Mask:
 
 def ball_is_dead(position_m: Position) -> Mask:
     """The ball's bottom touched the floor or its centre left the cell."""
-    return ((position_m[2] <= world_spec.BALL_RADIUS_M) | (abs(position_m[0]) > world_spec.CELL_HALF_EXTENT_M[0])
-            | (abs(position_m[1]) > world_spec.CELL_HALF_EXTENT_M[1]))
+    return (
+        (position_m[2] <= world_spec.BALL_RADIUS_M)
+        | (abs(position_m[0]) > world_spec.CELL_HALF_EXTENT_M[0])
+        | (abs(position_m[1]) > world_spec.CELL_HALF_EXTENT_M[1])
+    )
 
 
 def ball_cannot_reach_table(position_m: Position, vertical_velocity_m_s: Values) -> Mask:
@@ -153,8 +173,11 @@ def own_side_bounce(hit: Mask, own_side: Mask) -> Mask:
 
 def table_contact_verdicts(hit: Mask, own_side: Mask, own_bounces: Values) -> Verdicts:
     """A table contact's verdicts; own_bounces counts this contact's own_side_bounce already."""
-    return ((REASON_RETURNED, hit & logical_not(own_side)), (REASON_OWN_SIDE, hit & own_side),
-            (REASON_SECOND_BOUNCE_OWN_SIDE, own_side_bounce(hit, own_side) & (own_bounces >= 2)))
+    return (
+        (REASON_RETURNED, hit & logical_not(own_side)),
+        (REASON_OWN_SIDE, hit & own_side),
+        (REASON_SECOND_BOUNCE_OWN_SIDE, own_side_bounce(hit, own_side) & (own_bounces >= 2)),
+    )
 
 
 def net_contact_verdicts(hit: Mask) -> Verdicts:
@@ -167,13 +190,17 @@ def paddle_contact_verdicts(hit: Mask) -> Verdicts:
     return ((REASON_DOUBLE_HIT, hit),)
 
 
-def ball_state_verdicts(hit: Mask, position_m: Position, vertical_velocity_m_s: Values, time_since_launch_s: Values,
-                        timeout_s: float) -> Verdicts:
+def ball_state_verdicts(
+    hit: Mask, position_m: Position, vertical_velocity_m_s: Values, time_since_launch_s: Values, timeout_s: float
+) -> Verdicts:
     """The verdicts of the ball's state after a physics step: a dead ball, an out ball, the timeout."""
     dead = ball_is_dead(position_m)
     out = hit & (dead | ball_cannot_reach_table(position_m, vertical_velocity_m_s))
-    return ((REASON_NO_HIT, dead & logical_not(hit)), (REASON_OUT, out),
-            (REASON_TIMEOUT, time_since_launch_s >= timeout_s))
+    return (
+        (REASON_NO_HIT, dead & logical_not(hit)),
+        (REASON_OUT, out),
+        (REASON_TIMEOUT, time_since_launch_s >= timeout_s),
+    )
 
 
 class Referee:
@@ -214,8 +241,9 @@ class Referee:
         event = self._event(BOUNCE_OWN_SIDE if own_side else BOUNCE_OPPONENT_SIDE, time_s, position_m)
         if own_side_bounce(self._hit, own_side):
             self._own_bounces += 1
-        return [event] + self._first_verdict(time_s, position_m,
-                                             table_contact_verdicts(self._hit, own_side, self._own_bounces))
+        return [event] + self._first_verdict(
+            time_s, position_m, table_contact_verdicts(self._hit, own_side, self._own_bounces)
+        )
 
     def net_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
@@ -234,21 +262,26 @@ class Referee:
     def robot_contact(self, time_s: float, position_m) -> list[RallyEvent]:
         if not self._open:
             return []
-        return [self._event(ROBOT_CONTACT, time_s, position_m),
-                self._end(time_s, position_m, False, REASON_ROBOT_CONTACT)]
+        return [
+            self._event(ROBOT_CONTACT, time_s, position_m),
+            self._end(time_s, position_m, False, REASON_ROBOT_CONTACT),
+        ]
 
     def robot_table_contact(self, time_s: float, contact_point_m) -> list[RallyEvent]:
         if not self._open:
             return []
-        return [self._event(TABLE_CONTACT_BY_ROBOT, time_s, contact_point_m),
-                self._end(time_s, contact_point_m, False, REASON_TABLE_CONTACT_BY_ROBOT)]
+        return [
+            self._event(TABLE_CONTACT_BY_ROBOT, time_s, contact_point_m),
+            self._end(time_s, contact_point_m, False, REASON_TABLE_CONTACT_BY_ROBOT),
+        ]
 
     def ball_state(self, time_s: float, position_m, velocity_m_s) -> list[RallyEvent]:
         """Called with the ball's state after every physics step: timeout, dead and out balls."""
         if not self._open:
             return []
-        verdicts = ball_state_verdicts(self._hit, _xyz(position_m), float(velocity_m_s[2]),
-                                       time_s - self._launch_time_s, self.timeout_s)
+        verdicts = ball_state_verdicts(
+            self._hit, _xyz(position_m), float(velocity_m_s[2]), time_s - self._launch_time_s, self.timeout_s
+        )
         for reason, holds in verdicts:
             if holds:
                 event = _STATE_VERDICT_EVENTS.get(reason)

@@ -5,6 +5,7 @@ Frame `world`: origin on the floor under the table centre, x along the table fro
 referee and the batched training world; nothing else may hold a copy of these numbers.
 Sources: ITTF rules (table, net, ball), MPI table-tennis ball models (drag, restitution).
 """
+
 from __future__ import annotations
 
 import math
@@ -39,10 +40,10 @@ from stylepong_description.robot_cell import (  # noqa: F401  (world_spec's name
 
 # --- Table and net (ITTF) -------------------------------------------------------------------------
 TABLE_THICKNESS_M = 0.03
-NET_HEIGHT_M = 0.1525          # above the playing surface
-NET_LENGTH_M = 1.83            # 15.25 cm overhang on each side
+NET_HEIGHT_M = 0.1525  # above the playing surface
+NET_LENGTH_M = 1.83  # 15.25 cm overhang on each side
 NET_THICKNESS_M = 0.01
-NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M     # the net's top edge above the floor
+NET_TOP_HEIGHT_M = TABLE_HEIGHT_M + NET_HEIGHT_M  # the net's top edge above the floor
 # The net as a box: its lower and upper corners (m).
 NET_BOX_LOW_M = (-NET_THICKNESS_M / 2, -NET_LENGTH_M / 2, TABLE_HEIGHT_M)
 NET_BOX_HIGH_M = (NET_THICKNESS_M / 2, NET_LENGTH_M / 2, NET_TOP_HEIGHT_M)
@@ -57,7 +58,7 @@ TABLE_RESTITUTION_RANGE = (0.86, 0.92)
 TABLE_TANGENTIAL_FACTOR_RANGE = (0.68, 0.73)
 PADDLE_RESTITUTION = 0.78
 PADDLE_RESTITUTION_RANGE = (0.74, 0.82)
-PADDLE_TANGENTIAL_FACTOR = 0.75        # rubber grips the ball: most tangential speed relative to the blade kept
+PADDLE_TANGENTIAL_FACTOR = 0.75  # rubber grips the ball: most tangential speed relative to the blade kept
 NET_RESTITUTION = 0.1
 NET_TANGENTIAL_FACTOR = 0.5
 # Robot links other than the blade (handle, wrist, arm): painted aluminium, the ball bounces off but
@@ -93,8 +94,8 @@ ARM_KD_NMS_PER_RAD = (200.0, 200.0, 200.0, 40.0, 40.0, 40.0)
 # missed; MuJoCo's own soft ball contacts would need this step too, and at 1/120 s they gave rebounds
 # from nearly none to many times too strong (docs/DESIGN.md, "Analytic ball contacts").
 PHYSICS_DT_S = 0.001
-BALL_TIMEOUT_S = 3.0           # a rally not decided by then is a TIMEOUT
-BALL_LIFETIME_S = 5.0          # a ball still in the cell this long after its launch is removed
+BALL_TIMEOUT_S = 3.0  # a rally not decided by then is a TIMEOUT
+BALL_LIFETIME_S = 5.0  # a ball still in the cell this long after its launch is removed
 
 
 def on_table(x_m: Any, y_m: Any) -> Any:
@@ -116,6 +117,7 @@ def yaw_rotation(yaw_rad: float) -> np.ndarray:
     """
     # Imported here, not at the top: the referee and the cell read this module without Pinocchio.
     import pinocchio as pin
+
     return pin.utils.rpyToMatrix(0.0, 0.0, yaw_rad)
 
 
@@ -146,6 +148,7 @@ AIM_ELEVATION_RANGE_RAD = (math.radians(-30.0), math.radians(45.0))
 MAX_FLIGHT_S = 2.0
 REBOUND_HORIZON_S = 1.5
 
+
 @dataclass(frozen=True)
 class IncomingBallDistribution:
     """Serves from the opponent's end that bounce once on the robot's half and then come within reach.
@@ -160,6 +163,7 @@ class IncomingBallDistribution:
     reach_centre_m (about the UR5's shoulder; the paddle centre reaches 1.09 m from there) and at
     least min_hit_height_m above the floor.
     """
+
     launch_x_m: tuple[float, float] = (HALF_LENGTH_M - 0.45, HALF_LENGTH_M)
     launch_y_m: tuple[float, float] = (-0.45, 0.45)
     launch_z_m: tuple[float, float] = (TABLE_HEIGHT_M + 0.15, TABLE_HEIGHT_M + 0.40)
@@ -167,8 +171,11 @@ class IncomingBallDistribution:
     bounce_y_m: tuple[float, float] = (-0.55, 0.55)
     speed_m_s: tuple[float, float] = (4.0, 6.6)
     net_clearance_m: float = 0.03
-    reach_centre_m: tuple[float, float, float] = (ROBOT_BASE_POSITION_M[0], ROBOT_BASE_POSITION_M[1],
-                                                  ROBOT_BASE_POSITION_M[2] + 0.1)
+    reach_centre_m: tuple[float, float, float] = (
+        ROBOT_BASE_POSITION_M[0],
+        ROBOT_BASE_POSITION_M[1],
+        ROBOT_BASE_POSITION_M[2] + 0.1,
+    )
     reach_radius_m: float = 0.9
     min_hit_height_m: float = TABLE_HEIGHT_M + 0.1
     max_draws: int = 200
@@ -181,6 +188,7 @@ SPEED_RANGES_M_S = {'all': INCOMING.speed_m_s, 'low': (4.0, 4.8), 'high': (5.8, 
 @dataclass
 class BallLaunch:
     """A drawn serve: launch position and velocity, and the point where it bounces."""
+
     position_m: np.ndarray
     velocity_m_s: np.ndarray
     bounce_point_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -207,8 +215,9 @@ def contact_response(relative_velocity_m_s, normal, restitution, tangential_fact
     return outgoing * approaching + relative_velocity_m_s * ~approaching
 
 
-def fly_to_table(position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float = PHYSICS_DT_S,
-                 max_time_s: float = MAX_FLIGHT_S) -> tuple[np.ndarray, np.ndarray, float, float]:
+def fly_to_table(
+    position_m: np.ndarray, velocity_m_s: np.ndarray, dt_s: float = PHYSICS_DT_S, max_time_s: float = MAX_FLIGHT_S
+) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Integrate free flight until the ball's bottom reaches the table plane (or max_time_s).
 
     Returns (position at contact, velocity at contact, time of flight, lowest clearance over the net:
@@ -246,8 +255,9 @@ def _aim(start_m: np.ndarray, target_xy_m: np.ndarray, speed_m_s: float) -> np.n
     heading = horizontal / distance
 
     def velocity(elevation_rad: float) -> np.ndarray:
-        return speed_m_s * np.array([math.cos(elevation_rad) * heading[0], math.cos(elevation_rad) * heading[1],
-                                     math.sin(elevation_rad)])
+        return speed_m_s * np.array(
+            [math.cos(elevation_rad) * heading[0], math.cos(elevation_rad) * heading[1], math.sin(elevation_rad)]
+        )
 
     def landing_distance(elevation_rad: float) -> float:
         landing, _, _, _ = fly_to_table(start_m, velocity(elevation_rad), dt_s=0.002)
@@ -265,8 +275,12 @@ def _aim(start_m: np.ndarray, target_xy_m: np.ndarray, speed_m_s: float) -> np.n
     return velocity(0.5 * (low + high))
 
 
-def rebound_reaches(contact_position_m: np.ndarray, contact_velocity_m_s: np.ndarray,
-                    distribution: IncomingBallDistribution = INCOMING, dt_s: float = 0.004) -> bool:
+def rebound_reaches(
+    contact_position_m: np.ndarray,
+    contact_velocity_m_s: np.ndarray,
+    distribution: IncomingBallDistribution = INCOMING,
+    dt_s: float = 0.004,
+) -> bool:
     """Does the ball, bouncing off the table here, pass through the paddle's reachable region?"""
     up = np.array([0.0, 0.0, 1.0])
     v = contact_response(np.asarray(contact_velocity_m_s, float), up, TABLE_RESTITUTION, TABLE_TANGENTIAL_FACTOR)
@@ -276,20 +290,28 @@ def rebound_reaches(contact_position_m: np.ndarray, contact_velocity_m_s: np.nda
     for _ in range(int(REBOUND_HORIZON_S / dt_s)):
         v = v + (gravity + drag_acceleration(v)) * dt_s
         p = p + v * dt_s
-        if p[2] < TABLE_CONTACT_HEIGHT_M:   # fell back to table level: out of play or a 2nd bounce
+        if p[2] < TABLE_CONTACT_HEIGHT_M:  # fell back to table level: out of play or a 2nd bounce
             return False
-        if p[2] >= distribution.min_hit_height_m and np.sum((p - centre) ** 2) <= distribution.reach_radius_m ** 2:
+        if p[2] >= distribution.min_hit_height_m and np.sum((p - centre) ** 2) <= distribution.reach_radius_m**2:
             return True
     return False
 
 
-def sample_incoming_ball(rng: np.random.Generator, speed_range_m_s: tuple[float, float] | None = None,
-                         distribution: IncomingBallDistribution = INCOMING) -> BallLaunch:
+def sample_incoming_ball(
+    rng: np.random.Generator,
+    speed_range_m_s: tuple[float, float] | None = None,
+    distribution: IncomingBallDistribution = INCOMING,
+) -> BallLaunch:
     """Draw one incoming ball. Reproducible: the same generator state gives the same ball."""
     speed_lo, speed_hi = speed_range_m_s or distribution.speed_m_s
     for _ in range(distribution.max_draws):
-        start = np.array([rng.uniform(*distribution.launch_x_m), rng.uniform(*distribution.launch_y_m),
-                          rng.uniform(*distribution.launch_z_m)])
+        start = np.array(
+            [
+                rng.uniform(*distribution.launch_x_m),
+                rng.uniform(*distribution.launch_y_m),
+                rng.uniform(*distribution.launch_z_m),
+            ]
+        )
         bounce = np.array([rng.uniform(*distribution.bounce_x_m), rng.uniform(*distribution.bounce_y_m)])
         speed = rng.uniform(speed_lo, speed_hi)
         velocity = _aim(start, bounce, speed)
@@ -301,8 +323,9 @@ def sample_incoming_ball(rng: np.random.Generator, speed_range_m_s: tuple[float,
     raise RuntimeError(f'no incoming ball found for speeds {speed_lo}-{speed_hi} m/s; check the distribution')
 
 
-def incoming_ball_for_seed(seed: int, speed_range_m_s: tuple[float, float] | None = None,
-                           distribution: IncomingBallDistribution = INCOMING) -> BallLaunch:
+def incoming_ball_for_seed(
+    seed: int, speed_range_m_s: tuple[float, float] | None = None, distribution: IncomingBallDistribution = INCOMING
+) -> BallLaunch:
     """The incoming ball that `seed` names: what `/sim/launch_ball` with randomize=true launches.
 
     speed_range_m_s None or (0, 0) means the distribution's default range.

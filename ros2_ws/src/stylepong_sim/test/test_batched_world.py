@@ -1,5 +1,6 @@
 """The batched world's parts: kinematics and dynamics against Pinocchio, the ball's contacts, the referee's
 rules in batch, the servo's limits and the vectorised incoming-ball distribution."""
+
 import math
 
 import numpy as np
@@ -54,16 +55,17 @@ def test_mass_matrix_and_bias_torques_match_pinocchio(model64):
         expected = pin.crba(model, data, q[i])
         expected = np.triu(expected) + np.triu(expected, 1).T
         np.testing.assert_allclose(mass[..., i].numpy(), expected, atol=1e-12)
-        np.testing.assert_allclose(with_gravity[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)),
-                                   atol=1e-11)
+        np.testing.assert_allclose(
+            with_gravity[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)), atol=1e-11
+        )
         model.gravity.linear[:] = 0.0
-        np.testing.assert_allclose(coriolis[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)),
-                                   atol=1e-11)
+        np.testing.assert_allclose(coriolis[:, i].numpy(), pin.rnea(model, data, q[i], qd[i], np.zeros(6)), atol=1e-11)
         model.gravity.linear[:] = (0.0, 0.0, -world_spec.GRAVITY_M_S2)
 
 
 def test_link_capsules_enclose_the_collision_meshes():
     import mujoco
+
     mj = robot_model.mujoco_model()
     for capsule in batched_kinematics.link_capsules():
         if capsule.name == 'paddle_handle':
@@ -74,7 +76,7 @@ def test_link_capsules_enclose_the_collision_meshes():
             if mj.geom_bodyid[geom] != body or mj.geom_type[geom] != mujoco.mjtGeom.mjGEOM_MESH:
                 continue
             mesh = mj.geom_dataid[geom]
-            vertices = mj.mesh_vert[mj.mesh_vertadr[mesh]:mj.mesh_vertadr[mesh] + mj.mesh_vertnum[mesh]]
+            vertices = mj.mesh_vert[mj.mesh_vertadr[mesh] : mj.mesh_vertadr[mesh] + mj.mesh_vertnum[mesh]]
             points = vertices @ batched_kinematics._quat_to_matrix(mj.geom_quat[geom]).T + mj.geom_pos[geom]
             t = np.clip((points - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
             distance = np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
@@ -88,8 +90,12 @@ def _world(n=1, **kwargs):
 def _launch(world, positions, velocities, hit=None):
     n = len(positions)
     ids = torch.arange(n)
-    world.reset_envs(ids, world.q_rad[:, :n].clone(), torch.tensor(positions, dtype=torch.float64).T,
-                     torch.tensor(velocities, dtype=torch.float64).T)
+    world.reset_envs(
+        ids,
+        world.q_rad[:, :n].clone(),
+        torch.tensor(positions, dtype=torch.float64).T,
+        torch.tensor(velocities, dtype=torch.float64).T,
+    )
     if hit is not None:
         world.hit[ids] = torch.tensor(hit)
 
@@ -106,7 +112,7 @@ def _run_to_verdict(world, max_steps=240):
 def test_free_flight_matches_a_fine_reference():
     world = _world()
     _launch(world, [(1.2, 0.1, 1.3)], [(-5.0, 0.3, 2.0)])
-    for _ in range(18):     # 0.3 s, before any contact
+    for _ in range(18):  # 0.3 s, before any contact
         world.step(world.q_rad.clone())
     p = np.array([1.2, 0.1, 1.3])
     v = np.array([-5.0, 0.3, 2.0])
@@ -157,15 +163,18 @@ def test_fast_ball_does_not_tunnel_through_the_blade():
     assert (offsets @ normal > 0).all()
 
 
-@pytest.mark.parametrize('start, velocity, hit, reason', [
-    ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True, referee.REASON_RETURNED),      # over the net onto the far half
-    ((-1.0, 0.0, 1.0), (1.5, 0.0, 0.5), True, referee.REASON_OWN_SIDE),       # short: first bounce on own half
-    ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True, referee.REASON_NET),            # straight into the net
-    ((-1.0, 0.0, 1.05), (12.0, 0.0, 1.0), True, referee.REASON_OUT),          # long
-    ((-1.0, 0.5, 1.0), (0.0, 3.0, 0.5), True, referee.REASON_OUT),            # off the side
-    ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False, referee.REASON_SECOND_BOUNCE_OWN_SIDE),
-    ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False, referee.REASON_NO_HIT),        # falls beside the table
-])
+@pytest.mark.parametrize(
+    'start, velocity, hit, reason',
+    [
+        ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True, referee.REASON_RETURNED),  # over the net onto the far half
+        ((-1.0, 0.0, 1.0), (1.5, 0.0, 0.5), True, referee.REASON_OWN_SIDE),  # short: first bounce on own half
+        ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True, referee.REASON_NET),  # straight into the net
+        ((-1.0, 0.0, 1.05), (12.0, 0.0, 1.0), True, referee.REASON_OUT),  # long
+        ((-1.0, 0.5, 1.0), (0.0, 3.0, 0.5), True, referee.REASON_OUT),  # off the side
+        ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False, referee.REASON_SECOND_BOUNCE_OWN_SIDE),
+        ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False, referee.REASON_NO_HIT),  # falls beside the table
+    ],
+)
 def test_referee_rules(start, velocity, hit, reason):
     world = _world()
     _launch(world, [start], [velocity], hit=[hit])
@@ -174,8 +183,12 @@ def test_referee_rules(start, velocity, hit, reason):
 
 
 def test_referee_rules_in_one_batch_match_one_by_one():
-    cases = [((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True), ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True),
-             ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False), ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False)]
+    cases = [
+        ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0), True),
+        ((-0.5, 0.0, 0.9), (6.0, 0.0, 0.0), True),
+        ((-0.6, 0.0, 1.1), (-0.5, 0.0, 0.0), False),
+        ((-1.0, 1.0, 1.2), (0.0, 1.0, 0.0), False),
+    ]
     world = _world(len(cases))
     _launch(world, [c[0] for c in cases], [c[1] for c in cases], hit=[c[2] for c in cases])
     batch = _run_to_verdict(world)
@@ -190,12 +203,16 @@ def test_referee_rules_in_one_batch_match_one_by_one():
 def test_ball_on_the_arm_is_robot_contact_and_a_second_touch_is_a_double_hit():
     world = _world(2)
     kin = world.kinematics
-    forearm = kin.origin_m[:, 2, 0] + 0.5 * (kin.origin_m[:, 3, 0] - kin.origin_m[:, 2, 0])   # mid forearm
+    forearm = kin.origin_m[:, 2, 0] + 0.5 * (kin.origin_m[:, 3, 0] - kin.origin_m[:, 2, 0])  # mid forearm
     above = forearm + torch.tensor([0.0, 0.0, 0.3], dtype=torch.float64)
     centre = world.paddle_pos_m[:, 0]
     normal = world.paddle_rot[:, 2, 0]
-    _launch(world, [tuple(above.tolist()), tuple((centre + 0.3 * normal).tolist())],
-            [(0.0, 0.0, -3.0), tuple((-4.0 * normal).tolist())], hit=[False, True])
+    _launch(
+        world,
+        [tuple(above.tolist()), tuple((centre + 0.3 * normal).tolist())],
+        [(0.0, 0.0, -3.0), tuple((-4.0 * normal).tolist())],
+        hit=[False, True],
+    )
     assert _run_to_verdict(world, 30) == [referee.REASON_ROBOT_CONTACT, referee.REASON_DOUBLE_HIT]
 
 
@@ -217,10 +234,10 @@ def test_a_command_into_the_table_is_told_apart_from_one_above_it():
     world = _world(3)
     home = world.q_rad[:, :1].clone()
     into = home.clone()
-    into[1] += 0.9      # the command of the test above: the arm would reach down onto the table's end
+    into[1] += 0.9  # the command of the test above: the arm would reach down onto the table's end
     into[2] -= 0.6
     under = home.clone()
-    under[1] += 1.6     # further: the forearm goes through the top and below the slab
+    under[1] += 1.6  # further: the forearm goes through the top and below the slab
     commands = torch.cat((home, into, under), dim=1)
     assert world.commands_below_table_top(commands).tolist() == [False, True, True]
     # Only the first lies above the top; the check is of the command, not of where the arm is.
@@ -230,7 +247,7 @@ def test_a_command_into_the_table_is_told_apart_from_one_above_it():
 def test_timeout():
     world = _world(timeout_s=0.5)
     _launch(world, [(0.0, 0.0, 2.0)], [(0.0, 0.0, 0.0)])
-    world.params.gravity_m_s2[:] = 0.0   # a ball that hangs in the air
+    world.params.gravity_m_s2[:] = 0.0  # a ball that hangs in the air
     assert _run_to_verdict(world) == [referee.REASON_TIMEOUT]
     assert float(world.time_s[0]) == pytest.approx(0.5, abs=1e-9)
 
@@ -244,7 +261,7 @@ def test_servo_respects_velocity_and_effort_limits_and_targets_are_clipped_to_th
         world.step(command)
         peak = torch.maximum(peak, world.qd_rad_s[:, 0].abs())
     assert (peak <= torch.tensor(limits.velocity_rad_s) + 1e-9).all()
-    assert (peak >= 0.99 * torch.tensor(limits.velocity_rad_s)).all()      # it does run at the limit
+    assert (peak >= 0.99 * torch.tensor(limits.velocity_rad_s)).all()  # it does run at the limit
     assert (world.q_cmd_rad[:, 0] <= torch.tensor(limits.upper_rad)).all()
     assert (world.q_cmd_rad[:, 0] >= torch.tensor(limits.lower_rad)).all()
 
@@ -263,8 +280,8 @@ def test_action_delay_of_d_physics_steps_applies_each_command_d_steps_late_per_e
     d = physics_steps the previous period's command, never one that stays stuck at its reset value."""
     world = _world(3)
     n, steps = world.num_envs, world.physics_steps
-    delays = torch.arange(steps + 1)                       # one env per delay: 0, 1, ..., physics_steps
-    targets = []                                           # the servo target in every physics step
+    delays = torch.arange(steps + 1)  # one env per delay: 0, 1, ..., physics_steps
+    targets = []  # the servo target in every physics step
     arm_step = world._arm_step
 
     def recording_arm_step(dynamics):
@@ -273,21 +290,29 @@ def test_action_delay_of_d_physics_steps_applies_each_command_d_steps_late_per_e
 
     world._arm_step = recording_arm_step
     home = world.q_rad[0].clone()
-    commands = [home + 0.1 * (i + 1) for i in range(4)]    # joint 0's target in each policy period
+    commands = [home + 0.1 * (i + 1) for i in range(4)]  # joint 0's target in each policy period
     for value in commands:
         q_cmd = world.q_rad.clone()
         q_cmd[0] = value
         world.step(q_cmd, delay_steps=delays)
     # Physics step t of env e tracks the command given at physics step t - d_e (its reset pose before 0).
-    expected = torch.stack([torch.stack([commands[(t - int(d)) // steps][e] if t >= int(d) else home[e]
-                                         for e, d in enumerate(delays)]) for t in range(steps * len(commands))])
+    expected = torch.stack(
+        [
+            torch.stack([commands[(t - int(d)) // steps][e] if t >= int(d) else home[e] for e, d in enumerate(delays)])
+            for t in range(steps * len(commands))
+        ]
+    )
     torch.testing.assert_close(torch.stack(targets), expected, rtol=0.0, atol=0.0)
-    assert (world.q_rad[0] - home).abs().min() > 1e-3    # every env's arm follows its commands
+    assert (world.q_rad[0] - home).abs().min() > 1e-3  # every env's arm follows its commands
 
     # A reset forgets the command in flight: the delayed env then holds its reset pose, not the old command.
     targets.clear()
-    world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.zeros(3, n, dtype=torch.float64),
-                     torch.zeros(3, n, dtype=torch.float64))
+    world.reset_envs(
+        torch.arange(n),
+        world.q_rad.clone(),
+        torch.zeros(3, n, dtype=torch.float64),
+        torch.zeros(3, n, dtype=torch.float64),
+    )
     start = world.q_rad[0].clone()
     q_cmd = world.q_rad.clone()
     q_cmd[0] = start + 0.3
@@ -311,8 +336,9 @@ def test_incoming_balls_follow_the_world_spec_distribution():
             expected = False
         else:
             contact_p, contact_v, _, clearance = world_spec.fly_to_table(st, reference)
-            expected = (clearance >= world_spec.INCOMING.net_clearance_m
-                        and world_spec.rebound_reaches(contact_p, contact_v))
+            expected = clearance >= world_spec.INCOMING.net_clearance_m and world_spec.rebound_reaches(
+                contact_p, contact_v
+            )
             if expected and bool(accepted[i]):
                 np.testing.assert_allclose(velocity[:, i].numpy(), reference, atol=0.05)
                 # The launch lands on its drawn bounce point (a fine reference flight).
@@ -352,7 +378,7 @@ def test_the_velocity_drive_follows_the_reference_and_settles_where_commanded():
     pd_only.params.velocity_drive = world.params.velocity_drive.clone()
     home = world.q_rad.clone()
     small = home.clone()
-    small[5] += 5e-4                            # wrist_3: 13 N m of its 28 at the motor's acceleration
+    small[5] += 5e-4  # wrist_3: 13 N m of its 28 at the motor's acceleration
     world.step(small)
     pd_only.step(small)
     torch.testing.assert_close(pd_only.q_rad[:, 2], pd_only.q_rad[:, 0], rtol=0.0, atol=0.0)

@@ -11,6 +11,7 @@ so the margins hold from run to run.
 The cell steps at 1 ms and is sampled at the batched world's policy instants (linear interpolation
 between its 1 ms samples); the batched world runs at its defaults (120 Hz physics, 60 Hz policy).
 """
+
 import numpy as np
 import pytest
 import torch
@@ -23,7 +24,7 @@ HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 POLICY_DT_S = 1.0 / world_spec.POLICY_RATE_HZ
 TABLE_CONTACT_TOLERANCE_M = 0.006
 LANDING_TOLERANCE_M = 0.007
-JOINT_RMS_TOLERANCE = 0.02          # of the RMS of the cell's motion
+JOINT_RMS_TOLERANCE = 0.02  # of the RMS of the cell's motion
 
 
 def _cell_ball_run(position, velocity, duration_s):
@@ -46,8 +47,9 @@ def _world_ball_run(positions, velocities, duration_s):
     and the first table contact of each ball [3, N]."""
     n = len(positions)
     world = batched_world.BatchedWorld(n, dtype=torch.float64)
-    world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.tensor(np.array(positions)).T,
-                     torch.tensor(np.array(velocities)).T)
+    world.reset_envs(
+        torch.arange(n), world.q_rad.clone(), torch.tensor(np.array(positions)).T, torch.tensor(np.array(velocities)).T
+    )
     command = world.q_rad.clone()
     trajectory = [world.ball_pos_m.clone()]
     first_contact = torch.full((3, n), float('nan'), dtype=torch.float64)
@@ -77,17 +79,23 @@ def test_incoming_balls_bounce_where_the_cell_bounces_them():
         bounces = [e for e in events if e.type == referee.BOUNCE_OWN_SIDE]
         assert bounces, f'ball {i} never bounced in the cell'
         cell_bounce = np.array(bounces[0].position_m)
-        assert np.linalg.norm(first_contact[:2, i] - cell_bounce[:2]) < TABLE_CONTACT_TOLERANCE_M, \
-            (first_contact[:, i], cell_bounce)
+        assert np.linalg.norm(first_contact[:2, i] - cell_bounce[:2]) < TABLE_CONTACT_TOLERANCE_M, (
+            first_contact[:, i],
+            cell_bounce,
+        )
         # The distribution aims at its drawn bounce point; both simulators land there (drag included).
         assert np.linalg.norm(cell_bounce[:2] - launch.bounce_point_m) < 0.02
 
 
 # Balls struck from in front of the robot over the net: they bounce on the far half, then fly off the
 # table's end (or its side) onto the floor: the landing after the first bounce.
-RETURNS = [((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0)), ((-0.9, 0.3, 1.0), (4.0, -0.6, 1.6)),
-           ((-1.0, 0.3, 1.1), (4.5, -0.5, 1.2)), ((-1.1, -0.3, 1.0), (6.0, 0.5, 1.0)),
-           ((-0.9, 0.0, 1.2), (4.0, 0.0, 0.5))]
+RETURNS = [
+    ((-1.0, 0.0, 1.05), (5.0, 0.0, 1.0)),
+    ((-0.9, 0.3, 1.0), (4.0, -0.6, 1.6)),
+    ((-1.0, 0.3, 1.1), (4.5, -0.5, 1.2)),
+    ((-1.1, -0.3, 1.0), (6.0, 0.5, 1.0)),
+    ((-0.9, 0.0, 1.2), (4.0, 0.0, 0.5)),
+]
 
 
 def test_landing_after_the_first_bounce_agrees_with_the_cell():
@@ -121,8 +129,9 @@ def test_a_ball_off_the_still_paddle_lands_where_it_lands_in_the_cell():
     assert referee.PADDLE_HIT in kinds, [str(e) for e in events]
     cell_table = [e for e in events if e.type in (referee.BOUNCE_OWN_SIDE, referee.BOUNCE_OPPONENT_SIDE)][0]
     world = batched_world.BatchedWorld(1, dtype=torch.float64)
-    world.reset_envs(torch.arange(1), world.q_rad.clone(), torch.tensor(start)[:, None],
-                     torch.tensor(velocity)[:, None])
+    world.reset_envs(
+        torch.arange(1), world.q_rad.clone(), torch.tensor(start)[:, None], torch.tensor(velocity)[:, None]
+    )
     hit = False
     for _ in range(90):
         events_world = world.step(world.q_rad.clone())
@@ -130,14 +139,16 @@ def test_a_ball_off_the_still_paddle_lands_where_it_lands_in_the_cell():
         if bool(events_world.decided[0]):
             break
     assert hit and world.hit[0]
-    assert (np.linalg.norm(world.table_contact_pos_m[:2, 0].numpy() - np.array(cell_table.position_m)[:2])
-            < TABLE_CONTACT_TOLERANCE_M)
+    assert (
+        np.linalg.norm(world.table_contact_pos_m[:2, 0].numpy() - np.array(cell_table.position_m)[:2])
+        < TABLE_CONTACT_TOLERANCE_M
+    )
 
 
 STEP_COMMANDS = [
-    (0.4, -0.3, 0.5, 0.6, -0.5, 0.8),      # a large step: velocity and effort limits active
-    (-0.8, 0.5, -0.6, -0.9, 0.9, -1.2),    # larger, the other way
-    (0.15, 0.15, -0.15, 0.2, 0.2, -0.2),   # a small step: mostly the PD's own response
+    (0.4, -0.3, 0.5, 0.6, -0.5, 0.8),  # a large step: velocity and effort limits active
+    (-0.8, 0.5, -0.6, -0.9, 0.9, -1.2),  # larger, the other way
+    (0.15, 0.15, -0.15, 0.2, 0.2, -0.2),  # a small step: mostly the PD's own response
 ]
 
 

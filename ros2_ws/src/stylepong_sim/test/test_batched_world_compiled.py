@@ -7,6 +7,7 @@ only if both step the same physics. Both worlds start from the same states, get 
 of the balls come from the incoming-ball distribution while the arm swings; the other half are thrown
 at the paddle, so that paddle contacts are among the compiled code paths compared.
 """
+
 import math
 
 import pytest
@@ -16,7 +17,7 @@ from stylepong_sim import world_spec
 from stylepong_sim.batched import batched_launcher, batched_world
 
 NUM_ENVS = 64
-STEPS = 90            # 1.5 s at the 60 Hz policy rate: every ball is decided by then
+STEPS = 90  # 1.5 s at the 60 Hz policy rate: every ball is decided by then
 # float32 worlds whose operations are fused and reordered by the compiler differ by rounding only
 # (measured: 7e-7 rad, 2e-6 m after 90 steps); a real difference in the physics is far larger.
 ATOL = {'q_rad': 1e-4, 'qd_rad_s': 1e-3, 'ball_pos_m': 1e-4, 'ball_vel_m_s': 1e-3, 'landing_xy_m': 1e-4}
@@ -32,8 +33,9 @@ def _run(world: batched_world.BatchedWorld) -> tuple[dict, torch.Tensor, torch.T
     # The second half: balls thrown at the paddle from about 0.6 m in front of it.
     half = NUM_ENVS // 2
     paddle = world.paddle_pos_m[:, half:].clone()
-    thrown_from = paddle + torch.tensor([0.6, 0.0, 0.1])[:, None] + 0.05 * torch.randn(3, NUM_ENVS - half,
-                                                                                        generator=generator)
+    thrown_from = (
+        paddle + torch.tensor([0.6, 0.0, 0.1])[:, None] + 0.05 * torch.randn(3, NUM_ENVS - half, generator=generator)
+    )
     world.ball_pos_m[:, half:] = thrown_from
     world.ball_vel_m_s[:, half:] = (paddle - thrown_from) / 0.15
     amplitude = 0.4 * torch.rand(6, NUM_ENVS, generator=generator)

@@ -1,5 +1,6 @@
 """The PyBullet cell: Bullet's own contacts with world_spec's coefficients, the referee on its contact points,
 the arm on Bullet's motors within the URDF efforts, and nothing loaded of the analytic contacts."""
+
 import subprocess
 import sys
 
@@ -39,23 +40,26 @@ def _types(events) -> list[str]:
 
 
 def test_the_bullet_cell_loads_nothing_of_the_analytic_contacts():
-    code = ('import sys, rclpy\n'
-            'from stylepong_sim.nodes.ur5_sim_node import Ur5SimNode\n'
-            'rclpy.init()\n'
-            'node = Ur5SimNode(default_engine="pybullet")\n'
-            'node._cell.step(5)\n'
-            'print(sorted(m for m in sys.modules if m.startswith("stylepong_sim")))\n'
-            'node.close(); node.destroy_node(); rclpy.shutdown()\n')
+    code = (
+        'import sys, rclpy\n'
+        'from stylepong_sim.nodes.ur5_sim_node import Ur5SimNode\n'
+        'rclpy.init()\n'
+        'node = Ur5SimNode(default_engine="pybullet")\n'
+        'node._cell.step(5)\n'
+        'print(sorted(m for m in sys.modules if m.startswith("stylepong_sim")))\n'
+        'node.close(); node.destroy_node(); rclpy.shutdown()\n'
+    )
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60, check=True)
     loaded = result.stdout.strip().splitlines()[-1]
     assert 'stylepong_sim.cells.bullet_cell' in loaded
-    for module in ('ball_contacts', 'batched_world', 'stylepong_sim.cells.cell\''):
+    for module in ('ball_contacts', 'batched_world', "stylepong_sim.cells.cell'"):
         assert module not in loaded, loaded
 
 
 def test_the_analytic_contact_law_is_never_called(cell, monkeypatch):
     def refuse(*_args, **_kwargs):
         raise AssertionError('world_spec.contact_response called')
+
     launch = world_spec.incoming_ball_for_seed(1000)
     monkeypatch.setattr(world_spec, 'contact_response', refuse)
     cell.reset()
@@ -99,8 +103,10 @@ def test_a_seeded_ball_bounces_where_world_spec_aims_it(cell):
     cell.step_for(3.2)
     events = cell.pop_events()
     bounce = next(e for e in events if e.type == referee.BOUNCE_OWN_SIDE)
-    assert np.hypot(bounce.position_m[0] - launch.bounce_point_m[0],
-                    bounce.position_m[1] - launch.bounce_point_m[1]) < 0.03
+    assert (
+        np.hypot(bounce.position_m[0] - launch.bounce_point_m[0], bounce.position_m[1] - launch.bounce_point_m[1])
+        < 0.03
+    )
     ends = [e for e in events if e.type == referee.RALLY_END]
     assert len(ends) == 1 and not ends[0].success
 
@@ -110,7 +116,7 @@ def test_a_ball_thrown_at_the_resting_blade_is_hit_and_bounces_back(cell):
     cell.pop_events()
     centre, rotation = cell.paddle_pose()
     normal = rotation[:, 2]
-    start = centre + 0.25 * normal + np.array([0.0, 0.0, 0.017])   # gravity drops it 17 mm on the way
+    start = centre + 0.25 * normal + np.array([0.0, 0.0, 0.017])  # gravity drops it 17 mm on the way
     speed = 3.0
     cell.launch_ball(start, -speed * normal)
     incoming = None
@@ -141,7 +147,7 @@ def test_the_wrench_reads_the_paddles_weight_and_the_hand_which_the_joints_carry
     assert rotation @ force == pytest.approx([0.0, 0.0, 60.0 - weight], abs=1e-2)
     # Bullet's motors hold the arm against the hand: the lift and elbow joints take tens of N m more
     assert np.abs(cell.joint_efforts_nm - efforts_before)[1:3].max() > 20.0
-    cell.step_for(0.05)   # released after its duration
+    cell.step_for(0.05)  # released after its duration
     force, _ = cell.tool_wrench()
     assert np.linalg.norm(force) == pytest.approx(weight, abs=1e-3)
     cell.close()
@@ -158,6 +164,7 @@ def test_bad_inputs_are_refused(cell):
 
 def test_the_video_view_poses_the_mujoco_scene_like_the_bullet_cell(cell):
     from stylepong_sim.cells.bullet_video import MirroredScene
+
     view = MirroredScene()
     cell.reset()
     cell.set_joint_targets(HOME + 0.1)
@@ -210,8 +217,11 @@ def test_the_robot_touches_the_table_only_where_a_contact_point_pushes(cell, mon
     blade = (0, cell._robot, cell._table, cell._blade_link, -1, (0.0, 0.0, 0.77), (0.0, 0.0, 0.77), (0.0, 0.0, 1.0))
     points = {'apart': [(*blade, 0.004, 0.0)], 'pushing': [(*blade, -0.0005, 40.0)]}
     for kind, expected in (('apart', False), ('pushing', True)):
-        monkeypatch.setattr(cell._p, 'getContactPoints',
-                            lambda bodyA=None, bodyB=None, _k=kind: points[_k] if bodyB == cell._table else [])
+        monkeypatch.setattr(
+            cell._p,
+            'getContactPoints',
+            lambda bodyA=None, bodyB=None, _k=kind: points[_k] if bodyB == cell._table else [],
+        )
         cell._check_robot_table_contacts()
         touched = referee.TABLE_CONTACT_BY_ROBOT in [e.type for e in cell.pop_events()]
         assert touched == expected, kind

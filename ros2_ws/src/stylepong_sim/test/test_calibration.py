@@ -1,5 +1,6 @@
 """The calibration command's measuring pieces: a throw reaches its target, crossings interpolate, a return is
 read after the hit, the summary compares against the MuJoCo cell, and a step response is measured."""
+
 import math
 
 import numpy as np
@@ -19,12 +20,13 @@ def test_an_aimed_throw_reaches_its_target_with_drag():
 
 
 def test_crossing_and_return_read_the_60_hz_trace():
-    trace = calibration.BallTrace(times_s=[0.1, 0.2, 0.3],
-                                  positions_m=[np.array([-1.0, 0.1, 1.0]), np.array([-1.4, 0.3, 0.8]),
-                                               np.array([-1.0, 0.3, 0.9])],
-                                  velocities_m_s=[np.array([-4.0, 2.0, -2.0]), np.array([-4.0, 0.0, -2.0]),
-                                                  np.array([4.0, 0.0, 4.0])],
-                                  hit_time_s=0.25, landing_m=np.array([0.5, 0.2, 0.78]))
+    trace = calibration.BallTrace(
+        times_s=[0.1, 0.2, 0.3],
+        positions_m=[np.array([-1.0, 0.1, 1.0]), np.array([-1.4, 0.3, 0.8]), np.array([-1.0, 0.3, 0.9])],
+        velocities_m_s=[np.array([-4.0, 2.0, -2.0]), np.array([-4.0, 0.0, -2.0]), np.array([4.0, 0.0, 4.0])],
+        hit_time_s=0.25,
+        landing_m=np.array([0.5, 0.2, 0.78]),
+    )
     y, z, speed = calibration.crossing(trace, -1.2)
     assert (y, z) == pytest.approx((0.2, 0.9))
     assert speed == pytest.approx(math.hypot(4.0, 1.0, 2.0))
@@ -35,9 +37,12 @@ def test_crossing_and_return_read_the_60_hz_trace():
 
 
 def test_the_ball_summary_measures_against_the_mujoco_cell():
-    row = {'seed': 1, 'mujoco': {'bounce_xy_m': [-0.5, 0.0], 'crossing_y_z_speed': (0.1, 0.9, 5.0)},
-           'batched': {'bounce_xy_m': [-0.503, 0.004], 'crossing_y_z_speed': (0.1, 0.91, 5.1)},
-           'pybullet': {'bounce_xy_m': [-0.5, 0.0], 'crossing_y_z_speed': None}}
+    row = {
+        'seed': 1,
+        'mujoco': {'bounce_xy_m': [-0.5, 0.0], 'crossing_y_z_speed': (0.1, 0.9, 5.0)},
+        'batched': {'bounce_xy_m': [-0.503, 0.004], 'crossing_y_z_speed': (0.1, 0.91, 5.1)},
+        'pybullet': {'bounce_xy_m': [-0.5, 0.0], 'crossing_y_z_speed': None},
+    }
     summary = calibration.summarise_ball([row])
     assert summary['batched']['bounce_mm_max'] == pytest.approx(5.0)
     assert summary['batched']['crossing_z_mm_max'] == pytest.approx(10.0)

@@ -1,4 +1,5 @@
 """The ROS-free MuJoCo cell: model, servo, F/T sensing, hand wrench, ball physics, contacts, referee wiring."""
+
 import math
 
 import numpy as np
@@ -60,16 +61,20 @@ def test_a_03_rad_step_is_tracked_within_the_limits(cell):
     assert np.abs(cell.joint_positions_rad - target).max() < 0.01
     assert np.all(peak_speed <= limits.velocity_rad_s + 1e-9)
     assert np.all(peak_servo_torque <= limits.effort_nm + 1e-6)
-    assert peak_speed.max() > 1.0   # it did move briskly, not creep
+    assert peak_speed.max() > 1.0  # it did move briskly, not creep
 
 
 def test_bad_targets_are_rejected_and_the_last_good_one_is_kept(cell):
     good = HOME + 0.1
     cell.set_joint_targets(good)
     limits = robot_model.joint_limits()
-    for bad, kind in (([0.0] * 5, 'length'), ([0.0] * 7, 'length'), ([math.nan] + [0.0] * 5, 'not_finite'),
-                      ([0.0] * 5 + [math.inf], 'not_finite'), (np.where(np.arange(6) == 2, limits.upper_rad + 0.1, 0.0),
-                                                                 'limits')):
+    for bad, kind in (
+        ([0.0] * 5, 'length'),
+        ([0.0] * 7, 'length'),
+        ([math.nan] + [0.0] * 5, 'not_finite'),
+        ([0.0] * 5 + [math.inf], 'not_finite'),
+        (np.where(np.arange(6) == 2, limits.upper_rad + 0.1, 0.0), 'limits'),
+    ):
         with pytest.raises(InputError) as error:
             cell.set_joint_targets(bad)
         assert error.value.kind == kind
@@ -94,14 +99,14 @@ def test_the_wrist_sensor_reads_the_paddle_weight_and_the_hand(cell):
     pushed, _ = cell.tool_wrench()
     _, rotation = cell.tool_pose()
     np.testing.assert_allclose(pushed - force, rotation.T @ [10.0, 0.0, 0.0], atol=0.1)
-    assert np.abs(cell.joint_positions_rad - q_before).max() < 0.01   # the servo holds the pose
+    assert np.abs(cell.joint_positions_rad - q_before).max() < 0.01  # the servo holds the pose
 
     cell.set_hand_wrench([0.0, 0.0, 10.0], [0.0, 0.0, 0.5], frame='tool0', duration_s=0.1)
     cell.step(50)
     pushed, twisted = cell.tool_wrench()
     np.testing.assert_allclose(pushed - force, [0.0, 0.0, 10.0], atol=0.1)
     assert twisted[2] == pytest.approx(0.5, abs=0.02)
-    cell.step(100)   # the hand let go 0.1 s after it pushed
+    cell.step(100)  # the hand let go 0.1 s after it pushed
     released, _ = cell.tool_wrench()
     np.testing.assert_allclose(released, force, atol=0.05)
 
@@ -112,7 +117,7 @@ def test_the_sensor_can_also_feel_the_tools_inertia(cell):
     cell.step(100)
     for still_a, still_b in zip(cell.tool_wrench(), cell.tool_wrench(include_inertia=True)):
         np.testing.assert_allclose(still_a, still_b, atol=1e-6)
-    cell.set_joint_targets(HOME + np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0]))   # a brisk pan: the tool accelerates
+    cell.set_joint_targets(HOME + np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0]))  # a brisk pan: the tool accelerates
     largest_gap_n = 0.0
     for _ in range(100):
         cell.step(1)
@@ -192,7 +197,7 @@ def test_the_paddle_returns_the_ball_with_its_restitution_without_tunnelling(cel
     for _ in range(int(0.4 / speed_m_s / cell.dt_s) + 20):
         before = cell.ball_velocity_m_s
         cell.step(1)
-        assert (cell.ball_position_m - centre) @ normal > 0.0   # never behind the blade's face
+        assert (cell.ball_position_m - centre) @ normal > 0.0  # never behind the blade's face
         if any(e.type == referee.PADDLE_HIT for e in cell.pop_events()):
             incoming, outgoing = before @ normal, cell.ball_velocity_m_s @ normal
     assert incoming < 0.0 < outgoing
@@ -209,18 +214,18 @@ def test_a_ball_on_the_arm_is_a_robot_contact(cell):
     events = _run_until_end(cell, max_s=1.0)
     assert [e.type for e in events] == [referee.LAUNCHED, referee.ROBOT_CONTACT, referee.RALLY_END]
     assert events[-1].reason == 'robot_contact'
-    assert cell.ball_velocity_m_s[0] > 0.0   # it bounced off
+    assert cell.ball_velocity_m_s[0] > 0.0  # it bounced off
 
 
 def test_pressing_the_arm_onto_the_table_is_judged_and_resisted(cell):
-    cell.launch_ball([1.0, 0.0, 1.5], [0.0, 0.0, 0.0])   # a rally in play, far from the robot
+    cell.launch_ball([1.0, 0.0, 1.5], [0.0, 0.0, 0.0])  # a rally in play, far from the robot
     cell.set_joint_targets(HOME + np.array([0.0, 0.9, -0.6, 0.0, 0.0, 0.0]))
     events = _run_until_end(cell, max_s=2.0)
     assert [e.type for e in events][-2:] == [referee.TABLE_CONTACT_BY_ROBOT, referee.RALLY_END]
     assert events[-1].reason == 'table_contact_by_robot'
     cell.step(500)
     paddle_centre, _ = cell.paddle_pose()
-    assert paddle_centre[2] > world_spec.TABLE_HEIGHT_M   # the table stopped it
+    assert paddle_centre[2] > world_spec.TABLE_HEIGHT_M  # the table stopped it
 
 
 def test_seed_7_against_a_motionless_arm(cell):
@@ -244,8 +249,9 @@ def test_forty_incoming_balls_need_every_stroke(cell):
         bounces, apex = [], None
         for _ in range(2000):
             cell.step(1)
-            bounces += [e for e in cell.pop_events()
-                        if e.type in (referee.BOUNCE_OWN_SIDE, referee.BOUNCE_OPPONENT_SIDE)]
+            bounces += [
+                e for e in cell.pop_events() if e.type in (referee.BOUNCE_OWN_SIDE, referee.BOUNCE_OPPONENT_SIDE)
+            ]
             if bounces and cell.ball_velocity_m_s[2] <= 0.0:
                 apex = cell.ball_position_m
                 break
@@ -269,8 +275,11 @@ def test_reset_removes_the_ball_and_ends_its_rally(cell):
 
 
 def test_bad_launches_are_rejected(cell):
-    for position, velocity in (([0.0, 0.0, math.nan], [0.0, 0.0, 0.0]), ([0.0, 0.0, 1.0], [40.0, 0.0, 0.0]),
-                               ([0.0, 0.0, -0.5], [0.0, 0.0, 0.0])):
+    for position, velocity in (
+        ([0.0, 0.0, math.nan], [0.0, 0.0, 0.0]),
+        ([0.0, 0.0, 1.0], [40.0, 0.0, 0.0]),
+        ([0.0, 0.0, -0.5], [0.0, 0.0, 0.0]),
+    ):
         with pytest.raises(InputError):
             cell.launch_ball(position, velocity)
     assert not cell.ball_in_play

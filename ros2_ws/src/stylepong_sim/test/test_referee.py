@@ -1,4 +1,5 @@
 """The referee's rules (docs/DESIGN.md, "Evaluation protocol"), one rally at a time and on arrays of balls."""
+
 import numpy as np
 import pytest
 import torch
@@ -36,10 +37,16 @@ def _verdict(events) -> tuple[bool, str]:
 
 def test_a_return_to_the_opponents_half_succeeds():
     ref = referee.Referee()
-    events = (_launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR)
-              + ref.table_contact(1.3, OPPONENT))
-    assert _types(events) == [referee.LAUNCHED, referee.BOUNCE_OWN_SIDE, referee.PADDLE_HIT,
-                              referee.BOUNCE_OPPONENT_SIDE, referee.RALLY_END]
+    events = (
+        _launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR) + ref.table_contact(1.3, OPPONENT)
+    )
+    assert _types(events) == [
+        referee.LAUNCHED,
+        referee.BOUNCE_OWN_SIDE,
+        referee.PADDLE_HIT,
+        referee.BOUNCE_OPPONENT_SIDE,
+        referee.RALLY_END,
+    ]
     assert _verdict(events) == (True, 'returned')
     assert not ref.rally_open
 
@@ -48,14 +55,26 @@ def test_a_return_to_the_opponents_half_succeeds():
 TABLE, NET, PADDLE = referee.Referee.table_contact, referee.Referee.net_contact, referee.Referee.paddle_contact
 
 
-@pytest.mark.parametrize('contacts, verdict', [
-    pytest.param([(TABLE, 0.5, OWN), (PADDLE, 0.8, AIR), (NET, 1.0, AIR)], (False, 'net'),
-                 id='a_net_touching_return_fails_even_if_it_would_drop_over'),
-    pytest.param([(TABLE, 0.5, OWN), (TABLE, 0.9, OWN)], (False, 'second_bounce_own_side'),
-                 id='a_second_bounce_on_own_side_before_a_hit_fails'),
-    pytest.param([(PADDLE, 0.4, AIR), (TABLE, 0.9, OPPONENT)], (True, 'returned'),
-                 id='a_volley_is_judged_by_where_the_return_lands'),
-])
+@pytest.mark.parametrize(
+    'contacts, verdict',
+    [
+        pytest.param(
+            [(TABLE, 0.5, OWN), (PADDLE, 0.8, AIR), (NET, 1.0, AIR)],
+            (False, 'net'),
+            id='a_net_touching_return_fails_even_if_it_would_drop_over',
+        ),
+        pytest.param(
+            [(TABLE, 0.5, OWN), (TABLE, 0.9, OWN)],
+            (False, 'second_bounce_own_side'),
+            id='a_second_bounce_on_own_side_before_a_hit_fails',
+        ),
+        pytest.param(
+            [(PADDLE, 0.4, AIR), (TABLE, 0.9, OPPONENT)],
+            (True, 'returned'),
+            id='a_volley_is_judged_by_where_the_return_lands',
+        ),
+    ],
+)
 def test_the_contacts_of_a_rally_earn_its_verdict(contacts, verdict):
     ref = referee.Referee()
     events = _launched(ref)
@@ -64,16 +83,24 @@ def test_the_contacts_of_a_rally_earn_its_verdict(contacts, verdict):
     assert _verdict(events) == verdict
 
 
-@pytest.mark.parametrize('second, reason', [
-    ('own_side', 'own_side'), ('paddle', 'double_hit'), ('robot', 'robot_contact'),
-    ('table_by_robot', 'table_contact_by_robot'),
-])
+@pytest.mark.parametrize(
+    'second, reason',
+    [
+        ('own_side', 'own_side'),
+        ('paddle', 'double_hit'),
+        ('robot', 'robot_contact'),
+        ('table_by_robot', 'table_contact_by_robot'),
+    ],
+)
 def test_failures_after_the_hit(second, reason):
     ref = referee.Referee()
     events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR)
-    events += {'own_side': lambda: ref.table_contact(1.0, OWN), 'paddle': lambda: ref.paddle_contact(0.85, AIR),
-               'robot': lambda: ref.robot_contact(0.85, AIR),
-               'table_by_robot': lambda: ref.robot_table_contact(0.9, (-1.3, 0.0, world_spec.TABLE_HEIGHT_M))}[second]()
+    events += {
+        'own_side': lambda: ref.table_contact(1.0, OWN),
+        'paddle': lambda: ref.paddle_contact(0.85, AIR),
+        'robot': lambda: ref.robot_contact(0.85, AIR),
+        'table_by_robot': lambda: ref.robot_table_contact(0.9, (-1.3, 0.0, world_spec.TABLE_HEIGHT_M)),
+    }[second]()
     assert _verdict(events) == (False, reason)
 
 
@@ -91,7 +118,7 @@ def test_no_hit_ends_when_the_ball_reaches_the_floor_not_before():
 def test_a_returned_ball_below_the_table_top_outside_it_and_falling_is_out():
     ref = referee.Referee()
     events = _launched(ref) + ref.table_contact(0.5, OWN) + ref.paddle_contact(0.8, AIR)
-    events += ref.ball_state(1.0, (-1.5, 0.0, 0.7), (1.0, 0.0, 2.0))   # rising: may still reach the table
+    events += ref.ball_state(1.0, (-1.5, 0.0, 0.7), (1.0, 0.0, 2.0))  # rising: may still reach the table
     assert ref.rally_open
     events += ref.ball_state(1.5, (1.6, 0.0, 0.7), (3.0, 0.0, -1.0))
     assert _types(events)[-2:] == [referee.OUT, referee.RALLY_END]
@@ -118,8 +145,10 @@ def test_a_new_launch_aborts_the_open_rally_and_each_ball_gets_exactly_one_end()
     ref = referee.Referee()
     first = _launched(ref, 1) + ref.table_contact(0.5, OWN)
     second = ref.launch(2, 0.6, (1.2, 0.0, 1.0))
-    assert [(e.ball_id, e.type, e.reason) for e in second] == [(1, referee.RALLY_END, 'aborted'),
-                                                               (2, referee.LAUNCHED, '')]
+    assert [(e.ball_id, e.type, e.reason) for e in second] == [
+        (1, referee.RALLY_END, 'aborted'),
+        (2, referee.LAUNCHED, ''),
+    ]
     assert _verdict(first + second[:1]) == (False, 'aborted')
     assert ref.abort(0.7, AIR)[0].ball_id == 2
     assert ref.abort(0.8, AIR) == []
@@ -129,8 +158,13 @@ def test_silent_after_the_verdict():
     ref = referee.Referee()
     _launched(ref)
     ref.robot_contact(0.5, AIR)
-    for report in (ref.table_contact(0.6, OPPONENT), ref.paddle_contact(0.6, AIR), ref.net_contact(0.6, AIR),
-                   ref.robot_table_contact(0.6, AIR), ref.ball_state(9.0, (0, 0, 0), FALLING)):
+    for report in (
+        ref.table_contact(0.6, OPPONENT),
+        ref.paddle_contact(0.6, AIR),
+        ref.net_contact(0.6, AIR),
+        ref.robot_table_contact(0.6, AIR),
+        ref.ball_state(9.0, (0, 0, 0), FALLING),
+    ):
         assert report == []
 
 
@@ -144,7 +178,7 @@ def test_the_rules_judge_one_ball_and_arrays_of_balls_alike():
     rng = np.random.default_rng(0)
     n = 400
     position = np.stack((rng.uniform(-5.5, 5.5, n), rng.uniform(-4.5, 4.5, n), rng.uniform(-0.1, 1.5, n)))
-    position[:, :40] = np.array(OWN)[:, None]          # some exactly on the table's contact plane
+    position[:, :40] = np.array(OWN)[:, None]  # some exactly on the table's contact plane
     vz = rng.uniform(-3.0, 3.0, n)
     hit = rng.uniform(size=n) < 0.5
     own_bounces = rng.integers(0, 3, n)
@@ -158,8 +192,9 @@ def test_the_rules_judge_one_ball_and_arrays_of_balls_alike():
         for i in range(n):
             alone = tuple(float(x) for x in position[:, i])
             hit_i = bool(hit[i])
-            expected_state = _verdict_masks(referee.ball_state_verdicts(hit_i, alone, float(vz[i]), float(elapsed[i]),
-                                                                        world_spec.BALL_TIMEOUT_S))
+            expected_state = _verdict_masks(
+                referee.ball_state_verdicts(hit_i, alone, float(vz[i]), float(elapsed[i]), world_spec.BALL_TIMEOUT_S)
+            )
             assert {k: bool(v[i]) for k, v in state.items()} == expected_state, i
             own_i = referee.is_own_side(alone)
             expected_table = _verdict_masks(referee.table_contact_verdicts(hit_i, own_i, int(own_bounces[i])))

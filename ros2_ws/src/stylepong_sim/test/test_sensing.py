@@ -1,4 +1,5 @@
 """Sensor models and sample clocks of the cell."""
+
 import numpy as np
 import pytest
 
@@ -23,7 +24,7 @@ def test_sample_clocks_keep_their_long_run_rate_on_a_1_ms_grid(rate_hz):
 def test_a_sample_clock_skips_instants_missed_while_not_asked():
     clock = SampleClock(100.0)
     assert clock.due(0.0)
-    assert clock.due(0.5)            # 49 instants passed unasked: one sample, not a burst
+    assert clock.due(0.5)  # 49 instants passed unasked: one sample, not a burst
     assert not clock.due(0.505)
     assert clock.due(0.51)
 
@@ -43,8 +44,12 @@ def test_perfect_sensors_by_default():
 
 
 def test_camera_latency_dropout_and_noise():
-    config = SensingConfig(ball_position_noise_std_m=0.004, ball_velocity_noise_std_m_s=0.1, ball_latency_s=0.025,
-                           ball_dropout_probability=0.2)
+    config = SensingConfig(
+        ball_position_noise_std_m=0.004,
+        ball_velocity_noise_std_m_s=0.1,
+        ball_latency_s=0.025,
+        ball_dropout_probability=0.2,
+    )
     camera = BallCamera(config, np.random.default_rng(1))
     truth = np.array([-1.0, 0.2, 1.0])
     stamps = [k / 120.0 for k in range(2000)]
@@ -59,8 +64,12 @@ def test_camera_latency_dropout_and_noise():
 
 
 def test_force_torque_bias_and_noise():
-    config = SensingConfig(ft_force_noise_std_n=0.3, ft_torque_noise_std_nm=0.02, ft_force_bias_n=(1.5, -2.0, 3.0),
-                           ft_torque_bias_nm=(0.05, -0.03, 0.08))
+    config = SensingConfig(
+        ft_force_noise_std_n=0.3,
+        ft_torque_noise_std_nm=0.02,
+        ft_force_bias_n=(1.5, -2.0, 3.0),
+        ft_torque_bias_nm=(0.05, -0.03, 0.08),
+    )
     sensor = ForceTorqueSensor(config, np.random.default_rng(2))
     readings = [sensor.measure(np.zeros(3), np.zeros(3)) for _ in range(5000)]
     forces = np.array([f for f, _ in readings])
@@ -70,8 +79,15 @@ def test_force_torque_bias_and_noise():
     assert forces.std(axis=0) == pytest.approx([0.3] * 3, rel=0.1)
 
 
-@pytest.mark.parametrize('bad', [dict(ball_latency_s=-0.1), dict(ball_dropout_probability=1.0),
-                                 dict(ft_force_noise_std_n=float('nan')), dict(ft_force_bias_n=(1.0, 2.0))])
+@pytest.mark.parametrize(
+    'bad',
+    [
+        dict(ball_latency_s=-0.1),
+        dict(ball_dropout_probability=1.0),
+        dict(ft_force_noise_std_n=float('nan')),
+        dict(ft_force_bias_n=(1.0, 2.0)),
+    ],
+)
 def test_bad_sensing_levels_are_rejected(bad):
     with pytest.raises(ValueError):
         SensingConfig(**bad)

@@ -1,4 +1,5 @@
 """Hand-made stroke styles (stroke_styles.py, config/styles/*.yaml): read, checked, and played by the teacher."""
+
 import pathlib
 
 import numpy as np
@@ -17,9 +18,12 @@ HOME_CENTRE = KINEMATICS.kin.pose(KINEMATICS.home_q, KINEMATICS.centre).translat
 
 
 def _entry(shape) -> dict:
-    return {'back_offset_m': list(shape.back_offset_m), 'hit_offset_m': list(shape.hit_offset_m),
-            'follow_offset_m': list(shape.follow_offset_m),
-            'yaw_rad': [shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad]}
+    return {
+        'back_offset_m': list(shape.back_offset_m),
+        'hit_offset_m': list(shape.hit_offset_m),
+        'follow_offset_m': list(shape.follow_offset_m),
+        'yaw_rad': [shape.back_yaw_rad, shape.hit_yaw_rad, shape.follow_yaw_rad],
+    }
 
 
 def _write(tmp_path: pathlib.Path, document) -> pathlib.Path:
@@ -39,8 +43,9 @@ def test_every_take_of_a_shipped_style_is_a_clean_unmistakable_stroke(path):
     """The nominal take and the seeds tools/record_demos.sh gives its seven clips (1-7)."""
     for swing, shape in stroke_styles.load_strokes_file(path).items():
         for variation in [SwingVariation()] + [sample_variation(swing, seed) for seed in range(1, 8)]:
-            check = stroke_styles.check_stroke(swing, StrokePath(swing, TeacherConfig(), HOME_CENTRE, variation, shape),
-                                               KINEMATICS)
+            check = stroke_styles.check_stroke(
+                swing, StrokePath(swing, TeacherConfig(), HOME_CENTRE, variation, shape), KINEMATICS
+            )
             assert check.min_shoulder_clearance_m >= stroke_styles.MIN_SHOULDER_CLEARANCE_M
 
 
@@ -69,16 +74,19 @@ def test_key_pose_pitches_open_the_blade_through_the_stroke(tmp_path):
     assert path.at(path.hit_time_s()).pitch_rate_rad_s > 0.0
 
 
-@pytest.mark.parametrize('document, words', [
-    ('forward: [1, 2', 'not YAML'),
-    ({'backhand': {}}, 'unknown swing(s) backhand'),
-    ({'forward': {'back_offset_m': [0.0, 0.0, 0.0]}}, 'forward: missing hit_offset_m'),
-    ({'forward': {**_entry(STROKES['forward']), 'roll_rad': [0, 0, 0]}}, 'unknown key(s) roll_rad'),
-    ({'forward': {**_entry(STROKES['forward']), 'hit_offset_m': [0.1, 0.0]}}, 'hit_offset_m must be a list of 3'),
-    ({'forward': {**_entry(STROKES['forward']), 'yaw_rad': [0.0, 2.0, 0.0]}}, 'yaw_rad must stay within'),
-    ({'forward': {**_entry(STROKES['forward']), 'pitch_rad': [0.0, -0.2, 0.0]}}, 'pitch_rad opens the blade'),
-    ({'forward': {**_entry(STROKES['forward']), 'follow_offset_m': [0.9, 0.0, 0.0]}}, 'm from home'),
-])
+@pytest.mark.parametrize(
+    'document, words',
+    [
+        ('forward: [1, 2', 'not YAML'),
+        ({'backhand': {}}, 'unknown swing(s) backhand'),
+        ({'forward': {'back_offset_m': [0.0, 0.0, 0.0]}}, 'forward: missing hit_offset_m'),
+        ({'forward': {**_entry(STROKES['forward']), 'roll_rad': [0, 0, 0]}}, 'unknown key(s) roll_rad'),
+        ({'forward': {**_entry(STROKES['forward']), 'hit_offset_m': [0.1, 0.0]}}, 'hit_offset_m must be a list of 3'),
+        ({'forward': {**_entry(STROKES['forward']), 'yaw_rad': [0.0, 2.0, 0.0]}}, 'yaw_rad must stay within'),
+        ({'forward': {**_entry(STROKES['forward']), 'pitch_rad': [0.0, -0.2, 0.0]}}, 'pitch_rad opens the blade'),
+        ({'forward': {**_entry(STROKES['forward']), 'follow_offset_m': [0.9, 0.0, 0.0]}}, 'm from home'),
+    ],
+)
 def test_a_malformed_style_file_is_refused_in_one_line_naming_the_file_and_the_fault(tmp_path, document, words):
     path = _write(tmp_path, document)
     with pytest.raises(ValueError) as error:
@@ -97,20 +105,21 @@ def _checked(swing: str, **changes) -> stroke_styles.StrokeCheck:
     shape = STROKES[swing]
     entry = {**_entry(shape), **changes}
     strokes = stroke_styles.shape_from_mapping(entry, 'test')
-    return stroke_styles.check_stroke(swing, StrokePath(swing, TeacherConfig(blade_pitch_rad=0.0), HOME_CENTRE,
-                                                        SwingVariation(), strokes), KINEMATICS)
+    return stroke_styles.check_stroke(
+        swing, StrokePath(swing, TeacherConfig(blade_pitch_rad=0.0), HOME_CENTRE, SwingVariation(), strokes), KINEMATICS
+    )
 
 
 def test_a_stroke_whose_label_could_be_mistaken_is_refused():
-    _checked('leftward')   # the shipped one passes
+    _checked('leftward')  # the shipped one passes
     with pytest.raises(ValueError, match='leftward stroke meets the ball'):
-        _checked('leftward', hit_offset_m=[0.03, -0.05, 0.05])           # met on the right
+        _checked('leftward', hit_offset_m=[0.03, -0.05, 0.05])  # met on the right
     with pytest.raises(ValueError, match='leftward stroke meets the ball'):
-        _checked('leftward', yaw_rad=[-0.1, -0.1, 0.45])                 # facing right at the hit
+        _checked('leftward', yaw_rad=[-0.1, -0.1, 0.45])  # facing right at the hit
     with pytest.raises(ValueError, match='forward stroke meets the ball straight ahead'):
         _checked('forward', hit_offset_m=[0.06, 0.08, 0.05])
     with pytest.raises(ValueError, match='back-swing'):
-        _checked('forward', back_offset_m=[0.02, -0.06, -0.07])          # no back-swing
+        _checked('forward', back_offset_m=[0.02, -0.06, -0.07])  # no back-swing
 
 
 def test_a_stroke_near_the_shoulder_singularity_or_beyond_reach_is_refused():
@@ -137,16 +146,20 @@ def test_the_teacher_plays_a_style_named_by_its_file_or_its_name():
             rclpy.try_shutdown(context=context)
 
 
-@pytest.mark.parametrize('document, words', [
-    ({'forward': _entry(STROKES['forward'])}, 'has no leftward stroke'),
-    ({'leftward': {**_entry(STROKES['leftward']), 'hit_offset_m': [0.03, -0.05, 0.05]}}, 'leftward take (seed 2)'),
-    ('leftward: 3', 'expected a mapping'),
-])
+@pytest.mark.parametrize(
+    'document, words',
+    [
+        ({'forward': _entry(STROKES['forward'])}, 'has no leftward stroke'),
+        ({'leftward': {**_entry(STROKES['leftward']), 'hit_offset_m': [0.03, -0.05, 0.05]}}, 'leftward take (seed 2)'),
+        ('leftward: 3', 'expected a mapping'),
+    ],
+)
 def test_a_style_the_teacher_cannot_play_is_refused_naming_strokes_file(tmp_path, document, words):
     path = _write(tmp_path, document)
     context = rclpy.Context()
-    rclpy.init(args=['--ros-args', '-p', 'swing:=leftward', '-p', 'seed:=2', '-p', f'strokes_file:={path}'],
-               context=context)
+    rclpy.init(
+        args=['--ros-args', '-p', 'swing:=leftward', '-p', 'seed:=2', '-p', f'strokes_file:={path}'], context=context
+    )
     try:
         with pytest.raises(ParameterError) as error:
             VirtualTeacherNode(context=context)

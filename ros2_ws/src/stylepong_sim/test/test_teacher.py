@@ -1,4 +1,5 @@
 """The virtual teacher's strokes and hand (its drag of the FDCC arm: stylepong_fdcc/test/test_teacher_drags_fdcc.py)."""
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -54,9 +55,11 @@ def test_a_stroke_swings_back_then_forwards_through_a_hit_in_front_of_the_robot_
 
 def test_the_three_directions_are_distinct():
     hits = {s: StrokePath(s, TeacherConfig(), HOME_CENTRE).hit for s in SWINGS}
-    sweeps = {s: StrokePath(s, TeacherConfig(), HOME_CENTRE).follow - StrokePath(s, TeacherConfig(), HOME_CENTRE).back
-              for s in SWINGS}
-    assert hits['leftward'][1] > hits['forward'][1] + 0.15     # world +y is the robot's left
+    sweeps = {
+        s: StrokePath(s, TeacherConfig(), HOME_CENTRE).follow - StrokePath(s, TeacherConfig(), HOME_CENTRE).back
+        for s in SWINGS
+    }
+    assert hits['leftward'][1] > hits['forward'][1] + 0.15  # world +y is the robot's left
     assert hits['rightward'][1] < hits['forward'][1] - 0.15
     assert sweeps['leftward'][1] > 0.2 and sweeps['rightward'][1] < -0.2 and abs(sweeps['forward'][1]) < 0.1
     assert STROKES['leftward'].hit_yaw_rad > 0 > STROKES['rightward'].hit_yaw_rad
@@ -76,8 +79,9 @@ def test_the_hand_pulls_towards_the_via_point_and_never_pushes_harder_than_its_l
     rotation = np.eye(3)
     small = hand_wrench(config, np.zeros(3), rotation, np.zeros(6), np.array([0.01, 0, 0]), rotation, np.zeros(6))
     np.testing.assert_allclose(small, [config.hand_stiffness_n_per_m * 0.01, 0, 0, 0, 0, 0])
-    far = hand_wrench(config, np.zeros(3), rotation, np.zeros(6), np.array([0, 5.0, 0]),
-                      pin.utils.rpyToMatrix(0, 0, 2.0), np.zeros(6))
+    far = hand_wrench(
+        config, np.zeros(3), rotation, np.zeros(6), np.array([0, 5.0, 0]), pin.utils.rpyToMatrix(0, 0, 2.0), np.zeros(6)
+    )
     assert np.linalg.norm(far[:3]) == pytest.approx(config.max_force_n)
     assert np.linalg.norm(far[3:]) == pytest.approx(config.max_torque_nm)
     assert far[1] > 0 and far[5] > 0
@@ -87,33 +91,33 @@ def test_the_hand_waits_for_an_arm_that_does_not_follow():
     config = TeacherConfig()
     teacher = VirtualTeacher('forward', config)
     t = 0.0
-    while teacher.phase != 'ready':               # the arm at home is at the ready pose already
+    while teacher.phase != 'ready':  # the arm at home is at the ready pose already
         teacher.update(t, HOME, np.zeros(6))
         t += 0.002
         assert t < 5.0
     teacher.begin_stroke(t)
     forces = []
-    for _ in range(5000):                         # 10 s with the arm stuck at home
+    for _ in range(5000):  # 10 s with the arm stuck at home
         forces.append(np.linalg.norm(teacher.update(t, HOME, np.zeros(6))[:3]))
         t += 0.002
-    assert teacher.phase == 'stroke'              # the stroke did not run on without the arm
+    assert teacher.phase == 'stroke'  # the stroke did not run on without the arm
     # The clock stops with the paddle centre lag_stop_m behind; the gripped point is further from its target
     # by the chord the opened blade turns it through about the centre.
     lever_m = float(np.linalg.norm(teacher.centre_to_grip.translation))
     chord_m = 2.0 * lever_m * np.sin(0.5 * config.blade_pitch_rad)
     assert max(forces) < config.hand_stiffness_n_per_m * (config.lag_stop_m + chord_m) + 5.0
-    assert teacher.via_point(t).velocity_m_s @ teacher.via_point(t).velocity_m_s < 1e-6   # the via-point waits
+    assert teacher.via_point(t).velocity_m_s @ teacher.via_point(t).velocity_m_s < 1e-6  # the via-point waits
 
 
 def test_an_opened_blade_faces_up_from_the_back_swing_on_and_is_upright_at_the_ready_pose():
     opened = VirtualTeacher('forward', TeacherConfig(blade_pitch_rad=0.6))
     path = opened.path
     hit = path.at(path.hit_time_s())
-    assert VirtualTeacher('forward').path.at(path.hit_time_s()).pitch_rad == 0.6   # the default: the shipped clips'
+    assert VirtualTeacher('forward').path.at(path.hit_time_s()).pitch_rad == 0.6  # the default: the shipped clips'
     upright = VirtualTeacher('forward', TeacherConfig(blade_pitch_rad=0.0)).path
     assert upright.at(upright.hit_time_s()).pitch_rad == 0.0
     assert path.at(0.0).pitch_rad == 0.0 and hit.pitch_rad == 0.6 and path.at(path.duration_s).pitch_rad == 0.6
-    normal = hit.rotation(opened.home_rotation)[:, 2]             # the blade's face, +x at home
+    normal = hit.rotation(opened.home_rotation)[:, 2]  # the blade's face, +x at home
     assert normal[2] == pytest.approx(np.sin(0.6), abs=0.01) and normal[0] == pytest.approx(np.cos(0.6), abs=0.01)
     # Opening during the back-swing: the angular velocity is the rotation's rate of change.
     t, dt = TeacherConfig().lead_in_s + 0.5 * path.backswing_s, 1e-6

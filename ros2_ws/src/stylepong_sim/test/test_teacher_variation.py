@@ -4,6 +4,7 @@ The arm is dragged by the paddle's full pose, so the joint path a take asks for 
 of its via-points, followed continuously from home the way the dragged arm moves: that is what the
 joint-limit, shoulder and elbow checks below run on.
 """
+
 import itertools
 
 import numpy as np
@@ -27,27 +28,31 @@ from stylepong_sim.teaching.teacher import (
 HOME_Q = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 KIN = CellKinematics()
 CENTRE = KIN.frame_id(robot_model.PADDLE_CENTRE_FRAME)
-WRIST = KIN.frame_id('wrist_3_joint')        # where the axes of wrists 2 and 3 meet
+WRIST = KIN.frame_id('wrist_3_joint')  # where the axes of wrists 2 and 3 meet
 HOME_POSE = KIN.pose(HOME_Q, CENTRE)
 HOME_CENTRE = HOME_POSE.translation
-SHIPPED_SEEDS = {'forward': (1, 4, 7), 'leftward': (2, 5), 'rightward': (3, 6)}   # tools/record_demos.sh
+SHIPPED_SEEDS = {'forward': (1, 4, 7), 'leftward': (2, 5), 'rightward': (3, 6)}  # tools/record_demos.sh
 
 # Margins the tests hold every take to (the reasons are beside VARIATION_RANGES in teacher.py).
-MIN_SHOULDER_CLEARANCE_M = 0.22   # nominal strokes: 0.23 m at the back-swing; takes only make it shallower
-MIN_ELBOW_BEND_RAD = 1.0          # follow-throughs stay short of the arm's reach
+MIN_SHOULDER_CLEARANCE_M = 0.22  # nominal strokes: 0.23 m at the back-swing; takes only make it shallower
+MIN_ELBOW_BEND_RAD = 1.0  # follow-throughs stay short of the arm's reach
 MIN_REACHING_ELBOW_BEND_RAD = 0.5  # a stroke reaching out (side_reach_m) stretches the arm further, never straight
-MAX_JOINT_STEP_RAD = 0.15         # per 20 ms of the path: more would be a flip of the shoulder or wrist
-SIDE_HIT_MIN_Y_M = 0.09           # a leftward (rightward) hit this far to the left (right) of home, at least
-FORWARD_HIT_MAX_Y_M = 0.03        # a forward hit this close to straight ahead
-MIN_HIT_SPEED_FRACTION = 0.75       # of the take's top speed (0.85 for the nominal strokes)
+MAX_JOINT_STEP_RAD = 0.15  # per 20 ms of the path: more would be a flip of the shoulder or wrist
+SIDE_HIT_MIN_Y_M = 0.09  # a leftward (rightward) hit this far to the left (right) of home, at least
+FORWARD_HIT_MAX_Y_M = 0.03  # a forward hit this close to straight ahead
+MIN_HIT_SPEED_FRACTION = 0.75  # of the take's top speed (0.85 for the nominal strokes)
 DIFFERENT_TAKES_MIN_RMS_M = 0.004  # two seeds' paddle paths (on normalised time) differ by this much at least
 
 
 def sampled(path: StrokePath, dt_s: float = 0.002):
     times = np.arange(0.0, path.duration_s + 1e-9, dt_s)
     points = [path.at(t) for t in times]
-    return (times, np.array([p.position_m for p in points]), np.array([p.velocity_m_s for p in points]),
-            np.array([p.yaw_rad for p in points]))
+    return (
+        times,
+        np.array([p.position_m for p in points]),
+        np.array([p.velocity_m_s for p in points]),
+        np.array([p.yaw_rad for p in points]),
+    )
 
 
 def on_normalised_time(path: StrokePath, samples: int = 200) -> np.ndarray:
@@ -64,8 +69,9 @@ def joint_path(path: StrokePath, dt_s: float = 0.02) -> np.ndarray:
         target = pin.SE3(world_spec.yaw_rotation(via.yaw_rad) @ HOME_POSE.rotation, via.position_m)
         for _ in range(30):
             current = KIN.pose(q, CENTRE)
-            error = np.concatenate([target.translation - current.translation,
-                                    pin.log3(target.rotation @ current.rotation.T)])
+            error = np.concatenate(
+                [target.translation - current.translation, pin.log3(target.rotation @ current.rotation.T)]
+            )
             if np.linalg.norm(error) < 1e-8:
                 break
             pin.computeJointJacobians(KIN.model, KIN.data, q)
@@ -79,7 +85,7 @@ def joint_path(path: StrokePath, dt_s: float = 0.02) -> np.ndarray:
 def shoulder_clearance_m(q: np.ndarray) -> float:
     """Distance of the wrist from the plane of the shoulder's two axes (zero: the UR5's shoulder singularity)."""
     pin.framesForwardKinematics(KIN.model, KIN.data, q)
-    shoulder = KIN.data.oMi[2]                       # shoulder_lift_joint, rotating about its y axis
+    shoulder = KIN.data.oMi[2]  # shoulder_lift_joint, rotating about its y axis
     lift_axis = shoulder.rotation[:, 1]
     normal = np.cross([0.0, 0.0, 1.0], lift_axis)
     normal /= np.linalg.norm(normal)
@@ -93,9 +99,16 @@ def extreme_takes(swing: str) -> list[SwingVariation]:
     for signs in itertools.product((-1.0, 1.0), repeat=3):
         delta = tuple(s * j for s, j in zip(signs, r.key_pose_jitter_m))
         for hit_fraction in r.hit_fraction:
-            takes.append(SwingVariation(amplitude_scale=r.amplitude_scale[1], hit_delta_m=delta, follow_delta_m=delta,
-                                        back_delta_m=(r.back_shallower_m[0],) + delta[1:], hit_fraction=hit_fraction,
-                                        yaw_delta_rad=tuple(s * r.yaw_jitter_rad for s in signs)))
+            takes.append(
+                SwingVariation(
+                    amplitude_scale=r.amplitude_scale[1],
+                    hit_delta_m=delta,
+                    follow_delta_m=delta,
+                    back_delta_m=(r.back_shallower_m[0],) + delta[1:],
+                    hit_fraction=hit_fraction,
+                    yaw_delta_rad=tuple(s * r.yaw_jitter_rad for s in signs),
+                )
+            )
     return takes
 
 
@@ -104,14 +117,18 @@ def extreme_takes(swing: str) -> list[SwingVariation]:
 def test_the_same_seed_gives_the_same_take(swing):
     first, again = sample_variation(swing, 11), sample_variation(swing, 11)
     assert first == again
-    np.testing.assert_array_equal(on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, first)),
-                                  on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, again)))
+    np.testing.assert_array_equal(
+        on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, first)),
+        on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, again)),
+    )
 
 
 @pytest.mark.parametrize('swing', SWINGS)
 def test_different_seeds_give_takes_that_differ_by_more_than_the_margin(swing):
-    paths = [on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, sample_variation(swing, seed)))
-             for seed in range(20)]
+    paths = [
+        on_normalised_time(StrokePath(swing, TeacherConfig(), HOME_CENTRE, sample_variation(swing, seed)))
+        for seed in range(20)
+    ]
     for a, b in itertools.combinations(range(len(paths)), 2):
         rms_m = float(np.sqrt(np.mean(np.sum((paths[a] - paths[b]) ** 2, axis=1))))
         assert rms_m > DIFFERENT_TAKES_MIN_RMS_M, f'seeds {a} and {b}: paths {rms_m * 1000:.1f} mm apart'
@@ -121,16 +138,24 @@ def test_different_seeds_give_takes_that_differ_by_more_than_the_margin(swing):
 def test_strength_zero_is_the_nominal_stroke_and_any_strength_stays_within_the_ranges():
     assert sample_variation('forward', 5, strength=0.0) == SwingVariation()
     for swing, seed, strength in itertools.product(SWINGS, range(50), (0.3, 1.0)):
-        sample_variation(swing, seed, strength).validate()      # raises outside the ranges
+        sample_variation(swing, seed, strength).validate()  # raises outside the ranges
     with pytest.raises(ValueError, match='seed'):
         sample_variation('forward', -1)
     with pytest.raises(ValueError, match='strength'):
         sample_variation('forward', 1, strength=1.5)
 
 
-@pytest.mark.parametrize('bad', [dict(amplitude_scale=1.2), dict(backswing_scale=0.5), dict(hit_fraction=0.7),
-                                 dict(back_delta_m=(-0.02, 0.0, 0.0)), dict(hit_delta_m=(0.0, 0.05, 0.0)),
-                                 dict(yaw_delta_rad=(0.0, 0.2, 0.0))])
+@pytest.mark.parametrize(
+    'bad',
+    [
+        dict(amplitude_scale=1.2),
+        dict(backswing_scale=0.5),
+        dict(hit_fraction=0.7),
+        dict(back_delta_m=(-0.02, 0.0, 0.0)),
+        dict(hit_delta_m=(0.0, 0.05, 0.0)),
+        dict(yaw_delta_rad=(0.0, 0.2, 0.0)),
+    ],
+)
 def test_a_take_outside_the_ranges_is_refused(bad):
     with pytest.raises(ValueError):
         StrokePath('forward', TeacherConfig(), HOME_CENTRE, SwingVariation(**bad))
@@ -164,14 +189,14 @@ def test_every_take_keeps_its_direction_and_its_order_and_clears_the_table(swing
         hit_y_m = path.hit[1] - HOME_CENTRE[1]
         sweep_y_m = path.follow[1] - path.back[1]
         _, hit_yaw_rad, _ = path.yaws[1:]
-        if swing == 'leftward':          # world +y is the robot's left
+        if swing == 'leftward':  # world +y is the robot's left
             assert hit_y_m > SIDE_HIT_MIN_Y_M and sweep_y_m > 0.2 and hit_yaw_rad > 0.2, take
         elif swing == 'rightward':
             assert hit_y_m < -SIDE_HIT_MIN_Y_M and sweep_y_m < -0.2 and hit_yaw_rad < -0.2, take
         else:
             assert abs(hit_y_m) < FORWARD_HIT_MAX_Y_M and abs(sweep_y_m) < 0.1 and abs(hit_yaw_rad) < 0.1, take
         assert path.back[0] < HOME_CENTRE[0] - 0.05 and HOME_CENTRE[0] < path.hit[0] < path.follow[0], take
-        assert path.back[0] >= HOME_CENTRE[0] + STROKES[swing].back_offset_m[0] - 1e-12   # never deeper
+        assert path.back[0] >= HOME_CENTRE[0] + STROKES[swing].back_offset_m[0] - 1e-12  # never deeper
         assert path.follow[2] > path.hit[2] > path.back[2], take
         _, positions, _, _ = sampled(path, 0.01)
         over_table = positions[:, 0] > -world_spec.HALF_LENGTH_M - robot_model.PADDLE.blade_radius_m
@@ -243,5 +268,6 @@ def test_a_reaching_stroke_is_carried_to_its_side_within_the_arms_reach(swing):
     with pytest.raises(ValueError, match='side_reach_m'):
         StrokePath(swing, TeacherConfig(side_reach_m=reach_m + 0.05), HOME_CENTRE, take)
     forward = StrokePath('forward', TeacherConfig(side_reach_m=0.1), HOME_CENTRE, sample_variation('forward', 3))
-    np.testing.assert_array_equal(forward.hit, StrokePath('forward', TeacherConfig(), HOME_CENTRE,
-                                                          sample_variation('forward', 3)).hit)
+    np.testing.assert_array_equal(
+        forward.hit, StrokePath('forward', TeacherConfig(), HOME_CENTRE, sample_variation('forward', 3)).hit
+    )

@@ -1,5 +1,6 @@
 """The simulated ball tracker: positions in its camera frame, stamped at exposure, with the configured
 latency, noise, lost frames and false detections."""
+
 import numpy as np
 import pytest
 
@@ -12,7 +13,7 @@ def test_camera_and_world_frames_are_inverse_and_the_camera_looks_at_the_table()
     config = TrackerConfig()
     np.testing.assert_allclose(camera_to_world(config, world_to_camera(config, BALL)), BALL, atol=1e-12)
     centre = world_to_camera(config, (0.0, 0.0, 0.76))
-    assert centre[0] > 2.0 and np.hypot(centre[1], centre[2]) < 0.3 * centre[0]   # x is the line of sight
+    assert centre[0] > 2.0 and np.hypot(centre[1], centre[2]) < 0.3 * centre[0]  # x is the line of sight
 
 
 def test_a_perfect_tracker_reports_the_ball_at_once_in_its_frame():
@@ -23,12 +24,17 @@ def test_a_perfect_tracker_reports_the_ball_at_once_in_its_frame():
     assert detection.stamp_s == 1.0
     np.testing.assert_allclose(camera_to_world(config, detection.position_camera_m), BALL, atol=1e-12)
     tracker.expose(1.01, None)
-    assert tracker.delivered(2.0) == []          # no ball, no false detections: nothing
+    assert tracker.delivered(2.0) == []  # no ball, no false detections: nothing
 
 
 def test_latency_noise_losses_and_false_detections_at_their_rates():
-    config = TrackerConfig(latency_s=0.02, latency_jitter_s=0.005, position_noise_std_m=0.003,
-                           dropout_probability=0.1, outlier_probability=0.05)
+    config = TrackerConfig(
+        latency_s=0.02,
+        latency_jitter_s=0.005,
+        position_noise_std_m=0.003,
+        dropout_probability=0.1,
+        outlier_probability=0.05,
+    )
     tracker = BallTracker(config, np.random.default_rng(1))
     frames = 6000
     delivered = []
@@ -39,10 +45,10 @@ def test_latency_noise_losses_and_false_detections_at_their_rates():
     delays = np.array([t - d.stamp_s for t, d in delivered])
     assert delays.min() >= 0.015 - 1e-9 and delays.max() <= 0.025 + 1 / 150.0
     stamps = [d.stamp_s for _, d in delivered]
-    assert stamps == sorted(stamps)                         # in exposure order
+    assert stamps == sorted(stamps)  # in exposure order
     errors = np.array([np.linalg.norm(camera_to_world(config, d.position_camera_m) - BALL) for _, d in delivered])
     ball, false = errors[errors < 0.05], errors[errors >= 0.05]
-    assert np.std(ball) == pytest.approx(0.003 * np.sqrt(3 - 8 / np.pi), rel=0.1)   # Maxwell spread of 3-D noise
+    assert np.std(ball) == pytest.approx(0.003 * np.sqrt(3 - 8 / np.pi), rel=0.1)  # Maxwell spread of 3-D noise
     assert len(ball) / frames == pytest.approx(0.9, abs=0.02)
     assert len(false) / frames == pytest.approx(0.05, abs=0.01)
 

@@ -1,5 +1,6 @@
 """config/ur5_sim.yaml lists every ur5_sim parameter with the node's default; realistic_sensing.yaml is valid;
 bad values are refused in one line naming the parameter, at start-up and (real_time_factor) at run time."""
+
 import contextlib
 import math
 import pathlib
@@ -30,8 +31,11 @@ def _node(*ros_args: str) -> Iterator[Ur5SimNode]:
 
 def test_the_yaml_holds_every_parameter_with_its_default():
     with _node() as node:
-        declared = {name: p.value for name, p in node._parameters.items()
-                    if name not in ('use_sim_time', 'start_type_description_service')}
+        declared = {
+            name: p.value
+            for name, p in node._parameters.items()
+            if name not in ('use_sim_time', 'start_type_description_service')
+        }
     in_yaml = _yaml_parameters('ur5_sim.yaml')
     assert set(in_yaml) == set(declared)
     for name, value in in_yaml.items():
@@ -59,9 +63,13 @@ def test_tracker_sensing_is_valid_and_reports_positions_only():
     with _node('--params-file', str(CONFIG / 'tracker_sensing.yaml')) as node:
         for name, value in tracker.items():
             assert node.get_parameter(name).value == pytest.approx(value), name
-        assert node._camera is None       # no /ball/state from the cell: ball_estimator's job
-    for name in ('ball_detection_latency_s', 'ball_detection_noise_std_m', 'ball_detection_dropout_probability',
-                 'ball_detection_outlier_probability'):
+        assert node._camera is None  # no /ball/state from the cell: ball_estimator's job
+    for name in (
+        'ball_detection_latency_s',
+        'ball_detection_noise_std_m',
+        'ball_detection_dropout_probability',
+        'ball_detection_outlier_probability',
+    ):
         assert tracker[name] > 0.0
     assert tracker['ball_detection_rate_hz'] == 150.0
 
@@ -70,17 +78,20 @@ def test_the_table_names_every_parameter_in_the_yaml_order():
     assert [row.name for row in PARAMETERS] == list(_yaml_parameters('ur5_sim.yaml'))
 
 
-@pytest.mark.parametrize('args, name', [(('-p', 'real_time_factor:=-1.0'), 'real_time_factor'),
-                                        (('-p', 'ball_latency_s:=-0.5'), 'ball_latency_s'),
-                                        (('-p', 'home_joint_positions_rad:=[0.0,0.0]'), 'home_joint_positions_rad'),
-                                        (('-p', 'home_joint_positions_rad:=[9.0,0.0,0.0,0.0,0.0,0.0]'),
-                                         'home_joint_positions_rad'),
-                                        (('-p', 'ft_force_bias_n:=[1.0]'), 'ft_force_bias_n'),
-                                        (('-p', 'sensing_seed:=-3'), 'sensing_seed'),
-                                        (('-p', 'ball_detection_latency_jitter_s:=0.5'),
-                                         'ball_detection_latency_jitter_s'),
-                                        (('-p', 'ball_camera_xyz_m:=[0.0,1.0]'), 'ball_camera_xyz_m'),
-                                        (('-p', 'video_width:=8.0'), 'video_width')])
+@pytest.mark.parametrize(
+    'args, name',
+    [
+        (('-p', 'real_time_factor:=-1.0'), 'real_time_factor'),
+        (('-p', 'ball_latency_s:=-0.5'), 'ball_latency_s'),
+        (('-p', 'home_joint_positions_rad:=[0.0,0.0]'), 'home_joint_positions_rad'),
+        (('-p', 'home_joint_positions_rad:=[9.0,0.0,0.0,0.0,0.0,0.0]'), 'home_joint_positions_rad'),
+        (('-p', 'ft_force_bias_n:=[1.0]'), 'ft_force_bias_n'),
+        (('-p', 'sensing_seed:=-3'), 'sensing_seed'),
+        (('-p', 'ball_detection_latency_jitter_s:=0.5'), 'ball_detection_latency_jitter_s'),
+        (('-p', 'ball_camera_xyz_m:=[0.0,1.0]'), 'ball_camera_xyz_m'),
+        (('-p', 'video_width:=8.0'), 'video_width'),
+    ],
+)
 def test_bad_parameters_stop_the_node_with_one_line_naming_them(args, name):
     with ros_context(*args) as context, pytest.raises(ParameterError) as error:
         Ur5SimNode(context=context)
@@ -94,7 +105,7 @@ def test_real_time_factor_changes_at_run_time_within_its_bounds_only():
         refused = node.set_parameters([Parameter('real_time_factor', value=101.0)])[0]
         assert not refused.successful and 'real_time_factor' in refused.reason
         assert node._real_time_factor == 2.0
-        assert not node.set_parameters([Parameter('max_lag_s', value=1.0)])[0].successful   # read-only
+        assert not node.set_parameters([Parameter('max_lag_s', value=1.0)])[0].successful  # read-only
 
 
 def test_an_integer_real_time_factor_is_accepted():

@@ -1,5 +1,6 @@
 """The actuator models (ur_servoj.py): the ideal reference is world_spec's, servoj samples at its rate, lags a
 ramp by about half a tick + look-ahead + 1/gain, keeps to 180 deg/s, and both cells take either."""
+
 import math
 
 import numpy as np
@@ -20,7 +21,7 @@ def _ramp_lag_s(settings: ur_servoj.ServojSettings, speed_rad_s: float = 1.0, du
     lags = []
     for k in range(1, round(duration_s / DT) + 1):
         t = k * DT
-        command_t = math.floor(t * world_spec.POLICY_RATE_HZ) / world_spec.POLICY_RATE_HZ   # the player's held commands
+        command_t = math.floor(t * world_spec.POLICY_RATE_HZ) / world_spec.POLICY_RATE_HZ  # the player's held commands
         servo.command(HOME + speed_rad_s * command_t)
         q_ref, _ = servo.step(t, DT)
         if t > duration_s - 0.4:
@@ -46,18 +47,18 @@ def test_ideal_reference_is_the_rate_limited_servo_reference():
     q_ref, v_ref = ideal.step(DT, DT)
     assert q_ref == pytest.approx(HOME + v_max * DT)
     assert v_ref == pytest.approx(v_max)
-    for k in range(2, 6):   # arrives in the fourth step, at rest in the fifth
+    for k in range(2, 6):  # arrives in the fourth step, at rest in the fifth
         q_ref, v_ref = ideal.step(k * DT, DT)
     assert q_ref == pytest.approx(HOME + 0.01) and v_ref == pytest.approx(np.zeros(6))
 
 
 def test_servoj_reads_commands_only_at_its_ticks():
     servo = ur_servoj.ServojReference(HOME, ur_servoj.ServojSettings(servo_rate_hz=125.0))
-    servo.step(DT, DT)                      # tick at 0 passed; the next is at 8 ms
+    servo.step(DT, DT)  # tick at 0 passed; the next is at 8 ms
     servo.command(HOME + 0.5)
     for k in range(2, 8):
         q_ref, _ = servo.step(k * DT, DT)
-    assert q_ref == pytest.approx(HOME)     # not seen before the 8 ms tick
+    assert q_ref == pytest.approx(HOME)  # not seen before the 8 ms tick
     q_ref, _ = servo.step(8 * DT, DT)
     assert (q_ref > HOME).all()
 

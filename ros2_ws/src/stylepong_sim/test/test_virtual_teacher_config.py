@@ -1,4 +1,5 @@
 """config/virtual_teacher.yaml lists every virtual_teacher parameter with the node's default; `seed` picks the take."""
+
 import pathlib
 
 import pytest
@@ -26,8 +27,18 @@ def test_the_seed_parameter_picks_the_take_and_variation_zero_is_the_nominal_str
         assert node.teacher.path.variation == SwingVariation()
 
 
-@pytest.mark.parametrize('override', ['seed:=-1', 'variation:=1.5', 'seed:=2.0', 'swing:=sideways', 'rate_hz:=5.0',
-                                      'lead_in_s:=-1.0', 'grip_frame:=nowhere'])
+@pytest.mark.parametrize(
+    'override',
+    [
+        'seed:=-1',
+        'variation:=1.5',
+        'seed:=2.0',
+        'swing:=sideways',
+        'rate_hz:=5.0',
+        'lead_in_s:=-1.0',
+        'grip_frame:=nowhere',
+    ],
+)
 def test_a_bad_parameter_is_refused_in_one_line_naming_it(override):
     with ros_context('-p', override) as context, pytest.raises(ParameterError) as error:
         VirtualTeacherNode(context=context)

@@ -1,4 +1,5 @@
 """The world spec's incoming balls: reproducible, and they come within the paddle's reach."""
+
 import math
 
 import numpy as np
@@ -22,8 +23,9 @@ def test_a_seed_names_one_ball_and_zero_speeds_mean_the_default_range():
 def _first_reachable_point(launch: world_spec.BallLaunch) -> np.ndarray:
     """Where the rebound first enters the region the distribution promises (same law as rebound_reaches)."""
     contact_p, contact_v, _, _ = world_spec.fly_to_table(launch.position_m, launch.velocity_m_s)
-    v = world_spec.contact_response(contact_v, np.array([0.0, 0.0, 1.0]), world_spec.TABLE_RESTITUTION,
-                                    world_spec.TABLE_TANGENTIAL_FACTOR)
+    v = world_spec.contact_response(
+        contact_v, np.array([0.0, 0.0, 1.0]), world_spec.TABLE_RESTITUTION, world_spec.TABLE_TANGENTIAL_FACTOR
+    )
     p = contact_p.copy()
     d = world_spec.INCOMING
     for _ in range(1000):
@@ -39,8 +41,9 @@ def _paddle_centre_ik(target_world: np.ndarray) -> float:
     model = robot_model.pinocchio_model()
     data = model.createData()
     frame = model.getFrameId(robot_model.PADDLE_CENTRE_FRAME)
-    base = pin.SE3(pin.utils.rpyToMatrix(0.0, 0.0, world_spec.ROBOT_BASE_YAW_RAD),
-                   np.array(world_spec.ROBOT_BASE_POSITION_M))
+    base = pin.SE3(
+        pin.utils.rpyToMatrix(0.0, 0.0, world_spec.ROBOT_BASE_YAW_RAD), np.array(world_spec.ROBOT_BASE_POSITION_M)
+    )
     target = base.actInv(target_world)
     limits = robot_model.joint_limits()
     q = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)

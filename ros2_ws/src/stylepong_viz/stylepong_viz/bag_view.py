@@ -4,6 +4,7 @@ rosbags reads both storage formats and the type definitions stored in the bag (o
 them fall back to Jazzy's standard types). Times are header stamps where a message has one, else the
 bag's receive time, as in the live view.
 """
+
 from __future__ import annotations
 
 import json
@@ -14,8 +15,12 @@ from stylepong_viz.cell_view import CellView, stamp_seconds
 
 # The topics drawn, by type; other topics in the bag are skipped.
 DRAWN_TYPES = {
-    'sensor_msgs/msg/JointState', 'std_msgs/msg/Float64MultiArray', 'stylepong_msgs/msg/BallState',
-    'geometry_msgs/msg/WrenchStamped', 'stylepong_msgs/msg/RallyEvent', 'std_msgs/msg/String',
+    'sensor_msgs/msg/JointState',
+    'std_msgs/msg/Float64MultiArray',
+    'stylepong_msgs/msg/BallState',
+    'geometry_msgs/msg/WrenchStamped',
+    'stylepong_msgs/msg/RallyEvent',
+    'std_msgs/msg/String',
 }
 
 
@@ -29,6 +34,7 @@ class BagError(RuntimeError):
 def _open_reader(path: pathlib.Path):
     from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.typesys import Stores, get_typestore
+
     if not path.exists():
         raise BagError(f'bag {path} does not exist')
     try:
@@ -49,8 +55,10 @@ def show_bag(path: pathlib.Path, view: CellView) -> dict[str, int]:
     try:
         connections = [c for c in reader.connections if c.msgtype in DRAWN_TYPES]
         if not any(c.msgtype == 'sensor_msgs/msg/JointState' for c in connections):
-            raise BagError(f'bag {path} has no sensor_msgs/JointState topic to show '
-                           f'(topics: {", ".join(sorted({c.topic for c in reader.connections})) or "none"})')
+            raise BagError(
+                f'bag {path} has no sensor_msgs/JointState topic to show '
+                f'(topics: {", ".join(sorted({c.topic for c in reader.connections})) or "none"})'
+            )
         try:
             for connection, receive_ns, raw in reader.messages(connections=connections):
                 msg = reader.deserialize(raw, connection.msgtype)
@@ -63,8 +71,10 @@ def show_bag(path: pathlib.Path, view: CellView) -> dict[str, int]:
         except BagError:
             raise
         except Exception as error:  # noqa: BLE001 - truncated chunks, corrupt records
-            raise BagError(f'bag {path} is damaged after {sum(counts.values())} messages: '
-                           f'{type(error).__name__}: {" ".join(str(error).split())}') from error
+            raise BagError(
+                f'bag {path} is damaged after {sum(counts.values())} messages: '
+                f'{type(error).__name__}: {" ".join(str(error).split())}'
+            ) from error
         view.flush()
     finally:
         reader.close()
@@ -85,10 +95,15 @@ def _dispatch(view: CellView, topic: str, msgtype: str, msg, receive_s: float) -
         view.on_wrench(stamp_seconds(msg.header), lambda: (f.x, f.y, f.z, t.x, t.y, t.z))
     elif msgtype == 'stylepong_msgs/msg/RallyEvent':
         p = msg.position
-        view.on_rally_event(stamp_seconds(msg.header), EVENT_NAMES.get(msg.type, str(msg.type)), msg.reason,
-                            msg.success, (p.x, p.y, p.z))
+        view.on_rally_event(
+            stamp_seconds(msg.header),
+            EVENT_NAMES.get(msg.type, str(msg.type)),
+            msg.reason,
+            msg.success,
+            (p.x, p.y, p.z),
+        )
     elif msgtype == 'std_msgs/msg/String' and topic == '/player/status':
         try:
             view.on_player_status(view.latest_time_s, json.loads(msg.data))
         except (ValueError, AttributeError):
-            pass   # a malformed status is not drawn
+            pass  # a malformed status is not drawn

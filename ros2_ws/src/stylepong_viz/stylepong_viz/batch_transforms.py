@@ -5,6 +5,7 @@ through them; stylepong_description.robot_state computes the same transforms one
 with quaternion walks, which at 30 frames a second was most of the viewer's drawing time. Here the frames
 of a batch go through numpy together. The unit tests compare both.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,10 +19,15 @@ def quaternions_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a * b of (x, y, z, w) quaternions (either may be a single one)."""
     ax, ay, az, aw = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
     bx, by, bz, bw = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
-    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
 
 
 def joint_rotations(state: RobotState, positions: np.ndarray) -> list[np.ndarray]:
@@ -41,9 +47,13 @@ def joint_rotations(state: RobotState, positions: np.ndarray) -> list[np.ndarray
 
 def _matrix_from_quaternion(q_xyzw: np.ndarray) -> np.ndarray:
     x, y, z, w = q_xyzw
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 class LinkPoses:
@@ -60,8 +70,10 @@ class LinkPoses:
             chain.append(by_child[link])
             link = by_child[link].parent
         # (origin rotation, origin translation, index into the joint vector or None, axis, joint type)
-        self._steps = [(_matrix_from_quaternion(j.origin_xyzw), j.origin_xyz_m, moving_index.get(j.name), j.axis,
-                        j.type) for j in reversed(chain)]
+        self._steps = [
+            (_matrix_from_quaternion(j.origin_xyzw), j.origin_xyz_m, moving_index.get(j.name), j.axis, j.type)
+            for j in reversed(chain)
+        ]
 
     def poses(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """positions (n, joints) in RobotState.moving_joint_names order -> (translations (n, 3) m,

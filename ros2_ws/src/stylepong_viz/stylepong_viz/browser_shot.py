@@ -10,6 +10,7 @@ by hand:
 
     python3 -m stylepong_viz.browser_shot URL OUT.png [--wait-s 8]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,7 +29,7 @@ import urllib.request
 
 import numpy as np
 
-DETACHED = 'Not attached to an active page'   # DevTools' answer between two renderers of one tab
+DETACHED = 'Not attached to an active page'  # DevTools' answer between two renderers of one tab
 CHROMIUM_NAMES = ('chromium', 'chromium-browser', 'google-chrome', 'google-chrome-stable')
 
 
@@ -59,8 +60,8 @@ class RequestWatch:
 
     def __init__(self, url_prefix: str):
         self.url_prefix = url_prefix
-        self.sent: list[tuple[float, str]] = []     # (when sent, url)
-        self._urls: dict[str, str] = {}             # DevTools request id: url
+        self.sent: list[tuple[float, str]] = []  # (when sent, url)
+        self._urls: dict[str, str] = {}  # DevTools request id: url
         self._failed: list[str] = []
 
     def on_event(self, event: dict) -> None:
@@ -68,8 +69,7 @@ class RequestWatch:
         if method == 'Network.requestWillBeSent' and params['request']['url'].startswith(self.url_prefix):
             self._urls[params['requestId']] = params['request']['url']
             self.sent.append((params['timestamp'], params['request']['url']))
-        elif method == 'Network.loadingFailed' and params.get('requestId') in self._urls \
-                and not params.get('canceled'):
+        elif method == 'Network.loadingFailed' and params.get('requestId') in self._urls and not params.get('canceled'):
             self._failed.append(f'{self._urls[params["requestId"]]}: {params.get("errorText")}')
 
     def take_failed(self) -> list[str]:
@@ -82,9 +82,16 @@ class RequestWatch:
 class HeadlessPage:
     """One headless Chromium showing one page; shoot() returns PNG bytes. Use as a context manager."""
 
-    def __init__(self, url: str | None = None, width: int = 1280, height: int = 800, start_timeout_s: float = 20.0,
-                 extra_flags: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        url: str | None = None,
+        width: int = 1280,
+        height: int = 800,
+        start_timeout_s: float = 20.0,
+        extra_flags: tuple[str, ...] = (),
+    ):
         from websockets.sync.client import connect
+
         chromium = find_chromium()
         if chromium is None:
             raise BrowserError('no Chromium found (apt install chromium, or set CHROMIUM)')
@@ -92,10 +99,24 @@ class HeadlessPage:
         port = _free_port()
         # SwiftShader: software WebGL, the same picture on any machine, GPU or not.
         self._process = subprocess.Popen(
-            [chromium, '--headless', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-             '--no-first-run', '--disable-extensions', f'--remote-debugging-port={port}',
-             f'--window-size={width},{height}', f'--user-data-dir={self._profile}', *extra_flags, 'about:blank'],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+            [
+                chromium,
+                '--headless',
+                '--no-sandbox',
+                '--use-angle=swiftshader',
+                '--enable-unsafe-swiftshader',
+                '--no-first-run',
+                '--disable-extensions',
+                f'--remote-debugging-port={port}',
+                f'--window-size={width},{height}',
+                f'--user-data-dir={self._profile}',
+                *extra_flags,
+                'about:blank',
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         deadline = time.monotonic() + start_timeout_s
         targets = None
         while targets is None:
@@ -108,9 +129,9 @@ class HeadlessPage:
                     raise BrowserError(f'{chromium} did not open its DevTools port in {start_timeout_s:.0f} s')
                 time.sleep(0.1)
         self._socket = connect(targets[0]['webSocketDebuggerUrl'], max_size=64 * 1024 * 1024, open_timeout=10)
-        self._socket.__enter__()   # websockets wants its sync client entered; close() leaves it
+        self._socket.__enter__()  # websockets wants its sync client entered; close() leaves it
         self._next_id = 0
-        self.requests: RequestWatch | None = None     # the page's requests followed (watch_requests)
+        self.requests: RequestWatch | None = None  # the page's requests followed (watch_requests)
         self._call('Emulation.setDeviceMetricsOverride', width=width, height=height, deviceScaleFactor=1, mobile=False)
         if url is not None:
             self.navigate(url)
@@ -129,7 +150,7 @@ class HeadlessPage:
         """The followed requests that failed since the last call (RequestWatch.take_failed)."""
         if self.requests is None:
             raise BrowserError('no requests followed: call watch_requests first')
-        while True:      # the events that arrived since the last DevTools call
+        while True:  # the events that arrived since the last DevTools call
             try:
                 message = self._socket.recv(timeout=0)
             except TimeoutError:
@@ -158,8 +179,9 @@ class HeadlessPage:
         deadline = time.monotonic() + timeout_s
         while True:
             try:
-                reply = self._call('Page.captureScreenshot', timeout_s=max(1.0, deadline - time.monotonic()),
-                                   format='png')
+                reply = self._call(
+                    'Page.captureScreenshot', timeout_s=max(1.0, deadline - time.monotonic()), format='png'
+                )
                 return base64.b64decode(reply['data'])
             except BrowserError as error:
                 # While a navigation swaps the page's renderer, the target briefly has no page to shoot.
@@ -205,24 +227,30 @@ def cell_view_pixels(png: bytes, background_rgb: tuple[int, int, int]) -> dict:
     (blue), arm (light grey) and ball (orange: ball and trail) pixel counts, and the share of the arm's pixels
     right of the view's vertical centre line."""
     import imageio.v3 as iio
+
     image = iio.imread(io.BytesIO(png))[:, :, :3].astype(int)
     background = np.all(np.abs(image - np.array(background_rgb)) <= 6, axis=2)
     # The view: the longest run of rows, and then of columns, that are mostly its background colour.
     y0, y1 = _longest_run(background.mean(axis=1) > 0.5)
     if y1 - y0 < 100:
         return {'region': None, 'table': 0, 'arm': 0, 'ball': 0, 'arm_right_fraction': 0.0}
-    x0, x1 = _longest_run(background[y0:y1 + 1].mean(axis=0) > 0.5)
-    region = image[y0:y1 + 1, x0:x1 + 1]
+    x0, x1 = _longest_run(background[y0 : y1 + 1].mean(axis=0) > 0.5)
+    region = image[y0 : y1 + 1, x0 : x1 + 1]
     r, g, b = region[:, :, 0], region[:, :, 1], region[:, :, 2]
     table = (b > r + 50) & (b > g + 30)
     # The arm's meshes are light grey to white; the table, net (light, but thin and far) and background are not.
-    arm = ~background[y0:y1 + 1, x0:x1 + 1] & ~table & (np.abs(r - b) < 40) & (r > 90)
+    arm = ~background[y0 : y1 + 1, x0 : x1 + 1] & ~table & (np.abs(r - b) < 40) & (r > 90)
     ball = (r > 200) & (g > 90) & (g < 190) & (b < 60)
     centre_x = (x1 - x0) / 2.0
     arm_cols = np.nonzero(arm)[1]
     right = float(np.mean(arm_cols > centre_x + 0.02 * (x1 - x0))) if arm_cols.size else 0.0
-    return {'region': (int(x0), int(y0), int(x1), int(y1)), 'table': int(table.sum()), 'arm': int(arm.sum()),
-            'ball': int(ball.sum()), 'arm_right_fraction': right}
+    return {
+        'region': (int(x0), int(y0), int(x1), int(y1)),
+        'table': int(table.sum()),
+        'arm': int(arm.sum()),
+        'ball': int(ball.sum()),
+        'arm_right_fraction': right,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,6 +16,7 @@ Entities
   /plots/player/*,
   /events (rally events, player state changes)
 """
+
 from __future__ import annotations
 
 import math
@@ -36,17 +37,17 @@ from stylepong_viz.decimate import ColumnBuffer, Decimator, Trail
 from stylepong_viz.hand_wrench import STANDARD_GRAVITY_M_S2, hand_wrench_in_tool, tool_load_from_urdf
 
 TIMELINE = 'time'
-ARM_RATE_HZ = 30.0         # arm frames a second in the recording (scrubbing); the page shows them as they come
-PLOT_RATE_HZ = 50.0        # plot points a second per series: 500 in a 10 s window, a swing's 0.4 s in 20
-BALL_RATE_HZ = 60.0        # ball positions a second: a 6 m/s ball moves 10 cm between two
-TRAIL_S = 1.5              # ball trail and paddle path length (message time)
-FORCE_SCALE_M_PER_N = 0.02   # the hand's force arrow: 10 N draws 0.2 m
+ARM_RATE_HZ = 30.0  # arm frames a second in the recording (scrubbing); the page shows them as they come
+PLOT_RATE_HZ = 50.0  # plot points a second per series: 500 in a 10 s window, a swing's 0.4 s in 20
+BALL_RATE_HZ = 60.0  # ball positions a second: a 6 m/s ball moves 10 cm between two
+TRAIL_S = 1.5  # ball trail and paddle path length (message time)
+FORCE_SCALE_M_PER_N = 0.02  # the hand's force arrow: 10 N draws 0.2 m
 TORQUE_SCALE_M_PER_NM = 0.5  # the hand's torque arrow (right-hand rule): 0.4 N m draws 0.2 m
 # Below this the sensor's noise and the paddle's model error, not a hand: no arrow (drag_teach ignores the
 # same amount, its force_deadband_n in config/drag_teach.yaml).
 HAND_FORCE_SHOWN_N = 1.0
 TABLE_RGB = (20, 70, 150)
-NET_RGB = (225, 210, 140)   # cream: told apart from the grey arm in screenshots
+NET_RGB = (225, 210, 140)  # cream: told apart from the grey arm in screenshots
 BALL_RGB = (255, 140, 0)
 PADDLE_PATH_RGB = (200, 40, 40)
 FORCE_RGB = (230, 30, 200)
@@ -59,23 +60,30 @@ PLAYER_SERIES = (('period_ms', 'jitter_p99'), ('latency_ms', 'p99'), ('inference
 # is then on the view's vertical centre line: world +y to the left of it, -y to the right.
 EYE_POSITION_M = (world_spec.ROBOT_BASE_POSITION_M[0] - 1.3, 0.0, world_spec.TABLE_HEIGHT_M + 0.75)
 EYE_TARGET_M = (world_spec.ROBOT_BASE_POSITION_M[0] + 0.8, 0.0, world_spec.TABLE_HEIGHT_M + 0.05)
-PLOT_WINDOW_S = 10.0       # the plots show the last 10 s before the time cursor
+PLOT_WINDOW_S = 10.0  # the plots show the last 10 s before the time cursor
 
 
 def blueprint() -> rrb.Blueprint:
     """The page: the cell in 3D across the top, the time plots below it, panels collapsed."""
     cell = rrb.Spatial3DView(
-        name='cell', origin='/', contents=['/robot/**', '/cell/**'],
+        name='cell',
+        origin='/',
+        contents=['/robot/**', '/cell/**'],
         spatial_information=rrb.SpatialInformation(target_frame=FRAME_WORLD),
-        background=BACKGROUND_RGB, line_grid=False,
-        eye_controls=rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=EYE_POSITION_M,
-                                       look_target=EYE_TARGET_M, eye_up=(0.0, 0.0, 1.0)))
-    window = rrb.TimeRange(start=rrb.TimeRangeBoundary.cursor_relative(seconds=-PLOT_WINDOW_S),
-                           end=rrb.TimeRangeBoundary.cursor_relative())
+        background=BACKGROUND_RGB,
+        line_grid=False,
+        eye_controls=rrb.EyeControls3D(
+            kind=rrb.Eye3DKind.Orbital, position=EYE_POSITION_M, look_target=EYE_TARGET_M, eye_up=(0.0, 0.0, 1.0)
+        ),
+    )
+    window = rrb.TimeRange(
+        start=rrb.TimeRangeBoundary.cursor_relative(seconds=-PLOT_WINDOW_S), end=rrb.TimeRangeBoundary.cursor_relative()
+    )
 
     def plot(name: str, origin: str) -> rrb.TimeSeriesView:
-        return rrb.TimeSeriesView(name=name, origin=origin,
-                                  time_ranges=rrb.VisibleTimeRange(TIMELINE, start=window.start, end=window.end))
+        return rrb.TimeSeriesView(
+            name=name, origin=origin, time_ranges=rrb.VisibleTimeRange(TIMELINE, start=window.start, end=window.end)
+        )
 
     plots = rrb.Horizontal(
         plot('joint position: measured vs commanded (rad)', '/plots/position'),
@@ -98,8 +106,13 @@ class CellView:
     comparison. Kept samples are buffered and sent at flush(), one batch per entity.
     """
 
-    def __init__(self, recording: rr.RecordingStream, arm_rate_hz: float = ARM_RATE_HZ,
-                 plot_rate_hz: float = PLOT_RATE_HZ, ball_rate_hz: float = BALL_RATE_HZ):
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        arm_rate_hz: float = ARM_RATE_HZ,
+        plot_rate_hz: float = PLOT_RATE_HZ,
+        ball_rate_hz: float = BALL_RATE_HZ,
+    ):
         self.rec = recording
         urdf = robot_model.urdf_xml_for_display()
         self.robot_state = RobotState(urdf)
@@ -110,8 +123,8 @@ class CellView:
         self._ball = Decimator(ball_rate_hz)
         self._arm_frames, self._measured = ColumnBuffer(width), ColumnBuffer(width)
         self._speed, self._commanded = ColumnBuffer(2 * width), ColumnBuffer(width)
-        self._command_read: Callable[[], Sequence[float]] | None = None   # the latest command, not yet plotted
-        self._wrench: tuple[float, Callable[[], Sequence[float]]] | None = None   # the latest, not yet drawn
+        self._command_read: Callable[[], Sequence[float]] | None = None  # the latest command, not yet plotted
+        self._wrench: tuple[float, Callable[[], Sequence[float]]] | None = None  # the latest, not yet drawn
         self._balls = ColumnBuffer(3)
         self._ball_trail = Trail(TRAIL_S)
         self._paddle_path = Trail(TRAIL_S)
@@ -124,8 +137,9 @@ class CellView:
         self._base_rotation_xyzw = quaternion_from_matrix(rotation)
         self._base_position_m = np.asarray(position, dtype=float)
         # Gravity in the base's axes (the base may be turned about world z): the tool's weight is removed there.
-        self._gravity_base_m_s2 = rotate(self._base_rotation_xyzw * np.array([-1.0, -1.0, -1.0, 1.0]),
-                                         np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2]))
+        self._gravity_base_m_s2 = rotate(
+            self._base_rotation_xyzw * np.array([-1.0, -1.0, -1.0, 1.0]), np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2])
+        )
         self.tool_load = tool_load_from_urdf(urdf, robot_model.TOOL_FRAME)
         self._tool_poses = LinkPoses(self.robot_state, robot_model.TOOL_FRAME)
         self._paddle_centre_poses = LinkPoses(self.robot_state, robot_model.PADDLE_CENTRE_FRAME)
@@ -140,17 +154,41 @@ class CellView:
             path = pathlib.Path(folder) / 'ur5_paddle.urdf'
             path.write_text(urdf.replace('file://', ''))
             rr.urdf.UrdfTree.from_file_path(path, entity_path_prefix='robot').log_urdf_to_recording(rec)
-        rr.log('tf_static/world_base', rr.Transform3D(
-            translation=self._base_position_m, quaternion=self._base_rotation_xyzw,
-            parent_frame=FRAME_WORLD, child_frame=robot_model.BASE_FRAME), static=True, recording=rec)
+        rr.log(
+            'tf_static/world_base',
+            rr.Transform3D(
+                translation=self._base_position_m,
+                quaternion=self._base_rotation_xyzw,
+                parent_frame=FRAME_WORLD,
+                child_frame=robot_model.BASE_FRAME,
+            ),
+            static=True,
+            recording=rec,
+        )
         world = rr.CoordinateFrame(FRAME_WORLD)
         table_half = (world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M, world_spec.TABLE_THICKNESS_M / 2.0)
-        rr.log('cell/table', rr.Boxes3D(centers=[(0.0, 0.0, world_spec.TABLE_HEIGHT_M - table_half[2])],
-                                        half_sizes=[table_half], colors=[TABLE_RGB], fill_mode='solid'),
-               world, static=True, recording=rec)
+        rr.log(
+            'cell/table',
+            rr.Boxes3D(
+                centers=[(0.0, 0.0, world_spec.TABLE_HEIGHT_M - table_half[2])],
+                half_sizes=[table_half],
+                colors=[TABLE_RGB],
+                fill_mode='solid',
+            ),
+            world,
+            static=True,
+            recording=rec,
+        )
         low, high = np.array(world_spec.NET_BOX_LOW_M), np.array(world_spec.NET_BOX_HIGH_M)
-        rr.log('cell/net', rr.Boxes3D(centers=[(low + high) / 2.0], half_sizes=[(high - low) / 2.0], colors=[NET_RGB],
-                                      fill_mode='solid'), world, static=True, recording=rec)
+        rr.log(
+            'cell/net',
+            rr.Boxes3D(
+                centers=[(low + high) / 2.0], half_sizes=[(high - low) / 2.0], colors=[NET_RGB], fill_mode='solid'
+            ),
+            world,
+            static=True,
+            recording=rec,
+        )
         for name in ('ball', 'ball_trail', 'paddle_path'):
             rr.log(f'cell/{name}', world, static=True, recording=rec)
         # The hand's wrench is drawn where the sensor reads it: at tool0's origin, in tool0's axes.
@@ -158,13 +196,27 @@ class CellView:
         colours = [JOINT_RGB[k % len(JOINT_RGB)] for k in range(len(self.joint_names))]
         short = [n.replace('_joint', '') for n in self.joint_names]
         # One entity per plot layer, a series per joint: a flush sends each layer as one batch.
-        rr.log('plots/position/measured', rr.SeriesLines(colors=colours, names=[f'{n} measured' for n in short]),
-               static=True, recording=rec)
-        rr.log('plots/position/commanded', rr.SeriesPoints(colors=colours, names=[f'{n} commanded' for n in short],
-                                                           marker_sizes=[1.5] * len(short)), static=True, recording=rec)
-        rr.log('plots/speed/joints', rr.SeriesLines(
-            colors=colours + [LIMIT_RGB] * len(short),
-            names=[f'{n} |speed|' for n in short] + [f'{n} limit' for n in short]), static=True, recording=rec)
+        rr.log(
+            'plots/position/measured',
+            rr.SeriesLines(colors=colours, names=[f'{n} measured' for n in short]),
+            static=True,
+            recording=rec,
+        )
+        rr.log(
+            'plots/position/commanded',
+            rr.SeriesPoints(colors=colours, names=[f'{n} commanded' for n in short], marker_sizes=[1.5] * len(short)),
+            static=True,
+            recording=rec,
+        )
+        rr.log(
+            'plots/speed/joints',
+            rr.SeriesLines(
+                colors=colours + [LIMIT_RGB] * len(short),
+                names=[f'{n} |speed|' for n in short] + [f'{n} limit' for n in short],
+            ),
+            static=True,
+            recording=rec,
+        )
 
     # --- samples ----------------------------------------------------------------------------------------
     def _note_time(self, time_s: float) -> None:
@@ -237,7 +289,7 @@ class CellView:
         text = f'{name} at ({position_m[0]:.2f}, {position_m[1]:.2f}, {position_m[2]:.2f}) m'
         if name == 'RALLY_END':
             text += f': {"returned" if success else "missed"} ({reason})'
-            self._send_balls()             # the ball's last samples before it goes
+            self._send_balls()  # the ball's last samples before it goes
             self._ball_trail.clear()
             self._set_time(time_s)
             rr.log('cell/ball', rr.Points3D(np.zeros((0, 3))), recording=self.rec)
@@ -266,12 +318,19 @@ class CellView:
         self._send_arm()
         self._send_balls()
         self._send_hand()
-        for buffer, entity in ((self._measured, 'position/measured'), (self._commanded, 'position/commanded'),
-                               (self._speed, 'speed/joints')):
+        for buffer, entity in (
+            (self._measured, 'position/measured'),
+            (self._commanded, 'position/commanded'),
+            (self._speed, 'speed/joints'),
+        ):
             if len(buffer):
                 times, values = buffer.take()
-                rr.send_columns(f'plots/{entity}', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                                columns=rr.Scalars.columns(scalars=values), recording=self.rec)
+                rr.send_columns(
+                    f'plots/{entity}',
+                    indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+                    columns=rr.Scalars.columns(scalars=values),
+                    recording=self.rec,
+                )
 
     def _send_hand(self) -> None:
         """The hand's wrench (the reading less the paddle's weight, hand_wrench.py) as two arrows from tool0
@@ -290,14 +349,21 @@ class CellView:
             return
         self._set_time(time_s)
         self._hand_shown = shown
-        if not shown:      # the hand let go: the arrows go
+        if not shown:  # the hand let go: the arrows go
             rr.log('cell/hand_wrench', rr.Arrows3D(vectors=np.zeros((0, 3))), recording=self.rec)
             return
         self.counts['hand_shown'] += 1
-        rr.log('cell/hand_wrench', rr.Arrows3D(
-            vectors=[hand[:3] * FORCE_SCALE_M_PER_N, hand[3:] * TORQUE_SCALE_M_PER_NM], origins=[(0, 0, 0)] * 2,
-            colors=[FORCE_RGB, TORQUE_RGB], radii=[0.006, 0.004],
-            labels=[f'hand {force_n:.1f} N', f'{torque_nm:.2f} N m']), recording=self.rec)
+        rr.log(
+            'cell/hand_wrench',
+            rr.Arrows3D(
+                vectors=[hand[:3] * FORCE_SCALE_M_PER_N, hand[3:] * TORQUE_SCALE_M_PER_NM],
+                origins=[(0, 0, 0)] * 2,
+                colors=[FORCE_RGB, TORQUE_RGB],
+                radii=[0.006, 0.004],
+                labels=[f'hand {force_n:.1f} N', f'{torque_nm:.2f} N m'],
+            ),
+            recording=self.rec,
+        )
 
     def _send_arm(self) -> None:
         """The arm's frames as columns, a batch per joint; the paddle's path through them."""
@@ -310,30 +376,49 @@ class CellView:
         # transform: rerun resolves a Transform3D from its last row alone (a row of rotations only would drop
         # the translation and the frames).
         for joint, rotations in zip(self.robot_state.moving_joints, joint_rotations(self.robot_state, qs)):
-            rr.send_columns(f'tf/{joint.name}', indexes=index, columns=rr.Transform3D.columns(
-                translation=np.broadcast_to(joint.origin_xyz_m, (n, 3)), quaternion=rotations,
-                parent_frame=[joint.parent] * n, child_frame=[joint.child] * n), recording=self.rec)
+            rr.send_columns(
+                f'tf/{joint.name}',
+                indexes=index,
+                columns=rr.Transform3D.columns(
+                    translation=np.broadcast_to(joint.origin_xyz_m, (n, 3)),
+                    quaternion=rotations,
+                    parent_frame=[joint.parent] * n,
+                    child_frame=[joint.child] * n,
+                ),
+                recording=self.rec,
+            )
         centres, _ = self._paddle_centre_poses.poses(qs)
         for time_s, centre in zip(times, centres):
             self._paddle_path.add(time_s, self._to_world(centre))
         # The path as it stands at the batch's last frame (a strip per frame would cost a log call each).
         self._set_time(float(times[-1]))
-        rr.log('cell/paddle_path', rr.LineStrips3D([self._paddle_path.points()], colors=[PADDLE_PATH_RGB],
-                                                   radii=0.004), recording=self.rec)
+        rr.log(
+            'cell/paddle_path',
+            rr.LineStrips3D([self._paddle_path.points()], colors=[PADDLE_PATH_RGB], radii=0.004),
+            recording=self.rec,
+        )
 
     def _send_balls(self) -> None:
         """The ball's kept positions as one column; its trail as it stands at the last of them."""
         if not len(self._balls):
             return
         times, positions = self._balls.take()
-        rr.send_columns('cell/ball', indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                        columns=rr.Points3D.columns(positions=positions, radii=[world_spec.BALL_RADIUS_M] * len(times),
-                                                    colors=[BALL_RGB] * len(times)), recording=self.rec)
+        rr.send_columns(
+            'cell/ball',
+            indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+            columns=rr.Points3D.columns(
+                positions=positions, radii=[world_spec.BALL_RADIUS_M] * len(times), colors=[BALL_RGB] * len(times)
+            ),
+            recording=self.rec,
+        )
         for time_s, position in zip(times, positions):
             self._ball_trail.add(time_s, position)
         self._set_time(float(times[-1]))
-        rr.log('cell/ball_trail', rr.LineStrips3D([self._ball_trail.points()], colors=[BALL_RGB], radii=0.003),
-               recording=self.rec)
+        rr.log(
+            'cell/ball_trail',
+            rr.LineStrips3D([self._ball_trail.points()], colors=[BALL_RGB], radii=0.003),
+            recording=self.rec,
+        )
 
     def _to_world(self, point_in_base_m: np.ndarray) -> np.ndarray:
         return self._base_position_m + rotate(self._base_rotation_xyzw, point_in_base_m)

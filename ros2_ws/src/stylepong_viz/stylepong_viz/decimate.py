@@ -5,6 +5,7 @@ gains nothing from more than a few hundred points a second. These keep what is d
 the messages' own stamps, so that a live graph and a bag replayed as fast as it can be read are
 decimated alike.
 """
+
 from __future__ import annotations
 
 import collections
@@ -29,8 +30,9 @@ class Decimator:
         last = self._last_s
         if last is None or time_s - last >= self.period_s or time_s < last - self.period_s:
             # Stay on the rate's grid (no drift from late samples) unless far behind or restarted.
-            self._last_s = time_s if last is None or not 0.0 <= time_s - last < 2.0 * self.period_s \
-                else last + self.period_s
+            self._last_s = (
+                time_s if last is None or not 0.0 <= time_s - last < 2.0 * self.period_s else last + self.period_s
+            )
             return True
         return False
 
@@ -44,7 +46,7 @@ class Trail:
 
     def add(self, time_s: float, point_m) -> None:
         if self._points and time_s < self._points[-1][0]:
-            self._points.clear()           # time went back: a new run or clip, not a jump across the cell
+            self._points.clear()  # time went back: a new run or clip, not a jump across the cell
         self._points.append((time_s, tuple(float(v) for v in point_m)))
         while self._points and self._points[0][0] < time_s - self.seconds:
             self._points.popleft()

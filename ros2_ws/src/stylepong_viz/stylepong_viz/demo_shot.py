@@ -7,6 +7,7 @@ It shoots the page every SHOT_PERIOD_S while the rally runs and keeps the shot w
 of the ball and its trail, with the arm and the table in view (browser_shot.cell_view_pixels). Exit code 2
 when no Chromium is found, 1 when no shot showed a ball.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,23 +63,41 @@ def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, heig
     logs = pathlib.Path(tempfile.mkdtemp(prefix='viewer_demo_shot_'))
     processes = [
         start_logged(['ros2', 'run', 'stylepong_sim', 'ur5_sim'], env, logs / 'ur5_sim.log'),
-        start_logged(['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'], env,
-                     logs / 'player.log'),
+        start_logged(
+            ['ros2', 'run', 'stylepong_player', 'player', '--ros-args', '-p', 'use_sim_time:=true'],
+            env,
+            logs / 'player.log',
+        ),
     ]
     best: tuple[int, bytes, dict] | None = None
     try:
         with HeadlessPage(width=width, height=height, start_timeout_s=START_TIMEOUT_S) as browser:
             grpc_port = free_port()
-            viewer = start_logged(['ros2', 'run', 'stylepong_viz', 'viewer', '--web-port', str(free_port()),
-                                   '--grpc-port', str(grpc_port)], env, logs / 'viewer.log')
+            viewer = start_logged(
+                [
+                    'ros2',
+                    'run',
+                    'stylepong_viz',
+                    'viewer',
+                    '--web-port',
+                    str(free_port()),
+                    '--grpc-port',
+                    str(grpc_port),
+                ],
+                env,
+                logs / 'viewer.log',
+            )
             processes.append(viewer)
             browser.watch_requests(f'http://127.0.0.1:{grpc_port}/')
             url = _wait_for_url(logs / 'viewer.log', viewer)
             browser.navigate(url)
-            time.sleep(5.0)                     # the player's actor
+            time.sleep(5.0)  # the player's actor
             _wait_for_cell(browser, url)
-            rally = start_logged(['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(balls),
-                                  '--first-seed', str(first_seed)], env, logs / 'rally.log')
+            rally = start_logged(
+                ['ros2', 'run', 'stylepong_sim', 'rally_eval', '--balls', str(balls), '--first-seed', str(first_seed)],
+                env,
+                logs / 'rally.log',
+            )
             processes.append(rally)
             while rally.poll() is None:
                 png = browser.shoot(timeout_s=SHOT_TIMEOUT_S)

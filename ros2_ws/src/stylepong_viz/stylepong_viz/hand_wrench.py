@@ -9,6 +9,7 @@ unit tests check them against drag_teach's Pinocchio reading of the same model. 
 estimate of the sensor's bias), low-pass and deadband are its own and are not repeated here: the viewer
 shows the physical push, and a sensor bias shows as a constant arrow.
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -18,7 +19,7 @@ import numpy as np
 from stylepong_description.robot_model import ToolLoad
 from stylepong_description.robot_state import RobotState, quaternion_multiply, rotate
 
-STANDARD_GRAVITY_M_S2 = 9.81     # as the URDF's (Pinocchio's) default gravity
+STANDARD_GRAVITY_M_S2 = 9.81  # as the URDF's (Pinocchio's) default gravity
 
 
 def tool_load_from_urdf(urdf_xml: str, tool_frame: str) -> ToolLoad:
@@ -37,8 +38,10 @@ def tool_load_from_urdf(urdf_xml: str, tool_frame: str) -> ToolLoad:
         parent = stack.pop()
         origin, rotation = poses[parent]
         for t in children.get(parent, []):
-            poses[t.child] = (origin + rotate(rotation, t.translation_m),
-                              quaternion_multiply(rotation, t.rotation_xyzw))
+            poses[t.child] = (
+                origin + rotate(rotation, t.translation_m),
+                quaternion_multiply(rotation, t.rotation_xyzw),
+            )
             stack.append(t.child)
     total_kg, moment = 0.0, np.zeros(3)
     for link in ET.fromstring(urdf_xml).findall('link'):
@@ -47,8 +50,9 @@ def tool_load_from_urdf(urdf_xml: str, tool_frame: str) -> ToolLoad:
             continue
         mass_kg = float(inertial.find('mass').get('value'))
         origin = inertial.find('origin')
-        com_in_link = np.array([float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None else '0 0 0')
-                                .split()])
+        com_in_link = np.array(
+            [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None else '0 0 0').split()]
+        )
         position, rotation = poses[link.get('name')]
         total_kg += mass_kg
         moment += mass_kg * (position + rotate(rotation, com_in_link))
@@ -57,8 +61,9 @@ def tool_load_from_urdf(urdf_xml: str, tool_frame: str) -> ToolLoad:
     return ToolLoad(mass_kg=total_kg, com_m=moment / total_kg)
 
 
-def hand_wrench_in_tool(reading_tool: np.ndarray, load: ToolLoad, tool_rotation_base: np.ndarray,
-                        gravity_base_m_s2: np.ndarray) -> np.ndarray:
+def hand_wrench_in_tool(
+    reading_tool: np.ndarray, load: ToolLoad, tool_rotation_base: np.ndarray, gravity_base_m_s2: np.ndarray
+) -> np.ndarray:
     """(force N, torque N m) the hand applies: the sensor reading (tool axes, about the tool origin) less the
     tool's weight at the tool's orientation in the base (3x3 rotation, tool axes to base axes)."""
     weight_tool = np.asarray(tool_rotation_base).T @ (load.mass_kg * np.asarray(gravity_base_m_s2, dtype=float))

@@ -7,6 +7,7 @@ and only a kept message is decoded: JointState by the workspace's one CDR walker
 (stylepong_recording.joint_state_cdr), the others by rclpy in the node. A message not in little-endian CDR
 (no stamp here, a CdrLayoutError) is handed to rclpy's deserialiser by the caller.
 """
+
 from __future__ import annotations
 
 import struct
@@ -14,7 +15,7 @@ import struct
 from stylepong_recording.joint_state_cdr import JointStateCdrReader
 
 _LITTLE_ENDIAN_CDR = b'\x00\x01'
-_STAMP = struct.Struct('<iI')     # builtin_interfaces/Time: int32 sec, uint32 nanosec
+_STAMP = struct.Struct('<iI')  # builtin_interfaces/Time: int32 sec, uint32 nanosec
 _ENCAPSULATION_BYTES = 4
 
 

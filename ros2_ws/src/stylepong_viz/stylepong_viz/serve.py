@@ -3,6 +3,7 @@
 Nothing is fetched from the internet: the viewer's files are in the wheel. The page's only outside link
 (a web font) fails quietly offline and the viewer falls back to its built-in font.
 """
+
 from __future__ import annotations
 
 import socket
@@ -23,8 +24,9 @@ class ServeError(RuntimeError):
 @dataclass(frozen=True)
 class Page:
     """Where the page is."""
-    url: str          # what a browser opens
-    grpc_uri: str     # where the page reads the data
+
+    url: str  # what a browser opens
+    grpc_uri: str  # where the page reads the data
 
 
 def _check_free(port: int, what: str) -> None:
@@ -34,19 +36,25 @@ def _check_free(port: int, what: str) -> None:
         try:
             probe.bind(('0.0.0.0', port))
         except OSError as error:
-            raise ServeError(f'{what} port {port} is not free ({error.strerror}); choose another with '
-                             f'--{what}-port') from error
+            raise ServeError(
+                f'{what} port {port} is not free ({error.strerror}); choose another with --{what}-port'
+            ) from error
 
 
-def serve(recording: rr.RecordingStream, blueprint, web_port: int, grpc_port: int,
-          memory_limit: str = '512MiB', host: str = '127.0.0.1') -> Page:
+def serve(
+    recording: rr.RecordingStream,
+    blueprint,
+    web_port: int,
+    grpc_port: int,
+    memory_limit: str = '512MiB',
+    host: str = '127.0.0.1',
+) -> Page:
     """Start both servers for `recording` (they run on rerun's threads until the process ends)."""
     _check_free(web_port, 'web')
     _check_free(grpc_port, 'grpc')
     # Old data is dropped first when the server's memory limit is reached: a long session keeps its
     # latest minutes.
-    grpc_uri = recording.serve_grpc(grpc_port=grpc_port, default_blueprint=blueprint,
-                                    server_memory_limit=memory_limit)
+    grpc_uri = recording.serve_grpc(grpc_port=grpc_port, default_blueprint=blueprint, server_memory_limit=memory_limit)
     rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_uri)
     grpc_uri = grpc_uri.replace('127.0.0.1', host).replace('0.0.0.0', host)
     url = f'http://{host}:{web_port}/?url={urllib.parse.quote(grpc_uri, safe="")}'

@@ -13,6 +13,7 @@ time (cell_view.py) and sends what it kept. Once serving, the process lowers its
 busy machine the graph's nodes run first and the page waits.
 A bad option or a bag that is missing or damaged: one line on stderr, exit code 2.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,16 +27,16 @@ import time
 from stylepong_common.exit_codes import EXIT_CONFIG_ERROR
 
 PROGRAM = 'viewer'
-FLUSH_RATE_HZ = 10.0      # the page's updates a second: each one a batch per entity
-DEFAULT_NICE = 10         # a display yields the CPU to the nodes it watches
-QUEUE_DEPTH = 100         # messages a subscription holds between two ticks: 500 Hz gives 33
-ARM_SENT_MESSAGE = 'the arm is served at its /joint_states pose'   # logged once, at the first arm frame sent
+FLUSH_RATE_HZ = 10.0  # the page's updates a second: each one a batch per entity
+DEFAULT_NICE = 10  # a display yields the CPU to the nodes it watches
+QUEUE_DEPTH = 100  # messages a subscription holds between two ticks: 500 Hz gives 33
+ARM_SENT_MESSAGE = 'the arm is served at its /joint_states pose'  # logged once, at the first arm frame sent
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     """The viewer's own options; everything from --ros-args on is left to rclpy."""
     if '--ros-args' in argv:
-        argv = argv[:argv.index('--ros-args')]
+        argv = argv[: argv.index('--ros-args')]
 
     class OneLineParser(argparse.ArgumentParser):
         def error(self, message: str):
@@ -48,8 +49,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--grpc-port', type=int, default=9876, help="port of the page's data (default 9876)")
     parser.add_argument('--host', default='127.0.0.1', help='host name printed in the address (default 127.0.0.1)')
     parser.add_argument('--memory-limit', default='512MiB', help='data kept for the page; oldest dropped first')
-    parser.add_argument('--nice', type=int, default=DEFAULT_NICE,
-                        help=f'CPU priority given up, live, 0-19 (default {DEFAULT_NICE}; 0 keeps the caller\'s)')
+    parser.add_argument(
+        '--nice',
+        type=int,
+        default=DEFAULT_NICE,
+        help=f"CPU priority given up, live, 0-19 (default {DEFAULT_NICE}; 0 keeps the caller's)",
+    )
     args = parser.parse_args(argv)
     if not 0 <= args.nice <= 19:
         parser.error(f'--nice must be 0-19, got {args.nice}')
@@ -64,9 +69,11 @@ def _start_page(args: argparse.Namespace):
 
     from stylepong_viz.cell_view import CellView, blueprint
     from stylepong_viz.serve import APPLICATION_ID, serve
+
     # Rows logged one at a time leave for the page at each flush of the view, not rerun's default 0.2 s.
-    recording = rr.RecordingStream(APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(
-        flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ)))
+    recording = rr.RecordingStream(
+        APPLICATION_ID, batcher_config=rr.ChunkBatcherConfig(flush_tick=datetime.timedelta(seconds=1.0 / FLUSH_RATE_HZ))
+    )
     before = thread_ids()
     page = serve(recording, blueprint(), args.web_port, args.grpc_port, args.memory_limit, args.host)
     view = CellView(recording)
@@ -85,7 +92,7 @@ def lower_priority(increment: int, keep: set[int] = frozenset()) -> None:
     for tid in thread_ids() - set(keep):
         try:
             os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + increment))
-        except OSError:      # the thread ended meanwhile
+        except OSError:  # the thread ended meanwhile
             continue
 
 
@@ -94,15 +101,18 @@ def run_bag(args: argparse.Namespace) -> int:
     import signal
 
     from stylepong_viz.bag_view import BagError, _open_reader, show_bag
+
     try:
-        _open_reader(args.bag).close()    # refuse a missing or damaged bag before serving anything
+        _open_reader(args.bag).close()  # refuse a missing or damaged bag before serving anything
         view, _page, _ = _start_page(args)
         counts = show_bag(args.bag, view)
     except (BagError, OSError) as error:
         print(f'{PROGRAM}: {" ".join(str(error).split())}', file=sys.stderr)
         return EXIT_CONFIG_ERROR
-    print(f'{PROGRAM}: {args.bag}: ' + ', '.join(f'{t} {n}' for t, n in sorted(counts.items())) + '; Ctrl-C to stop',
-          flush=True)
+    print(
+        f'{PROGRAM}: {args.bag}: ' + ', '.join(f'{t} {n}' for t, n in sorted(counts.items())) + '; Ctrl-C to stop',
+        flush=True,
+    )
     stop: list[int] = []
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda received, _frame: stop.append(received))
@@ -160,17 +170,34 @@ def make_live_node(args: argparse.Namespace):
             queue = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
             subscribe = self._inputs.create_subscription
             self._streams = (
-                (subscribe(JointState, '/joint_states', never_called, queue, raw=True), 'joint state',
-                 self._joint_state),
-                (subscribe(Float64MultiArray, '/forward_position_controller/commands', never_called, queue,
-                           raw=True), 'command', self._command),
+                (
+                    subscribe(JointState, '/joint_states', never_called, queue, raw=True),
+                    'joint state',
+                    self._joint_state,
+                ),
+                (
+                    subscribe(
+                        Float64MultiArray, '/forward_position_controller/commands', never_called, queue, raw=True
+                    ),
+                    'command',
+                    self._command,
+                ),
                 (subscribe(BallState, '/ball/state', never_called, queue, raw=True), 'ball', self._ball),
-                (subscribe(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', never_called, queue, raw=True),
-                 'wrench', self._wrench),
-                (subscribe(RallyEvent, '/rally/events', never_called, QoSProfile(depth=100)), 'rally event',
-                 self._event),
-                (subscribe(String, '/player/status', never_called, QoSProfile(depth=10)), 'player status',
-                 self._status),
+                (
+                    subscribe(WrenchStamped, '/force_torque_sensor_broadcaster/wrench', never_called, queue, raw=True),
+                    'wrench',
+                    self._wrench,
+                ),
+                (
+                    subscribe(RallyEvent, '/rally/events', never_called, QoSProfile(depth=100)),
+                    'rally event',
+                    self._event,
+                ),
+                (
+                    subscribe(String, '/player/status', never_called, QoSProfile(depth=10)),
+                    'player status',
+                    self._status,
+                ),
             )
             self._arm_sent = False
             self.create_timer(1.0 / FLUSH_RATE_HZ, self._draw)
@@ -182,14 +209,17 @@ def make_live_node(args: argparse.Namespace):
 
         def _draw(self) -> None:
             # In arrival order across topics: a command takes the time of the joint state before it.
-            arrived = [(received_ns, k, message) for k, (subscription, _, _) in enumerate(self._streams)
-                       for received_ns, message in take_all(subscription)]
+            arrived = [
+                (received_ns, k, message)
+                for k, (subscription, _, _) in enumerate(self._streams)
+                for received_ns, message in take_all(subscription)
+            ]
             arrived.sort(key=lambda item: item[:2])
             for _, k, message in arrived:
                 _, kind, show = self._streams[k]
                 try:
                     show(message)
-                except (ValueError, TypeError, AttributeError, RuntimeError) as error:   # malformed: not drawn
+                except (ValueError, TypeError, AttributeError, RuntimeError) as error:  # malformed: not drawn
                     self._warnings.warn(kind, f'{kind} message not drawn: {error}')
             self.view.flush()
             if not self._arm_sent and self.view.counts['arm_frames']:
@@ -218,6 +248,7 @@ def make_live_node(args: argparse.Namespace):
                         pass
                 full = msg or deserialize_message(raw, JointState)
                 return full.name, full.position, full.velocity
+
             self.view.on_joint_state(stamp_s, read)
 
         def _command(self, raw: bytes) -> None:
@@ -229,6 +260,7 @@ def make_live_node(args: argparse.Namespace):
             def read() -> tuple[float, float, float]:
                 p = (msg or deserialize_message(raw, BallState)).position
                 return p.x, p.y, p.z
+
             self.view.on_ball(stamp_s, read)
 
         def _wrench(self, raw: bytes) -> None:
@@ -237,8 +269,13 @@ def make_live_node(args: argparse.Namespace):
 
         def _event(self, msg: RallyEvent) -> None:
             p = msg.position
-            self.view.on_rally_event(stamp_seconds(msg.header), EVENT_NAMES.get(msg.type, str(msg.type)), msg.reason,
-                                     msg.success, (p.x, p.y, p.z))
+            self.view.on_rally_event(
+                stamp_seconds(msg.header),
+                EVENT_NAMES.get(msg.type, str(msg.type)),
+                msg.reason,
+                msg.success,
+                (p.x, p.y, p.z),
+            )
 
         def _status(self, msg: String) -> None:
             self.view.on_player_status(self.view.latest_time_s, json.loads(msg.data))
@@ -258,7 +295,8 @@ def main(argv: list[str] | None = None) -> int:
         return run_bag(args)
     from stylepong_common.node_support import run_node
     from stylepong_viz.serve import ServeError
-    ros_args = argv[argv.index('--ros-args'):] if '--ros-args' in argv else []
+
+    ros_args = argv[argv.index('--ros-args') :] if '--ros-args' in argv else []
     return run_node(PROGRAM, make_live_node(args), [PROGRAM] + ros_args, config_errors=(ServeError,))
 
 

@@ -1,4 +1,5 @@
 """Joint rotations and link poses for a batch of joint vectors: robot_state's transforms, row by row."""
+
 import numpy as np
 import pytest
 
@@ -24,8 +25,10 @@ def test_joint_rotations_are_robot_states():
 
 
 def test_a_prismatic_joint_is_refused():
-    urdf = ('<robot name="r"><link name="a"/><link name="b"/><joint name="slide" type="prismatic">'
-            '<parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>')
+    urdf = (
+        '<robot name="r"><link name="a"/><link name="b"/><joint name="slide" type="prismatic">'
+        '<parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>'
+    )
     with pytest.raises(ValueError, match='slide'):
         joint_rotations(RobotState(urdf), np.zeros((1, 1)))
 

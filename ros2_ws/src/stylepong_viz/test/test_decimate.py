@@ -1,4 +1,5 @@
 """Unit tests of the viewer's decimation, trails and batches (stylepong_viz.decimate)."""
+
 import numpy as np
 import pytest
 
@@ -7,16 +8,16 @@ from stylepong_viz.decimate import ColumnBuffer, Decimator, Trail
 
 def test_decimator_keeps_the_rate_of_a_500_hz_stream():
     decimator = Decimator(100.0)
-    taken = [k for k in range(5000) if decimator.due(k * 0.002)]   # 10 s at 500 Hz
+    taken = [k for k in range(5000) if decimator.due(k * 0.002)]  # 10 s at 500 Hz
     assert abs(len(taken) - 1000) <= 1
-    assert set(np.diff(taken)) <= {4, 5, 6}           # stamps in floating point land either side of the grid
+    assert set(np.diff(taken)) <= {4, 5, 6}  # stamps in floating point land either side of the grid
 
 
 def test_decimator_restarts_when_time_goes_back():
     decimator = Decimator(10.0)
     assert decimator.due(100.0)
     assert not decimator.due(100.05)
-    assert decimator.due(1.0)          # a restarted simulation or a new clip
+    assert decimator.due(1.0)  # a restarted simulation or a new clip
     assert not decimator.due(1.05)
 
 

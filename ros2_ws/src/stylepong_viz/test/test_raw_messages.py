@@ -1,4 +1,5 @@
 """Stamps and joint states read from serialized messages as rclpy writes them."""
+
 import pytest
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState

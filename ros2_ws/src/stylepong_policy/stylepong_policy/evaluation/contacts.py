@@ -17,6 +17,7 @@ blade's face normal, the frame's z axis, which faces the net at the home pose):
                ends at its contact (the strokes hold positions); a set's from its clips' joint velocities at
                the hit, at the dataset's fastest speed-up (x5 in the paper's), the fastest it offers
 """
+
 from __future__ import annotations
 
 import math
@@ -32,6 +33,7 @@ from stylepong_policy.evaluation.strokes import DIRECTIONS, Stroke, paddle_home_
 @dataclass(frozen=True)
 class Blade:
     """The blade at one contact."""
+
     ahead_m: float
     opening_deg: float
     facing_deg: float
@@ -46,8 +48,10 @@ def _paddle_poses(q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     import torch
 
     from stylepong_sim.batched import batched_kinematics
-    kin = batched_kinematics.forward_kinematics(batched_kinematics.build_arm_model(dtype=torch.float64),
-                                                torch.as_tensor(q_rad.T, dtype=torch.float64))
+
+    kin = batched_kinematics.forward_kinematics(
+        batched_kinematics.build_arm_model(dtype=torch.float64), torch.as_tensor(q_rad.T, dtype=torch.float64)
+    )
     return kin.paddle_pos_m.numpy(), kin.paddle_rot[:, 2].numpy()
 
 
@@ -65,11 +69,15 @@ def blades(q_rad: np.ndarray, qd_rad_s: np.ndarray) -> list[Blade]:
     step_s = 1e-4
     speed_m_s = np.linalg.norm(_paddle_poses(q + step_s * qd)[0] - position, axis=0) / step_s
     home_x = paddle_home_position_m()[0]
-    return [Blade(ahead_m=float(position[0, k] - home_x),
-                  opening_deg=math.degrees(math.asin(max(-1.0, min(1.0, float(normal[2, k]))))),
-                  facing_deg=math.degrees(math.atan2(float(normal[1, k]), float(normal[0, k]))),
-                  speed_m_s=float(speed_m_s[k]))
-            for k in range(q.shape[0])]
+    return [
+        Blade(
+            ahead_m=float(position[0, k] - home_x),
+            opening_deg=math.degrees(math.asin(max(-1.0, min(1.0, float(normal[2, k]))))),
+            facing_deg=math.degrees(math.atan2(float(normal[1, k]), float(normal[0, k]))),
+            speed_m_s=float(speed_m_s[k]),
+        )
+        for k in range(q.shape[0])
+    ]
 
 
 def actor_contacts(strokes: Iterable[Stroke]) -> dict[str, list[Blade]]:
@@ -78,7 +86,7 @@ def actor_contacts(strokes: Iterable[Stroke]) -> dict[str, list[Blade]]:
     hitting = [s for s in strokes if s.hit and 1 <= s.hit_frame < len(s.joint_positions_rad)]
     at = np.array([s.joint_positions_rad[s.hit_frame] for s in hitting]).reshape(-1, 6)
     before = np.array([s.joint_positions_rad[s.hit_frame - 1] for s in hitting]).reshape(-1, 6)
-    found = blades(at, (at - before) * POLICY_RATE_HZ)     # the strokes hold positions only
+    found = blades(at, (at - before) * POLICY_RATE_HZ)  # the strokes hold positions only
     by_direction: dict[str, list[Blade]] = {}
     for stroke, blade in zip(hitting, found):
         by_direction.setdefault(stroke.direction, []).append(blade)
@@ -89,6 +97,7 @@ def demonstrated_contacts(dataset) -> dict[str, list[Blade]]:
     """The blade at each original clip's hit (dataset.hit_frame), by label; speed-ups repeat their original
     and move it faster: the speed is the original's at the dataset's fastest speed-up."""
     from stylepong_policy.training.dataset import hit_frame
+
     originals = dataset.select(speed_factors=[1])
     frames = [int(dataset.clip_start[c]) + hit_frame(dataset.clip(c).qd) for c in originals]
     fastest = float(np.max(dataset.speed_factor)) if len(dataset.speed_factor) else 1.0
@@ -104,30 +113,54 @@ def mean_blades(contacts: Mapping[str, Sequence[Blade]]) -> dict[str, dict[str, 
     means: dict[str, dict[str, float] | None] = {}
     for direction in DIRECTIONS:
         found = contacts.get(direction, [])
-        means[direction] = ({name: float(np.mean([getattr(b, name) for b in found])) for name in BLADE_FIELDS}
-                            | {'contacts': len(found)}) if found else None
+        means[direction] = (
+            (
+                {name: float(np.mean([getattr(b, name) for b in found])) for name in BLADE_FIELDS}
+                | {'contacts': len(found)}
+            )
+            if found
+            else None
+        )
     return means
 
 
-TABLE_NOTE = ('The mean over each direction\'s contacts: an actor\'s at its strokes\' first paddle contact, a set '
-              'of demonstrations\' at each original clip\'s hit (its fastest frame; the clips hold no ball). Ahead '
-              'of home: the paddle centre\'s x beyond its home pose (towards the net); opening: the face turned up '
-              'from vertical; facing: the face turned towards the robot\'s left (world +y) from square to the table; '
-              'blade speed: the paddle centre\'s, an actor\'s over the frame that ends at its contact, a set\'s '
-              'at its fastest speed-up (`stylepong_policy.evaluation.contacts`).')
+TABLE_NOTE = (
+    "The mean over each direction's contacts: an actor's at its strokes' first paddle contact, a set "
+    "of demonstrations' at each original clip's hit (its fastest frame; the clips hold no ball). Ahead "
+    "of home: the paddle centre's x beyond its home pose (towards the net); opening: the face turned up "
+    "from vertical; facing: the face turned towards the robot's left (world +y) from square to the table; "
+    "blade speed: the paddle centre's, an actor's over the frame that ends at its contact, a set's "
+    'at its fastest speed-up (`stylepong_policy.evaluation.contacts`).'
+)
 
 
 def contact_table(rows: Mapping[str, Mapping[str, dict | None]]) -> tuple[list[str], list[list[str]]]:
     """Markdown table (header, rows) of mean blades: one row per (name, direction) with contacts."""
-    header = ['strokes', 'direction', 'ahead of home (m)', 'opening (deg)', 'facing (deg)', 'blade speed (m/s)',
-              'contacts']
+    header = [
+        'strokes',
+        'direction',
+        'ahead of home (m)',
+        'opening (deg)',
+        'facing (deg)',
+        'blade speed (m/s)',
+        'contacts',
+    ]
     body = []
     for name, by_direction in rows.items():
         for direction in DIRECTIONS:
             mean = by_direction.get(direction)
             if mean is not None:
-                body.append([name, direction, _signed(mean['ahead_m'], 2), _signed(mean['opening_deg'], 0),
-                             _signed(mean['facing_deg'], 0), f"{mean['speed_m_s']:.2f}", str(mean['contacts'])])
+                body.append(
+                    [
+                        name,
+                        direction,
+                        _signed(mean['ahead_m'], 2),
+                        _signed(mean['opening_deg'], 0),
+                        _signed(mean['facing_deg'], 0),
+                        f'{mean["speed_m_s"]:.2f}',
+                        str(mean['contacts']),
+                    ]
+                )
     return header, body
 
 

@@ -9,6 +9,7 @@ many start times: the clip's fastest frame (largest joint-speed norm, where the 
 a demonstration) falls at each of `hit_steps` policy periods after the launch, the clip's first frame
 held before it starts and its last after it ends. Each ball keeps its best outcome over the start times.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -24,10 +25,11 @@ from stylepong_sim.batched import batched_launcher, batched_world
 @dataclass(frozen=True)
 class ReplayOutcome:
     """One clip against `balls` balls, each at every start time."""
+
     balls: int
-    hit: int                    # balls the paddle touches at one start time or more
-    returned: int               # balls returned (the referee's success) at one start time or more
-    hit_verdicts: dict[str, int] = field(default_factory=dict)   # verdicts of every (ball, start) that hit
+    hit: int  # balls the paddle touches at one start time or more
+    returned: int  # balls returned (the referee's success) at one start time or more
+    hit_verdicts: dict[str, int] = field(default_factory=dict)  # verdicts of every (ball, start) that hit
 
     @property
     def hit_rate(self) -> float:
@@ -50,8 +52,14 @@ def clip_targets(q_rad: np.ndarray, step: int, hit_steps: torch.Tensor, hit_fram
     return torch.as_tensor(q_rad, dtype=torch.float32)[frames].T
 
 
-def replay_clip(q_rad: np.ndarray, balls: int, hit_steps: Sequence[int], seed: int,
-                speed_range_m_s: tuple[float, float], max_steps: int = 120) -> ReplayOutcome:
+def replay_clip(
+    q_rad: np.ndarray,
+    balls: int,
+    hit_steps: Sequence[int],
+    seed: int,
+    speed_range_m_s: tuple[float, float],
+    max_steps: int = 120,
+) -> ReplayOutcome:
     """The clip's joint positions [frames, 6] (policy rate) against `balls` balls of seed `seed`."""
     q_rad = np.asarray(q_rad, dtype=np.float32)
     if q_rad.ndim != 2 or q_rad.shape[1] != 6 or len(q_rad) < 2:
@@ -62,7 +70,7 @@ def replay_clip(q_rad: np.ndarray, balls: int, hit_steps: Sequence[int], seed: i
     n = balls * starts
     world = batched_world.BatchedWorld(n)
     position, velocity, _ = batched_launcher.IncomingBallSampler(speed_range_m_s, seed=seed).sample(balls)
-    ball_of_env = torch.arange(n) // starts          # every ball repeated once per start time
+    ball_of_env = torch.arange(n) // starts  # every ball repeated once per start time
     start_q = torch.as_tensor(q_rad[0])[:, None].expand(-1, n)
     world.reset_envs(torch.arange(n), start_q, position[:, ball_of_env], velocity[:, ball_of_env])
     hit_step_of_env = torch.as_tensor(list(hit_steps), dtype=torch.long).repeat(balls)
@@ -81,6 +89,9 @@ def replay_clip(q_rad: np.ndarray, balls: int, hit_steps: Sequence[int], seed: i
         if bool(decided.all()):
             break
     verdicts = reason[hit]
-    return ReplayOutcome(balls=balls, hit=int(hit.view(balls, starts).any(1).sum()),
-                         returned=int(success.view(balls, starts).any(1).sum()),
-                         hit_verdicts={referee.REASONS[int(k)]: int((verdicts == k).sum()) for k in verdicts.unique()})
+    return ReplayOutcome(
+        balls=balls,
+        hit=int(hit.view(balls, starts).any(1).sum()),
+        returned=int(success.view(balls, starts).any(1).sum()),
+        hit_verdicts={referee.REASONS[int(k)]: int((verdicts == k).sum()) for k in verdicts.unique()},
+    )

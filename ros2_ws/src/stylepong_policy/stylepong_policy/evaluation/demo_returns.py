@@ -11,6 +11,7 @@ sequence's fastest frame 20-65 policy periods (0.33-1.08 s) after the launch, wh
 same seed, from the launch to 0.3 s after the hit (`evaluate`'s strokes). Written as Markdown by this
 script; nothing in it is typed by hand.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,18 +36,25 @@ def verdict_text(verdicts: dict[str, int]) -> str:
 def replayed(sequences: list[tuple[str, object]], balls: int, seed: int, speed_range) -> list[tuple[str, int, object]]:
     """(name, frames, ReplayOutcome) of each named joint-position sequence."""
     from stylepong_policy.evaluation import demo_replay
-    return [(name, len(q), demo_replay.replay_clip(q, balls, list(HIT_STEPS), seed, speed_range))
-            for name, q in sequences]
+
+    return [
+        (name, len(q), demo_replay.replay_clip(q, balls, list(HIT_STEPS), seed, speed_range)) for name, q in sequences
+    ]
 
 
 def table(rows: list[tuple[str, int, object]], first_column: str) -> list[str]:
     """The Markdown table of replayed sequences."""
-    lines = [f'| {first_column} | frames | balls hit | balls returned | returned / hit (ball, start) pairs '
-             '| verdicts of the hits |', '|---|---|---|---|---|---|']
+    lines = [
+        f'| {first_column} | frames | balls hit | balls returned | returned / hit (ball, start) pairs '
+        '| verdicts of the hits |',
+        '|---|---|---|---|---|---|',
+    ]
     for name, frames, outcome in rows:
         pairs = sum(outcome.hit_verdicts.values())
-        lines.append(f'| {name} | {frames} | {outcome.hit_rate:.0%} | {outcome.return_rate:.0%} | '
-                     f'{outcome.hit_verdicts.get("returned", 0)} / {pairs} | {verdict_text(outcome.hit_verdicts)} |')
+        lines.append(
+            f'| {name} | {frames} | {outcome.hit_rate:.0%} | {outcome.return_rate:.0%} | '
+            f'{outcome.hit_verdicts.get("returned", 0)} / {pairs} | {verdict_text(outcome.hit_verdicts)} |'
+        )
     return lines
 
 
@@ -55,8 +63,10 @@ def total_line(label: str, rows: list[tuple[str, int, object]]) -> str:
     verdicts = collections.Counter()
     for _, _, outcome in rows:
         verdicts.update(outcome.hit_verdicts)
-    return (f'- {label}: {verdicts.get("returned", 0)} of {sum(verdicts.values())} (ball, start) pairs that hit '
-            f'the ball returned it; verdicts {verdict_text(dict(verdicts))}.')
+    return (
+        f'- {label}: {verdicts.get("returned", 0)} of {sum(verdicts.values())} (ball, start) pairs that hit '
+        f'the ball returned it; verdicts {verdict_text(dict(verdicts))}.'
+    )
 
 
 def repo_path(path: pathlib.Path) -> pathlib.Path:
@@ -69,8 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     """Replay every clip and the actor's strokes, write the Markdown."""
     parser = argparse.ArgumentParser(prog='demo_returns', description=__doc__.split('\n\n')[0])
     parser.add_argument('--dataset', type=pathlib.Path, default=paths.RESULTS / 'reference_dataset.npz')
-    parser.add_argument('--actor', type=pathlib.Path,
-                        default=paths.MODELS / 'amp_actor.pt')
+    parser.add_argument('--actor', type=pathlib.Path, default=paths.MODELS / 'amp_actor.pt')
     parser.add_argument('--actor-strokes', type=int, default=10)
     parser.add_argument('--balls', type=int, default=100)
     parser.add_argument('--seed', type=int, default=900)
@@ -89,33 +98,52 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     speed_range = tuple(world_spec.SPEED_RANGES_M_S['all'])
     dataset = ReferenceDataset.load(args.dataset)
-    demo_rows = replayed([(f'{dataset.label[i]} x{int(dataset.speed_factor[i])} (clip {i})', dataset.clip(i).q)
-                          for i in range(dataset.num_clips)], args.balls, args.seed, speed_range)
+    demo_rows = replayed(
+        [
+            (f'{dataset.label[i]} x{int(dataset.speed_factor[i])} (clip {i})', dataset.clip(i).q)
+            for i in range(dataset.num_clips)
+        ],
+        args.balls,
+        args.seed,
+        speed_range,
+    )
     result = evaluate.evaluate_seed(evaluate.load_actor(args.actor), args.seed, args.balls, 'cpu')
-    returned = [s for s in result.strokes if s.success][:args.actor_strokes]
-    actor_rows = replayed([(f'{s.direction}, ball {s.ball}', s.joint_positions_rad) for s in returned],
-                          args.balls, args.seed, speed_range)
+    returned = [s for s in result.strokes if s.success][: args.actor_strokes]
+    actor_rows = replayed(
+        [(f'{s.direction}, ball {s.ball}', s.joint_positions_rad) for s in returned], args.balls, args.seed, speed_range
+    )
 
     actor_name, dataset_name = repo_path(args.actor), repo_path(args.dataset)
-    lines = ['# Would the demonstrated strokes return a ball?', '',
-             f'Written by `ros2 run stylepong_policy demo_returns --dataset {dataset_name} --actor {actor_name} '
-             f'--balls {args.balls} --seed {args.seed} --actor-strokes {args.actor_strokes}` '
-             f'in {time.perf_counter() - started:.0f} s ({os.cpu_count()} CPU cores, 1 torch thread).', '',
-             'Setting: nominal batched world (no randomisation, no sensing noise). Each sequence of joint positions '
-             'is played, one frame per policy period, as the joint targets of the servo against '
-             f'{args.balls} balls of validation seed {args.seed} (all speeds), each ball at {len(HIT_STEPS)} start '
-             f"times that put the sequence's fastest frame {HIT_STEPS.start}-{HIT_STEPS.stop - 1} policy "
-             'periods after the launch; a ball counts as hit or returned when one start time or more does '
-             "so (`stylepong_policy.evaluation.demo_replay`). The verdicts are the referee's, over every "
-             "(ball, start) pair "
-             "whose paddle touched the ball (`own_side`: struck down onto the robot's own half).", '',
-             '## Summary', '',
-             total_line(f'The {dataset.num_clips} demonstration clips of `{dataset_name}`', demo_rows),
-             total_line(f'{len(actor_rows)} strokes of `{actor_name}` that returned their own balls', actor_rows), '',
-             '## Demonstration clips (originals and their x2/x3/x5 speed-ups)', '',
-             *table(demo_rows, 'clip'), '',
-             f'## Strokes of `{actor_name}` that returned their balls (validation seed {args.seed})', '',
-             *table(actor_rows, 'stroke'), '']
+    lines = [
+        '# Would the demonstrated strokes return a ball?',
+        '',
+        f'Written by `ros2 run stylepong_policy demo_returns --dataset {dataset_name} --actor {actor_name} '
+        f'--balls {args.balls} --seed {args.seed} --actor-strokes {args.actor_strokes}` '
+        f'in {time.perf_counter() - started:.0f} s ({os.cpu_count()} CPU cores, 1 torch thread).',
+        '',
+        'Setting: nominal batched world (no randomisation, no sensing noise). Each sequence of joint positions '
+        'is played, one frame per policy period, as the joint targets of the servo against '
+        f'{args.balls} balls of validation seed {args.seed} (all speeds), each ball at {len(HIT_STEPS)} start '
+        f"times that put the sequence's fastest frame {HIT_STEPS.start}-{HIT_STEPS.stop - 1} policy "
+        'periods after the launch; a ball counts as hit or returned when one start time or more does '
+        "so (`stylepong_policy.evaluation.demo_replay`). The verdicts are the referee's, over every "
+        '(ball, start) pair '
+        "whose paddle touched the ball (`own_side`: struck down onto the robot's own half).",
+        '',
+        '## Summary',
+        '',
+        total_line(f'The {dataset.num_clips} demonstration clips of `{dataset_name}`', demo_rows),
+        total_line(f'{len(actor_rows)} strokes of `{actor_name}` that returned their own balls', actor_rows),
+        '',
+        '## Demonstration clips (originals and their x2/x3/x5 speed-ups)',
+        '',
+        *table(demo_rows, 'clip'),
+        '',
+        f'## Strokes of `{actor_name}` that returned their balls (validation seed {args.seed})',
+        '',
+        *table(actor_rows, 'stroke'),
+        '',
+    ]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text('\n'.join(lines))
     print(f'wrote {args.out}')

@@ -26,6 +26,7 @@ command line (an absolute one under the working directory is made relative to it
 In Python: `run_evaluation(actor, seeds=..., first_seed=..., balls=..., speed=..., randomize=...,
 device=...)` returns the same dict.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -60,17 +61,20 @@ from stylepong_policy.rl.export import ActorMismatchError, LoadedActor, load_act
 from stylepong_sim.referee import REASON_RETURNED
 from stylepong_sim.world_spec import EVALUATION_BALLS_PER_SEED, EVALUATION_SEEDS, FIRST_EVALUATION_SEED
 
-SUCCESS_REASON = REASON_RETURNED     # the referee's verdict for a successful return
-NO_DECISION = 'episode_time_limit'   # an episode the env ended without the referee deciding the ball
+SUCCESS_REASON = REASON_RETURNED  # the referee's verdict for a successful return
+NO_DECISION = 'episode_time_limit'  # an episode the env ended without the referee deciding the ball
 # The setting of a figure, said in every result (Table IV of paper_tables labels its rows with it).
-WORLDS = {False: 'batched world, nominal (no randomisation, no sensing noise)',
-          True: 'batched world, training randomisation (physics, sensing noise, latencies; --randomize)'}
+WORLDS = {
+    False: 'batched world, nominal (no randomisation, no sensing noise)',
+    True: 'batched world, training randomisation (physics, sensing noise, latencies; --randomize)',
+}
 
 
 @dataclass(frozen=True)
 class Drive:
     """The arm's joint drive in the batched world (task.TaskConfig): the share of a stiff velocity motor
     (0: the cells' PD) and the rotor inertia's scale (1: world_spec's; 0: none)."""
+
     velocity_motor: float = 0.0
     armature_scale: float = 1.0
 
@@ -81,7 +85,7 @@ class Drive:
         return f'; joint drive {self.velocity_motor:g} velocity motor, rotor inertia x{self.armature_scale:g}'
 
 
-VIDEO_FPS = int(ACTION_RATE_HZ)      # one frame per policy step: real time
+VIDEO_FPS = int(ACTION_RATE_HZ)  # one frame per policy step: real time
 SPEEDS = ('all', 'low', 'high')
 # |arrival y - paddle home y| bands (m) of dtw_by_lateral_offset: the demonstrated hits lie within 0.18 m.
 LATERAL_OFFSET_BANDS_M = (0.0, 0.2, 0.4, 0.6, math.inf)
@@ -91,6 +95,7 @@ DTW_CALL = "dtaidistance.dtw_ndim.distance_fast(stroke, clip, inner_dist='euclid
 @dataclass
 class SeedResult:
     """The outcome of one evaluation seed: successes, hits, failure reasons and strokes."""
+
     seed: int
     balls: int
     successes: int
@@ -98,7 +103,7 @@ class SeedResult:
     reasons: dict[str, int]
     wall_time_s: float
     strokes: list[Stroke] = field(default_factory=list)
-    commanded_into_table: int = 0     # balls before whose verdict a command put the arm below the table top
+    commanded_into_table: int = 0  # balls before whose verdict a command put the arm below the table top
 
     @property
     def success_rate(self) -> float:
@@ -108,7 +113,8 @@ class SeedResult:
 @dataclass
 class Evaluation:
     """An actor's results over the seeds, with every ball's stroke."""
-    actor: str                 # the actor's path as given (see portable_path)
+
+    actor: str  # the actor's path as given (see portable_path)
     actor_spec_version: int | None
     speed: str
     randomize: bool
@@ -138,16 +144,28 @@ def portable_path(path: str | os.PathLike) -> str:
 # Running the balls
 
 
-def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.device | str, *, speed: str = 'all',
-                  randomize: bool = False, drive: Drive = Drive()) -> SeedResult:
+def evaluate_seed(
+    actor: LoadedActor,
+    seed: int,
+    balls: int,
+    device: torch.device | str,
+    *,
+    speed: str = 'all',
+    randomize: bool = False,
+    drive: Drive = Drive(),
+) -> SeedResult:
     """Play each of `balls` environments' first ball to its verdict and keep its stroke."""
     from stylepong_policy.training import task
     from stylepong_sim.world_spec import SPEED_RANGES_M_S
 
     started = time.perf_counter()
-    cfg = task.TaskConfig(num_envs=balls, speed_range_m_s=tuple(SPEED_RANGES_M_S[speed]), randomize=bool(randomize),
-                          velocity_drive_range=(drive.velocity_motor,) * 2,
-                          armature_scale_range=(drive.armature_scale,) * 2)
+    cfg = task.TaskConfig(
+        num_envs=balls,
+        speed_range_m_s=tuple(SPEED_RANGES_M_S[speed]),
+        randomize=bool(randomize),
+        velocity_drive_range=(drive.velocity_motor,) * 2,
+        armature_scale_range=(drive.armature_scale,) * 2,
+    )
     env = task.make_env(cfg, device, seed)
     names = list(task.FAILURE_REASONS) + [NO_DECISION]
     decided = torch.zeros(balls, dtype=torch.bool, device=env.device)
@@ -168,8 +186,10 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
         step = 0
         while not bool(decided.all()):
             if step >= max_steps:
-                raise RuntimeError(f'seed {seed}: {int((~decided).sum())} balls undecided after {step} steps; '
-                                   'the env never ended their episodes')
+                raise RuntimeError(
+                    f'seed {seed}: {int((~decided).sum())} balls undecided after {step} steps; '
+                    'the env never ended their episodes'
+                )
             actions = actor(obs.to('cpu')).to(env.device)
             into_table |= ~decided & env.world.commands_below_table_top(spec.decode_action(actions).T)
             obs, _, _, dones, extras = env.step(actions)
@@ -178,8 +198,9 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
             ball_frames.append(extras['ball_state'].cpu())
             open_ = ~decided
             outcome = extras['outcome']
-            hit_frame = torch.where(extras['paddle_hit'] & open_ & (hit_frame == NO_FRAME),
-                                    torch.full_like(hit_frame, step), hit_frame)
+            hit_frame = torch.where(
+                extras['paddle_hit'] & open_ & (hit_frame == NO_FRAME), torch.full_like(hit_frame, step), hit_frame
+            )
             ball_done = outcome['done'] & open_
             success |= outcome['success'] & ball_done
             hit |= outcome['hit'] & ball_done
@@ -191,17 +212,40 @@ def evaluate_seed(actor: LoadedActor, seed: int, balls: int, device: torch.devic
             verdict_frame = torch.where(ended, torch.full_like(verdict_frame, step), verdict_frame)
             decided |= ended
     counts = torch.bincount(reason.cpu(), minlength=len(names)).tolist()
-    strokes = _strokes(seed, torch.stack(q_frames).numpy(), torch.stack(ball_frames).numpy(), launch_velocity,
-                       [names[i] for i in reason.tolist()], success.tolist(), hit.tolist(), hit_frame.tolist(),
-                       verdict_frame.tolist())
-    return SeedResult(seed=seed, balls=balls, successes=int(success.sum()), hits=int(hit.sum()),
-                      reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
-                      wall_time_s=time.perf_counter() - started, strokes=strokes,
-                      commanded_into_table=int(into_table.sum()))
+    strokes = _strokes(
+        seed,
+        torch.stack(q_frames).numpy(),
+        torch.stack(ball_frames).numpy(),
+        launch_velocity,
+        [names[i] for i in reason.tolist()],
+        success.tolist(),
+        hit.tolist(),
+        hit_frame.tolist(),
+        verdict_frame.tolist(),
+    )
+    return SeedResult(
+        seed=seed,
+        balls=balls,
+        successes=int(success.sum()),
+        hits=int(hit.sum()),
+        reasons={n: int(c) for n, c in zip(names, counts) if c and n != SUCCESS_REASON},
+        wall_time_s=time.perf_counter() - started,
+        strokes=strokes,
+        commanded_into_table=int(into_table.sum()),
+    )
 
 
-def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.ndarray, outcomes: list[str],
-             success: list[bool], hit: list[bool], hit_frame: list[int], verdict_frame: list[int]) -> list[Stroke]:
+def _strokes(
+    seed: int,
+    q: np.ndarray,
+    ball: np.ndarray,
+    launch_velocity: np.ndarray,
+    outcomes: list[str],
+    success: list[bool],
+    hit: list[bool],
+    hit_frame: list[int],
+    verdict_frame: list[int],
+) -> list[Stroke]:
     """Cut each environment's stroke from the frames [F, N, ...] of its world."""
     plane_x, home_y, _ = paddle_home_position_m()
     result = []
@@ -210,18 +254,37 @@ def _strokes(seed: int, q: np.ndarray, ball: np.ndarray, launch_velocity: np.nda
         # Frames before the first paddle contact and before the verdict (which may be a robot contact).
         free = verdict_frame[i] if hit_frame[i] == NO_FRAME else min(hit_frame[i], verdict_frame[i])
         y = arrival_y_m(ball[:free, i, :3], ball[:free, i, 3:], free, plane_x)
-        result.append(Stroke(
-            seed=seed, ball=i, joint_positions_rad=q[:end + 1, i].copy(), ball_position_m=ball[:end + 1, i, :3].copy(),
-            direction=direction_of(y, home_y), arrival_y_m=y,
-            launch_velocity_m_s=launch_velocity[i].copy(), outcome=outcomes[i], success=bool(success[i]),
-            hit=bool(hit[i]), hit_frame=int(hit_frame[i]), verdict_frame=int(verdict_frame[i])))
+        result.append(
+            Stroke(
+                seed=seed,
+                ball=i,
+                joint_positions_rad=q[: end + 1, i].copy(),
+                ball_position_m=ball[: end + 1, i, :3].copy(),
+                direction=direction_of(y, home_y),
+                arrival_y_m=y,
+                launch_velocity_m_s=launch_velocity[i].copy(),
+                outcome=outcomes[i],
+                success=bool(success[i]),
+                hit=bool(hit[i]),
+                hit_frame=int(hit_frame[i]),
+                verdict_frame=int(verdict_frame[i]),
+            )
+        )
     return result
 
 
-def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALUATION_SEEDS,
-                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = EVALUATION_BALLS_PER_SEED, speed: str = 'all',
-                   randomize: bool = False, device: str | torch.device = 'cpu',
-                   progress: Callable[[SeedResult], None] | None = None, drive: Drive = Drive()) -> Evaluation:
+def evaluate_actor(
+    actor: str | os.PathLike | LoadedActor,
+    *,
+    seeds: int = EVALUATION_SEEDS,
+    first_seed: int = FIRST_EVALUATION_SEED,
+    balls: int = EVALUATION_BALLS_PER_SEED,
+    speed: str = 'all',
+    randomize: bool = False,
+    device: str | torch.device = 'cpu',
+    progress: Callable[[SeedResult], None] | None = None,
+    drive: Drive = Drive(),
+) -> Evaluation:
     """Run the protocol (module docstring) and keep every stroke; `progress` is called after each seed."""
     if speed not in SPEEDS:
         raise ValueError(f'speed must be one of {SPEEDS}, got {speed!r}')
@@ -235,8 +298,15 @@ def evaluate_actor(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALU
         results.append(result)
         if progress is not None:
             progress(result)
-    return Evaluation(actor=portable_path(given), actor_spec_version=loaded.metadata.get('spec_version'), speed=speed,
-                      randomize=bool(randomize), balls_per_seed=balls, results=results, drive=drive)
+    return Evaluation(
+        actor=portable_path(given),
+        actor_spec_version=loaded.metadata.get('spec_version'),
+        speed=speed,
+        randomize=bool(randomize),
+        balls_per_seed=balls,
+        results=results,
+        drive=drive,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -249,16 +319,21 @@ def direction_table(strokes: Sequence[Stroke]) -> dict[str, dict]:
     for direction in DIRECTIONS:
         chosen = [s for s in strokes if s.direction == direction]
         n = len(chosen)
-        table[direction] = {'balls': n,
-                            'success_rate': sum(s.success for s in chosen) / n if n else None,
-                            'hit_rate': sum(s.hit for s in chosen) / n if n else None}
+        table[direction] = {
+            'balls': n,
+            'success_rate': sum(s.success for s in chosen) / n if n else None,
+            'hit_rate': sum(s.hit for s in chosen) / n if n else None,
+        }
     return table
 
 
 def smoothness_table(strokes: Sequence[Stroke], rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict | None]:
     """Mean smoothness measures of each direction's strokes and of all of them."""
-    measured = [(s.direction, style_metrics.smoothness(s.joint_positions_rad, rate_hz)) for s in strokes
-                if len(s.joint_positions_rad) >= 4]
+    measured = [
+        (s.direction, style_metrics.smoothness(s.joint_positions_rad, rate_hz))
+        for s in strokes
+        if len(s.joint_positions_rad) >= 4
+    ]
     table = {d: style_metrics.mean_smoothness(m for direction, m in measured if direction == d) for d in DIRECTIONS}
     table['all'] = style_metrics.mean_smoothness(m for _, m in measured)
     return table
@@ -271,12 +346,20 @@ def references_by_direction(dataset) -> dict[str, list[tuple[int, np.ndarray]]]:
 
 def nearest_matches(strokes: Sequence[Stroke], references: dict[str, list]) -> list[style_metrics.DtwMatch | None]:
     """Each stroke's nearest reference clip of its own label (None where the dataset has no such clip)."""
-    return [style_metrics.nearest_reference(s.joint_positions_rad, references[s.direction]) if references[s.direction]
-            else None for s in strokes]
+    return [
+        style_metrics.nearest_reference(s.joint_positions_rad, references[s.direction])
+        if references[s.direction]
+        else None
+        for s in strokes
+    ]
 
 
-def dtw_table(strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatch | None], references: dict[str, list],
-              rate_hz: float = ACTION_RATE_HZ) -> dict[str, dict]:
+def dtw_table(
+    strokes: Sequence[Stroke],
+    matches: Sequence[style_metrics.DtwMatch | None],
+    references: dict[str, list],
+    rate_hz: float = ACTION_RATE_HZ,
+) -> dict[str, dict]:
     """Per direction: every stroke against every reference clip of that label, the mean of the smallest,
     and the summed distance split by joint and by phase of the stroke (style_metrics.cost_breakdown)."""
     from stylepong_description.robot_model import JOINT_NAMES
@@ -285,32 +368,48 @@ def dtw_table(strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatc
     for direction in DIRECTIONS:
         clips = dict(references[direction])
         chosen = [(s, m) for s, m in zip(strokes, matches) if s.direction == direction and m is not None]
-        entry = {'strokes': sum(s.direction == direction for s in strokes), 'reference_clips': len(clips),
-                 'mean_rad': None, 'std_rad': None, 'mean_per_path_step_rad': None, 'sum_by_joint_rad': None,
-                 'sum_by_phase_rad': None}
+        entry = {
+            'strokes': sum(s.direction == direction for s in strokes),
+            'reference_clips': len(clips),
+            'mean_rad': None,
+            'std_rad': None,
+            'mean_per_path_step_rad': None,
+            'sum_by_joint_rad': None,
+            'sum_by_phase_rad': None,
+        }
         if chosen:
             distances = np.array([m.distance for _, m in chosen])
-            parts = [style_metrics.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
-                     for s, m in chosen]
+            parts = [
+                style_metrics.cost_breakdown(s.joint_positions_rad, clips[m.clip], m.path, s.hit_frame, rate_hz)
+                for s, m in chosen
+            ]
             by_joint = np.sum([p.by_joint_rad for p in parts], axis=0)
-            entry.update(mean_rad=float(distances.mean()), std_rad=float(distances.std()),
-                         mean_per_path_step_rad=float(np.mean([m.distance_per_step for _, m in chosen])),
-                         sum_by_joint_rad=dict(zip(JOINT_NAMES, by_joint.tolist())),
-                         sum_by_phase_rad={phase: float(sum(p.by_phase_rad[phase] for p in parts))
-                                           for phase in style_metrics.PHASES})
+            entry.update(
+                mean_rad=float(distances.mean()),
+                std_rad=float(distances.std()),
+                mean_per_path_step_rad=float(np.mean([m.distance_per_step for _, m in chosen])),
+                sum_by_joint_rad=dict(zip(JOINT_NAMES, by_joint.tolist())),
+                sum_by_phase_rad={
+                    phase: float(sum(p.by_phase_rad[phase] for p in parts)) for phase in style_metrics.PHASES
+                },
+            )
         table[direction] = entry
     return table
 
 
-def dtw_by_lateral_offset(strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatch | None],
-                          paddle_home_y_m: float) -> dict[str, dict]:
+def dtw_by_lateral_offset(
+    strokes: Sequence[Stroke], matches: Sequence[style_metrics.DtwMatch | None], paddle_home_y_m: float
+) -> dict[str, dict]:
     """Mean DTW distance of the strokes grouped by how far to the side of the paddle's home the ball
     arrives (|arrival y - home y|, LATERAL_OFFSET_BANDS_M): whether strokes far from the demonstrated
     hitting points are further from the demonstrations than those near them."""
     table = {}
     for low, high in zip(LATERAL_OFFSET_BANDS_M[:-1], LATERAL_OFFSET_BANDS_M[1:]):
-        distances = [m.distance for s, m in zip(strokes, matches)
-                     if m is not None and low <= abs(s.arrival_y_m - paddle_home_y_m) < high]
+        distances = [
+            m.distance
+            for s, m in zip(strokes, matches)
+            if m is not None and low <= abs(s.arrival_y_m - paddle_home_y_m) < high
+        ]
         band = f'{low:g}-{high:g} m' if math.isfinite(high) else f'{low:g} m and more'
         table[band] = {'strokes': len(distances), 'mean_rad': float(np.mean(distances)) if distances else None}
     return table
@@ -323,12 +422,17 @@ def load_reference(path: str | os.PathLike):
 
     dataset = ReferenceDataset.load(path)
     if tuple(dataset.joint_names) != tuple(JOINT_NAMES):
-        raise ValueError(f'{path}: joints {list(dataset.joint_names)} are not the robot\'s {list(JOINT_NAMES)}')
+        raise ValueError(f"{path}: joints {list(dataset.joint_names)} are not the robot's {list(JOINT_NAMES)}")
     return dataset
 
 
-def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.PathLike | None = None,
-              matches: Sequence[style_metrics.DtwMatch | None] | None = None) -> dict:
+def summarise(
+    evaluation: Evaluation,
+    *,
+    dataset=None,
+    dataset_path: str | os.PathLike | None = None,
+    matches: Sequence[style_metrics.DtwMatch | None] | None = None,
+) -> dict:
     """The JSON-ready results of an evaluation (DTW only when a reference dataset is given). matches: the
     strokes' nearest_matches against `dataset` when already measured (style_confusion), else measured here."""
     results = evaluation.results
@@ -341,19 +445,28 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
     strokes = evaluation.strokes
     plane_x, home_y, _ = paddle_home_position_m()
     summary = {
-        'success_rate': float(np.mean(rates)), 'success_rate_std': float(np.std(rates)),
+        'success_rate': float(np.mean(rates)),
+        'success_rate_std': float(np.std(rates)),
         'per_seed': [round(x, 4) for x in rates],
         'mean_successes_per_seed': float(np.mean([r.successes for r in results])),
         'hit_rate': sum(r.hits for r in results) / balls,
-        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': balls,
+        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])),
+        'balls': balls,
         'commanded_into_table': sum(r.commanded_into_table for r in results) / balls,
-        'seeds': [r.seed for r in results], 'balls_per_seed': evaluation.balls_per_seed, 'speed': evaluation.speed,
-        'randomize': evaluation.randomize, 'world': WORLDS[evaluation.randomize] + evaluation.drive.describe(),
+        'seeds': [r.seed for r in results],
+        'balls_per_seed': evaluation.balls_per_seed,
+        'speed': evaluation.speed,
+        'randomize': evaluation.randomize,
+        'world': WORLDS[evaluation.randomize] + evaluation.drive.describe(),
         'actor': evaluation.actor,
         'actor_spec_version': evaluation.actor_spec_version,
         'wall_time_s': round(sum(r.wall_time_s for r in results), 2),
-        'direction_rule': {'plane_x_m': round(plane_x, 4), 'paddle_home_y_m': round(home_y, 4),
-                           'leftward_above_m': LEFTWARD_ABOVE_M, 'rightward_below_m': RIGHTWARD_BELOW_M},
+        'direction_rule': {
+            'plane_x_m': round(plane_x, 4),
+            'paddle_home_y_m': round(home_y, 4),
+            'leftward_above_m': LEFTWARD_ABOVE_M,
+            'rightward_below_m': RIGHTWARD_BELOW_M,
+        },
         'directions': direction_table(strokes),
         'smoothness': smoothness_table(strokes),
     }
@@ -368,14 +481,22 @@ def summarise(evaluation: Evaluation, *, dataset=None, dataset_path: str | os.Pa
     return summary
 
 
-def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALUATION_SEEDS,
-                   first_seed: int = FIRST_EVALUATION_SEED, balls: int = EVALUATION_BALLS_PER_SEED, speed: str = 'all',
-                   randomize: bool = False, device: str | torch.device = 'cpu',
-                   dtw_dataset: str | os.PathLike | None = None) -> dict:
+def run_evaluation(
+    actor: str | os.PathLike | LoadedActor,
+    *,
+    seeds: int = EVALUATION_SEEDS,
+    first_seed: int = FIRST_EVALUATION_SEED,
+    balls: int = EVALUATION_BALLS_PER_SEED,
+    speed: str = 'all',
+    randomize: bool = False,
+    device: str | torch.device = 'cpu',
+    dtw_dataset: str | os.PathLike | None = None,
+) -> dict:
     """Evaluate an actor (a path to an exported actor, or one loaded with rl.export.load_actor) and return
     the dict `evaluate` prints. Raises rl.export.ActorMismatchError for an actor that does not fit."""
-    evaluation = evaluate_actor(actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed,
-                                randomize=randomize, device=device)
+    evaluation = evaluate_actor(
+        actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed, randomize=randomize, device=device
+    )
     dataset = load_reference(dtw_dataset) if dtw_dataset is not None else None
     return summarise(evaluation, dataset=dataset, dataset_path=dtw_dataset)
 
@@ -386,13 +507,18 @@ def run_evaluation(actor: str | os.PathLike | LoadedActor, *, seeds: int = EVALU
 
 def save_evaluation_strokes(path: str | os.PathLike, evaluation: Evaluation, actor: LoadedActor) -> str:
     """Write an evaluation's strokes (strokes.save_strokes) and return the path as the summary names it."""
-    save_strokes(path, evaluation.strokes, rate_hz=ACTION_RATE_HZ, joint_names=actor.metadata['joint_names'],
-                 actor=evaluation.actor, speed=evaluation.speed)
+    save_strokes(
+        path,
+        evaluation.strokes,
+        rate_hz=ACTION_RATE_HZ,
+        joint_names=actor.metadata['joint_names'],
+        actor=evaluation.actor,
+        speed=evaluation.speed,
+    )
     return portable_path(path)
 
 
-def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'overview',
-                 hold_s: float = 0.5) -> int:
+def render_video(strokes: Sequence[Stroke], path: pathlib.Path, camera: str = 'overview', hold_s: float = 0.5) -> int:
     """Replay strokes in the cell's MuJoCo model (kinematics only: joint positions and the ball marker
     set each frame) and encode them with the cell's video recorder. Returns frames written."""
     import mujoco
@@ -429,8 +555,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='evaluate', description=__doc__.split('\n\n')[0])
     parser.add_argument('--actor', required=True, type=pathlib.Path, help='exported actor (.pt with its .json)')
     parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='number of seeds')
-    parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
-                        help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})')
+    parser.add_argument(
+        '--first-seed',
+        type=int,
+        default=FIRST_EVALUATION_SEED,
+        help=f'first seed (evaluation seeds are >= {FIRST_EVALUATION_SEED})',
+    )
     parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--speed', choices=SPEEDS, default='all', help='incoming speed band')
     parser.add_argument('--json', type=pathlib.Path, help='write the results here')
@@ -438,14 +568,25 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--dtw', type=pathlib.Path, metavar='DATASET', help='reference dataset (.npz) for DTW')
     parser.add_argument('--video', type=pathlib.Path, help='render a few strokes of the first seed to this MP4')
     parser.add_argument('--video-strokes', type=int, default=4, help='strokes in the video')
-    parser.add_argument('--camera', default='overview',
-                        help="camera of the cell's scene for the video (overview, robot_view)")
+    parser.add_argument(
+        '--camera', default='overview', help="camera of the cell's scene for the video (overview, robot_view)"
+    )
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--randomize', action='store_true', help='evaluate with domain randomisation on')
-    parser.add_argument('--velocity-drive', type=float, default=0.0, metavar='SHARE',
-                        help="the joint drive's share of a stiff velocity motor, 0-1 (0: the cells' PD)")
-    parser.add_argument('--armature-scale', type=float, default=1.0, metavar='SCALE',
-                        help='rotor inertia scale, 0-1 (1: the world spec\'s; 0: none)')
+    parser.add_argument(
+        '--velocity-drive',
+        type=float,
+        default=0.0,
+        metavar='SHARE',
+        help="the joint drive's share of a stiff velocity motor, 0-1 (0: the cells' PD)",
+    )
+    parser.add_argument(
+        '--armature-scale',
+        type=float,
+        default=1.0,
+        metavar='SCALE',
+        help="rotor inertia scale, 0-1 (1: the world spec's; 0: none)",
+    )
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
     require_counts(parser, args, ('seeds', 'balls', 'num_threads'))
@@ -480,6 +621,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.num_threads)
     if args.video is not None:
         from stylepong_sim.cells.scene import CAMERAS
+
         if args.camera not in CAMERAS:
             print(f'evaluate: unknown camera {args.camera!r}; the cell has {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
@@ -491,25 +633,43 @@ def main(argv: list[str] | None = None) -> int:
             print(f'evaluate: cannot use {args.dtw} as a reference dataset: {err}', file=sys.stderr)
             return 2
     if args.first_seed < FIRST_EVALUATION_SEED:
-        print(f'evaluate: warning: seeds below {FIRST_EVALUATION_SEED} are training seeds; '
-              f'reported figures use {FIRST_EVALUATION_SEED} and up', file=sys.stderr)
+        print(
+            f'evaluate: warning: seeds below {FIRST_EVALUATION_SEED} are training seeds; '
+            f'reported figures use {FIRST_EVALUATION_SEED} and up',
+            file=sys.stderr,
+        )
 
     def report(result: SeedResult) -> None:
-        print(f'seed {result.seed}: success {result.success_rate:.3f} ({result.successes}/{result.balls}), '
-              f'hits {result.hits}, failures {result.reasons}, {result.wall_time_s:.1f} s', flush=True)
+        print(
+            f'seed {result.seed}: success {result.success_rate:.3f} ({result.successes}/{result.balls}), '
+            f'hits {result.hits}, failures {result.reasons}, {result.wall_time_s:.1f} s',
+            flush=True,
+        )
 
-    evaluation = evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
-                                speed=args.speed, randomize=args.randomize, device=device, progress=report,
-                                drive=Drive(args.velocity_drive, args.armature_scale))
+    evaluation = evaluate_actor(
+        actor,
+        seeds=args.seeds,
+        first_seed=args.first_seed,
+        balls=args.balls,
+        speed=args.speed,
+        randomize=args.randomize,
+        device=device,
+        progress=report,
+        drive=Drive(args.velocity_drive, args.armature_scale),
+    )
     summary = summarise(evaluation, dataset=dataset, dataset_path=args.dtw)
     summary['command'] = command_line(argv)
     if args.save_strokes is not None:
         summary['strokes_file'] = save_evaluation_strokes(args.save_strokes, evaluation, actor)
     if args.video is not None:
-        shown = evaluation.results[0].strokes[:args.video_strokes]
+        shown = evaluation.results[0].strokes[: args.video_strokes]
         frames = render_video(shown, args.video, camera=args.camera)
-        summary['video'] = {'path': portable_path(args.video), 'frames': frames, 'fps': VIDEO_FPS,
-                            'strokes': [s.outcome for s in shown]}
+        summary['video'] = {
+            'path': portable_path(args.video),
+            'frames': frames,
+            'fps': VIDEO_FPS,
+            'strokes': [s.outcome for s in shown],
+        }
     print_and_write_json(summary, args.json)
     return 0
 

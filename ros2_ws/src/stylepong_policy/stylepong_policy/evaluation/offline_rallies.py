@@ -10,6 +10,7 @@ and goals are rally_eval's for the seed. Prints each ball's verdict (and, on the
 touched the ball or the table), then the success count. Swapping one part of the cell at a time (engine, joint
 drive, actuator) tells which one a through-ROS figure depends on. Needs `source ros2_ws/install/setup.bash`.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,8 +29,8 @@ from stylepong_sim.nodes.rally_eval import balls_for_seed, goals_for_seed
 
 ACTOR = paths.MODELS / 'amp_actor.pt'
 REALISTIC_SENSING = paths.REPOSITORY / 'ros2_ws/src/stylepong_sim/config/realistic_sensing.yaml'
-CAMERA_PERIOD_STEPS = 8        # 125 Hz
-JOINT_STATE_PERIOD_STEPS = 2   # 500 Hz
+CAMERA_PERIOD_STEPS = 8  # 125 Hz
+JOINT_STATE_PERIOD_STEPS = 2  # 500 Hz
 SETTLE_STEPS = 300
 
 
@@ -38,8 +39,10 @@ def make_cell(engine: str, actuator: str, joint_drive: str):
     servoj = ur_servoj.ServojSettings(125.0, 0.03, 2000.0)
     if engine == 'pybullet':
         from stylepong_sim.cells.bullet_cell import BulletCell
+
         return BulletCell(actuator=actuator, servoj=servoj, joint_drive=joint_drive)
     from stylepong_sim.cells.cell import Cell
+
     return Cell(actuator=actuator, servoj=servoj)
 
 
@@ -48,8 +51,18 @@ def camera_config(realistic: bool) -> sensing.SensingConfig:
     if not realistic:
         return sensing.SensingConfig()
     params = yaml.safe_load(REALISTIC_SENSING.read_text())['ur5_sim']['ros__parameters']
-    return sensing.SensingConfig(seed=params['sensing_seed'], **{name: params[name] for name in (
-        'ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s', 'ball_dropout_probability')})
+    return sensing.SensingConfig(
+        seed=params['sensing_seed'],
+        **{
+            name: params[name]
+            for name in (
+                'ball_position_noise_std_m',
+                'ball_velocity_noise_std_m_s',
+                'ball_latency_s',
+                'ball_dropout_probability',
+            )
+        },
+    )
 
 
 def touching_links(cell, event_type: int) -> list[str]:
@@ -60,8 +73,9 @@ def touching_links(cell, event_type: int) -> list[str]:
     if event_type == referee.ROBOT_CONTACT:
         links = [c[4] for c in p.getContactPoints(bodyA=cell._ball_body, bodyB=cell._robot)]
     else:
-        links = [c[3] for obstacle in (cell._table, cell._net)
-                 for c in p.getContactPoints(bodyA=cell._robot, bodyB=obstacle)]
+        links = [
+            c[3] for obstacle in (cell._table, cell._net) for c in p.getContactPoints(bodyA=cell._robot, bodyB=obstacle)
+        ]
     return sorted({p.getJointInfo(cell._robot, link)[12].decode() for link in links})
 
 
@@ -120,8 +134,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--no-stream', action='store_true', help="the player's stream_commands false")
     parser.add_argument('--no-predict', action='store_true', help="the player's predict_ball false")
     parser.add_argument('--actor', type=pathlib.Path, default=ACTOR, help='default: the shipped style actor')
-    parser.add_argument('--realistic-sensing', action='store_true',
-                        help="the ball camera of sim2sim's realistic_sensing.yaml")
+    parser.add_argument(
+        '--realistic-sensing', action='store_true', help="the ball camera of sim2sim's realistic_sensing.yaml"
+    )
     args = parser.parse_args(argv)
     actor = player_core.load_actor(args.actor, 'onnx')
     cell = make_cell(args.engine, args.actuator, args.joint_drive)
@@ -142,8 +157,10 @@ def main(argv: list[str] | None = None) -> int:
     stream = 'one command per period' if args.no_stream else 'streamed commands'
     seen = 'realistic sensing' if args.realistic_sensing else 'perfect sensing'
     ball = 'the ball as measured' if args.no_predict else 'the ball carried forward'
-    print(f'{args.engine} {args.actuator} joint_drive {args.joint_drive}, {stream}, {seen}, {ball}: '
-          f'{successes}/{total} returned')
+    print(
+        f'{args.engine} {args.actuator} joint_drive {args.joint_drive}, {stream}, {seen}, {ball}: '
+        f'{successes}/{total} returned'
+    )
     return 0
 
 

@@ -10,6 +10,7 @@ position limits less the margin, velocity per period, acceleration), so a clip t
 is slowed there rather than sent. No command while /joint_states is stale. Exits 0 when the clip has
 been played, printing how far the commands had to deviate from the clip.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,6 +36,7 @@ def load_clip(bag: pathlib.Path, speedup: float, rate_hz: float = spec.ACTION_RA
     """Joint positions [T, 6] (URDF order) of the bag on a rate_hz grid, time compressed by `speedup`."""
     from stylepong_policy.training.dataset import choose_times_ns, drop_repeated, grid_times_s, interpolate_columns
     from stylepong_recording.bag_reading import read_joint_states
+
     recording = read_joint_states(bag, joints=spec.JOINT_NAMES)
     times_ns, _, _ = choose_times_ns(recording.header_stamp_ns, recording.receive_time_ns)
     keep = drop_repeated(times_ns)
@@ -47,18 +49,20 @@ def load_clip(bag: pathlib.Path, speedup: float, rate_hz: float = spec.ACTION_RA
 
 class ReplayNode(Node):
     """Moves the arm to a clip's first pose, then plays the clip at 60 Hz within the player's limits."""
+
     def __init__(self, clip: np.ndarray, use_sim_time: bool):
         super().__init__('replay_clip', parameter_overrides=[Parameter('use_sim_time', value=use_sim_time)])
         config = core.PlayerConfig()
-        limits = core.JointLimits.for_commands(config.position_margin_rad, config.velocity_limit_scale,
-                                               config.acceleration_limit_rad_s2)
+        limits = core.JointLimits.for_commands(
+            config.position_margin_rad, config.velocity_limit_scale, config.acceleration_limit_rad_s2
+        )
         self.config = config
         self.clip = clip
         self.limiter = core.CommandLimiter(limits, config.period_s)
         self.joint_order = core.JointOrder()
         self.q: np.ndarray | None = None
         self.joint_received_s = -np.inf
-        self.index = -1                 # -1: moving to the clip's first pose
+        self.index = -1  # -1: moving to the clip's first pose
         self.deviation_rad = 0.0
         self.finished = False
         self.exit_code = 0
@@ -84,16 +88,19 @@ class ReplayNode(Node):
     def _on_timer(self) -> None:
         if self.finished:
             return
-        if (self.q is None
-                or self._now_s() - self.joint_received_s > self.config.joint_timeout_periods * self.config.period_s):
+        if (
+            self.q is None
+            or self._now_s() - self.joint_received_s > self.config.joint_timeout_periods * self.config.period_s
+        ):
             self._warnings.warn('stale', 'no fresh /joint_states: no command')
             self.limiter.stop()
             return
         if not self.limiter.active:
             self.limiter.start(self.q)
         if self.index < 0:
-            command = self.limiter.step(self.clip[0], self.config.home_speed_rad_s,
-                                        self.config.home_acceleration_rad_s2)
+            command = self.limiter.step(
+                self.clip[0], self.config.home_speed_rad_s, self.config.home_acceleration_rad_s2
+            )
             if np.abs(command - self.clip[0]).max() < ARRIVED_RAD and np.abs(self.limiter.velocity_rad_s).max() < 1e-9:
                 self.index = 0
                 self.get_logger().info('at the first pose: playing the clip')
@@ -104,8 +111,10 @@ class ReplayNode(Node):
             self.index += 1
             if self.index >= len(self.clip) and np.abs(self.limiter.velocity_rad_s).max() < 1e-9:
                 self.finished = True
-                self.get_logger().info(f'clip played; largest deviation of a command from the clip '
-                                       f'{self.deviation_rad:.4f} rad (the limits)')
+                self.get_logger().info(
+                    f'clip played; largest deviation of a command from the clip '
+                    f'{self.deviation_rad:.4f} rad (the limits)'
+                )
         self._pub.publish(Float64MultiArray(data=command.tolist()))
 
 

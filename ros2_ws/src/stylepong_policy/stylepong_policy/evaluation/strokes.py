@@ -37,6 +37,7 @@ stroke_start[s] .. stroke_start[s] + stroke_length[s] - 1):
   rate_hz, follow_through_s, plane_x_m, paddle_home_y_m, leftward_above_m, rightward_below_m  () float64
   joint_names (6,) str; actor, speed () str
 """
+
 from __future__ import annotations
 
 import functools
@@ -53,7 +54,7 @@ from stylepong_description.robot_cell import STROKE_LABELS as DIRECTIONS  # noqa
 # Halfway between the demonstrated hitting points (teacher.STROKES hit offsets in y: 0, +0.16, -0.18 m).
 LEFTWARD_ABOVE_M = 0.08
 RIGHTWARD_BELOW_M = -0.09
-FOLLOW_THROUGH_S = 0.3        # the stroke goes on this long after the paddle's first contact
+FOLLOW_THROUGH_S = 0.3  # the stroke goes on this long after the paddle's first contact
 NO_FRAME = -1
 
 
@@ -84,8 +85,9 @@ def direction_of(arrival_y_m: float, paddle_home_y_m: float | None = None) -> st
     return 'forward'
 
 
-def arrival_y_m(ball_position_m: np.ndarray, ball_velocity_m_s: np.ndarray, free_frames: int,
-                plane_x_m: float | None = None) -> float:
+def arrival_y_m(
+    ball_position_m: np.ndarray, ball_velocity_m_s: np.ndarray, free_frames: int, plane_x_m: float | None = None
+) -> float:
     """World y where a ball crosses the plane x = plane_x_m, flying towards the robot (-x).
 
     ball_position_m, ball_velocity_m_s: [T, 3] samples of the ball from its launch; only the first
@@ -94,8 +96,8 @@ def arrival_y_m(ball_position_m: np.ndarray, ball_velocity_m_s: np.ndarray, free
     sample along its horizontal heading (see the module docstring for why that line is exact here).
     """
     plane = paddle_home_position_m()[0] if plane_x_m is None else plane_x_m
-    p = np.asarray(ball_position_m, dtype=float)[:max(int(free_frames), 1)]
-    v = np.asarray(ball_velocity_m_s, dtype=float)[:len(p)]
+    p = np.asarray(ball_position_m, dtype=float)[: max(int(free_frames), 1)]
+    v = np.asarray(ball_velocity_m_s, dtype=float)[: len(p)]
     ahead = p[:, 0] > plane
     crossed = np.flatnonzero(ahead[:-1] & ~ahead[1:])
     if len(crossed):
@@ -119,13 +121,14 @@ def stroke_end_frame(verdict_frame: int, hit_frame: int, rate_hz: float) -> int:
 @dataclass
 class Stroke:
     """One ball's stroke (frames as in the module docstring)."""
+
     seed: int
     ball: int
-    joint_positions_rad: np.ndarray      # [T, 6]
-    ball_position_m: np.ndarray          # [T, 3]
+    joint_positions_rad: np.ndarray  # [T, 6]
+    ball_position_m: np.ndarray  # [T, 3]
     direction: str
     arrival_y_m: float
-    launch_velocity_m_s: np.ndarray      # [3]
+    launch_velocity_m_s: np.ndarray  # [3]
     outcome: str
     success: bool
     hit: bool
@@ -140,6 +143,7 @@ class Stroke:
 @dataclass
 class StrokeFile:
     """What `load_strokes` returns: the strokes and the file's scalars."""
+
     strokes: list[Stroke]
     rate_hz: float
     joint_names: tuple[str, ...]
@@ -149,8 +153,15 @@ class StrokeFile:
     paddle_home_y_m: float
 
 
-def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz: float,
-                 joint_names: Sequence[str], actor: str, speed: str) -> pathlib.Path:
+def save_strokes(
+    path: str | os.PathLike,
+    strokes: Sequence[Stroke],
+    *,
+    rate_hz: float,
+    joint_names: Sequence[str],
+    actor: str,
+    speed: str,
+) -> pathlib.Path:
     """Write the strokes (layout in the module docstring) atomically: a half-written file never replaces a good one."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -164,8 +175,10 @@ def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz:
 
     home_x, home_y, _ = paddle_home_position_m()
     arrays = {
-        'q_rad': frames('joint_positions_rad', width), 'ball_position_m': frames('ball_position_m', 3),
-        'stroke_start': starts, 'stroke_length': lengths,
+        'q_rad': frames('joint_positions_rad', width),
+        'ball_position_m': frames('ball_position_m', 3),
+        'stroke_start': starts,
+        'stroke_length': lengths,
         'seed': np.array([s.seed for s in strokes], dtype=np.int64),
         'ball': np.array([s.ball for s in strokes], dtype=np.int64),
         'hit_frame': np.array([s.hit_frame for s in strokes], dtype=np.int64),
@@ -177,16 +190,21 @@ def save_strokes(path: str | os.PathLike, strokes: Sequence[Stroke], *, rate_hz:
         'arrival_y_m': np.array([s.arrival_y_m for s in strokes], dtype=np.float64),
         'launch_velocity_m_s': np.array([s.launch_velocity_m_s for s in strokes], dtype=np.float64).reshape(-1, 3),
         'launch_speed_m_s': np.array([s.launch_speed_m_s for s in strokes], dtype=np.float64),
-        'rate_hz': np.float64(rate_hz), 'follow_through_s': np.float64(FOLLOW_THROUGH_S),
-        'plane_x_m': np.float64(home_x), 'paddle_home_y_m': np.float64(home_y),
-        'leftward_above_m': np.float64(LEFTWARD_ABOVE_M), 'rightward_below_m': np.float64(RIGHTWARD_BELOW_M),
-        'joint_names': np.array(list(joint_names), dtype=str), 'actor': np.array(actor), 'speed': np.array(speed),
+        'rate_hz': np.float64(rate_hz),
+        'follow_through_s': np.float64(FOLLOW_THROUGH_S),
+        'plane_x_m': np.float64(home_x),
+        'paddle_home_y_m': np.float64(home_y),
+        'leftward_above_m': np.float64(LEFTWARD_ABOVE_M),
+        'rightward_below_m': np.float64(RIGHTWARD_BELOW_M),
+        'joint_names': np.array(list(joint_names), dtype=str),
+        'actor': np.array(actor),
+        'speed': np.array(speed),
     }
     handle, temporary = tempfile.mkstemp(prefix=path.name + '.', suffix='.part', dir=path.parent)
     try:
         with os.fdopen(handle, 'wb') as stream:
             np.savez_compressed(stream, **arrays)
-        os.chmod(temporary, 0o644)   # mkstemp makes it private; a result file is for everyone to read
+        os.chmod(temporary, 0o644)  # mkstemp makes it private; a result file is for everyone to read
         os.replace(temporary, path)
     except BaseException:
         pathlib.Path(temporary).unlink(missing_ok=True)
@@ -202,13 +220,28 @@ def load_strokes(path: str | os.PathLike) -> StrokeFile:
         strokes = []
         for s in range(len(data['stroke_start'])):
             frames = slice(int(data['stroke_start'][s]), int(data['stroke_start'][s] + data['stroke_length'][s]))
-            strokes.append(Stroke(
-                seed=int(data['seed'][s]), ball=int(data['ball'][s]), joint_positions_rad=data['q_rad'][frames],
-                ball_position_m=data['ball_position_m'][frames], direction=str(data['direction'][s]),
-                arrival_y_m=float(data['arrival_y_m'][s]), launch_velocity_m_s=data['launch_velocity_m_s'][s],
-                outcome=str(data['outcome'][s]), success=bool(data['success'][s]), hit=bool(data['hit'][s]),
-                hit_frame=int(data['hit_frame'][s]), verdict_frame=int(data['verdict_frame'][s])))
-        return StrokeFile(strokes=strokes, rate_hz=float(data['rate_hz']),
-                          joint_names=tuple(str(n) for n in data['joint_names']), actor=str(data['actor']),
-                          speed=str(data['speed']), plane_x_m=float(data['plane_x_m']),
-                          paddle_home_y_m=float(data['paddle_home_y_m']))
+            strokes.append(
+                Stroke(
+                    seed=int(data['seed'][s]),
+                    ball=int(data['ball'][s]),
+                    joint_positions_rad=data['q_rad'][frames],
+                    ball_position_m=data['ball_position_m'][frames],
+                    direction=str(data['direction'][s]),
+                    arrival_y_m=float(data['arrival_y_m'][s]),
+                    launch_velocity_m_s=data['launch_velocity_m_s'][s],
+                    outcome=str(data['outcome'][s]),
+                    success=bool(data['success'][s]),
+                    hit=bool(data['hit'][s]),
+                    hit_frame=int(data['hit_frame'][s]),
+                    verdict_frame=int(data['verdict_frame'][s]),
+                )
+            )
+        return StrokeFile(
+            strokes=strokes,
+            rate_hz=float(data['rate_hz']),
+            joint_names=tuple(str(n) for n in data['joint_names']),
+            actor=str(data['actor']),
+            speed=str(data['speed']),
+            plane_x_m=float(data['plane_x_m']),
+            paddle_home_y_m=float(data['paddle_home_y_m']),
+        )

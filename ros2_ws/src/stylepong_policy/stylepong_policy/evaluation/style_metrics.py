@@ -36,6 +36,7 @@ Smoothness (beyond the paper): from the 60 Hz joint positions by backward finite
 Differences of positions rather than the simulator's velocities, so a recorded trajectory from
 anywhere (a real arm's joint states resampled to 60 Hz) gives comparable figures.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
@@ -49,16 +50,17 @@ INNER_DISTANCE = 'euclidean'
 
 
 PHASES = ('waiting', 'swing', 'follow_through')
-SWING_S = 0.25               # the forward swing before the hit: about the policies' (0.2-0.3 s at 60 Hz)
+SWING_S = 0.25  # the forward swing before the hit: about the policies' (0.2-0.3 s at 60 Hz)
 
 
 @dataclass(frozen=True)
 class DtwMatch:
     """A stroke's nearest reference clip."""
-    distance: float          # summed Euclidean cost along the optimal path (rad)
-    path_length: int         # frame pairs on that path
-    clip: int                # index of the clip in the reference dataset
-    path: tuple[tuple[int, int], ...] = ()   # the optimal path's (stroke frame, clip frame) pairs
+
+    distance: float  # summed Euclidean cost along the optimal path (rad)
+    path_length: int  # frame pairs on that path
+    clip: int  # index of the clip in the reference dataset
+    path: tuple[tuple[int, int], ...] = ()  # the optimal path's (stroke frame, clip frame) pairs
 
     @property
     def distance_per_step(self) -> float:
@@ -102,8 +104,9 @@ def nearest_reference(stroke_rad: np.ndarray, references: Sequence[tuple[int, np
 @dataclass(frozen=True)
 class CostBreakdown:
     """A DTW distance split by joint and by phase of the stroke (both sum to the distance, rad)."""
-    by_joint_rad: np.ndarray                 # [joints]
-    by_phase_rad: dict[str, float]           # PHASES
+
+    by_joint_rad: np.ndarray  # [joints]
+    by_phase_rad: dict[str, float]  # PHASES
 
 
 def stroke_phases(frames: int, hit_frame: int, rate_hz: float) -> np.ndarray:
@@ -114,12 +117,13 @@ def stroke_phases(frames: int, hit_frame: int, rate_hz: float) -> np.ndarray:
     return np.where(index < swing_start, 0, np.where(index < hit, 1, 2))
 
 
-def cost_breakdown(stroke_rad: np.ndarray, clip_rad: np.ndarray, path: Sequence[tuple[int, int]],
-                   hit_frame: int, rate_hz: float) -> CostBreakdown:
+def cost_breakdown(
+    stroke_rad: np.ndarray, clip_rad: np.ndarray, path: Sequence[tuple[int, int]], hit_frame: int, rate_hz: float
+) -> CostBreakdown:
     """Split the cost of a warping path (module docstring, "Where the distance lies")."""
     pairs = np.asarray(path, dtype=np.int64)
     difference = _series(stroke_rad)[pairs[:, 0]] - _series(clip_rad)[pairs[:, 1]]
-    squared = difference ** 2
+    squared = difference**2
     cost = np.sqrt(squared.sum(axis=1))
     # c d_k^2 / |d|^2 = d_k^2 / c; a pair of identical frames adds nothing to any joint.
     by_joint = (squared / np.where(cost > 0.0, cost, 1.0)[:, None]).sum(axis=0)
@@ -137,6 +141,7 @@ def reference_clips(dataset, label: str, speed_factors: Sequence[int] | None = N
 @dataclass(frozen=True)
 class Smoothness:
     """Peak joint speed and acceleration and mean absolute jerk of a set of strokes."""
+
     peak_joint_speed_rad_s: float
     peak_joint_acceleration_rad_s2: float
     mean_abs_jerk_rad_s3: float
@@ -151,9 +156,11 @@ def smoothness(q_rad: np.ndarray, rate_hz: float) -> Smoothness:
     velocity = np.diff(q, axis=0) / dt_s
     acceleration = np.diff(velocity, axis=0) / dt_s
     jerk = np.diff(acceleration, axis=0) / dt_s
-    return Smoothness(peak_joint_speed_rad_s=float(np.abs(velocity).max()),
-                      peak_joint_acceleration_rad_s2=float(np.abs(acceleration).max()),
-                      mean_abs_jerk_rad_s3=float(np.abs(jerk).mean()))
+    return Smoothness(
+        peak_joint_speed_rad_s=float(np.abs(velocity).max()),
+        peak_joint_acceleration_rad_s2=float(np.abs(acceleration).max()),
+        mean_abs_jerk_rad_s3=float(np.abs(jerk).mean()),
+    )
 
 
 def mean_smoothness(values: Iterable[Smoothness]) -> dict[str, float] | None:

@@ -19,6 +19,7 @@ scores the other 20 %:
                 which is what the DTW distance of Table II measures.
 Written as Markdown by this script; nothing in it is typed by hand.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,6 +39,7 @@ def actor_windows(actor_path: pathlib.Path, envs: int, steps: int, seed: int, le
     """Windows [W, L, 12] of (q, qdot) of the actor's episodes in the nominal world; none crosses two."""
     from stylepong_policy.rl.export import load_actor
     from stylepong_policy.training import task
+
     actor = load_actor(actor_path)
     env = task.make_env(task.TaskConfig(num_envs=envs, randomize=False), 'cpu', seed)
     obs, _ = env.reset()
@@ -45,7 +47,7 @@ def actor_windows(actor_path: pathlib.Path, envs: int, steps: int, seed: int, le
     with torch.inference_mode():
         for _ in range(steps):
             obs, _, _, dones, extras = env.step(actor(obs))
-            frames.append(extras['style_state'].clone())   # before the reset: still the ended episode's
+            frames.append(extras['style_state'].clone())  # before the reset: still the ended episode's
             ended.append(dones)
     return episode_windows(torch.stack(frames), torch.stack(ended), length)
 
@@ -106,17 +108,20 @@ def measure(dataset, windows: torch.Tensor, length: int, features: str, train_st
         d_policy = prior.discriminator.score(held_out[..., columns])
         distance = nearest_demonstration_rad(held_out, full_reference.windows(torch.arange(full_reference.num_windows)))
     quantiles = d_policy.quantile(torch.tensor([0.1, 0.5, 0.9])).tolist()
-    return {'accuracy': 0.5 * float((d_reference > 0).float().mean() + (d_policy < 0).float().mean()),
-            'd_policy': quantiles, 'reward_zero': float((style_reward(d_policy) == 0).float().mean()),
-            'rank_correlation': rank_correlation(d_policy, -distance), 'distance_median_rad': float(distance.median()),
-            'windows': int(windows.shape[0])}
+    return {
+        'accuracy': 0.5 * float((d_reference > 0).float().mean() + (d_policy < 0).float().mean()),
+        'd_policy': quantiles,
+        'reward_zero': float((style_reward(d_policy) == 0).float().mean()),
+        'rank_correlation': rank_correlation(d_policy, -distance),
+        'distance_median_rad': float(distance.median()),
+        'windows': int(windows.shape[0]),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     """Measure each window length and feature set and write the results page."""
     parser = argparse.ArgumentParser(prog='amp_frame_features', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--actor', type=pathlib.Path,
-                        default=paths.MODELS / 'amp_actor.pt')
+    parser.add_argument('--actor', type=pathlib.Path, default=paths.MODELS / 'amp_actor.pt')
     parser.add_argument('--out', type=pathlib.Path, default=paths.RESULTS / 'amp_frame_features.md')
     parser.add_argument('--lengths', default='4,8')
     parser.add_argument('--envs', type=int, default=512)
@@ -129,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(2)
     from stylepong_policy.training.dataset import ReferenceDataset
     from stylepong_policy.training.train import build_shipped_dataset
+
     with tempfile.TemporaryDirectory() as tmp:
         dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     rows = []
@@ -142,23 +148,32 @@ def main(argv: list[str] | None = None) -> int:
         actor = args.actor.resolve().relative_to(paths.REPOSITORY).as_posix()
     except ValueError:
         actor = args.actor.name
-    lines = ['# Discriminator inputs: joint positions and velocities, or positions only', '',
-             f'Written by `ros2 run stylepong_policy amp_frame_features` (see its docstring). Actor `{actor}`, '
-             f'deterministic, {args.envs} balls of validation seed {args.seed}, {args.steps} policy steps each, '
-             f'nominal batched world; a fresh discriminator per row, {args.train_steps} LSGAN steps against the '
-             'demonstration windows (dataset built from `ros2_ws/bags`, all speed factors), scored on held-out '
-             'actor windows; CPU.', '',
-             '| L (frames at 60 Hz) | features | balanced accuracy | D on the actor: 10 % / median / 90 % | '
-             'style reward 0 | rank corr. of D with closeness to a demonstration | actor windows |',
-             '|---|---|---|---|---|---|---|']
+    lines = [
+        '# Discriminator inputs: joint positions and velocities, or positions only',
+        '',
+        f'Written by `ros2 run stylepong_policy amp_frame_features` (see its docstring). Actor `{actor}`, '
+        f'deterministic, {args.envs} balls of validation seed {args.seed}, {args.steps} policy steps each, '
+        f'nominal batched world; a fresh discriminator per row, {args.train_steps} LSGAN steps against the '
+        'demonstration windows (dataset built from `ros2_ws/bags`, all speed factors), scored on held-out '
+        'actor windows; CPU.',
+        '',
+        '| L (frames at 60 Hz) | features | balanced accuracy | D on the actor: 10 % / median / 90 % | '
+        'style reward 0 | rank corr. of D with closeness to a demonstration | actor windows |',
+        '|---|---|---|---|---|---|---|',
+    ]
     for length, features, row in rows:
         q10, q50, q90 = row['d_policy']
-        lines.append(f'| {length} | `{features}` | {row["accuracy"]:.3f} | {q10:+.2f} / {q50:+.2f} / {q90:+.2f} | '
-                     f'{row["reward_zero"]:.2f} | {row["rank_correlation"]:+.3f} | {row["windows"]} |')
-    lines += ['', 'Closeness: minus the distance in joint positions to the nearest demonstration window (rad, root '
-              'mean square over the frames); its median over the held-out windows was '
-              + ', '.join(f'{r["distance_median_rad"]:.3f} (L = {n})' for n, f, r in rows if f == FEATURES[0])
-              + ' rad.']
+        lines.append(
+            f'| {length} | `{features}` | {row["accuracy"]:.3f} | {q10:+.2f} / {q50:+.2f} / {q90:+.2f} | '
+            f'{row["reward_zero"]:.2f} | {row["rank_correlation"]:+.3f} | {row["windows"]} |'
+        )
+    lines += [
+        '',
+        'Closeness: minus the distance in joint positions to the nearest demonstration window (rad, root '
+        'mean square over the frames); its median over the held-out windows was '
+        + ', '.join(f'{r["distance_median_rad"]:.3f} (L = {n})' for n, f, r in rows if f == FEATURES[0])
+        + ' rad.',
+    ]
     write_lines(args.out, lines)
     return 0
 

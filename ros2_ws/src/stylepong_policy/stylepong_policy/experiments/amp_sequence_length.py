@@ -14,6 +14,7 @@ ros2_ws/bags against one kind of negative, then scores fresh samples:
 The figure is the balanced accuracy (mean of the two classes' hit rates, 0.5 = chance), mean over
 --seeds seeds. Written as Markdown by this script; nothing in it is typed by hand.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -77,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(2)
     from stylepong_policy.training.dataset import ReferenceDataset
     from stylepong_policy.training.train import build_shipped_dataset
+
     with tempfile.TemporaryDirectory() as tmp:
         dataset = ReferenceDataset.load(build_shipped_dataset(pathlib.Path(tmp) / 'dataset.npz'))
     lengths = [int(x) for x in args.lengths.split(',')]
@@ -88,15 +90,22 @@ def main(argv: list[str] | None = None) -> int:
             row[negative] = (float(np.mean(scores)), float(np.std(scores)))
         rows.append((length, row))
         print(f'L={length}: {row}', file=sys.stderr, flush=True)
-    lines = ['# Discriminator window length', '',
-             f'Written by `ros2 run stylepong_policy amp_sequence_length` (see its docstring): balanced accuracy of a '
-             f'discriminator trained {args.steps} LSGAN steps on windows of L arm states of the dataset built '
-             f'from `ros2_ws/bags`, against shuffled or half-speed windows; mean +- std over {args.seeds} seeds, '
-             f'fresh samples, CPU. 0.5 is chance.', '',
-             '| L (frames at 60 Hz) | window (ms) | shuffled | slowed x0.5 |', '|---|---|---|---|']
+    lines = [
+        '# Discriminator window length',
+        '',
+        f'Written by `ros2 run stylepong_policy amp_sequence_length` (see its docstring): balanced accuracy of a '
+        f'discriminator trained {args.steps} LSGAN steps on windows of L arm states of the dataset built '
+        f'from `ros2_ws/bags`, against shuffled or half-speed windows; mean +- std over {args.seeds} seeds, '
+        f'fresh samples, CPU. 0.5 is chance.',
+        '',
+        '| L (frames at 60 Hz) | window (ms) | shuffled | slowed x0.5 |',
+        '|---|---|---|---|',
+    ]
     for length, row in rows:
-        lines.append(f'| {length} | {1000 * length / 60:.0f} | {row["shuffled"][0]:.3f} +- {row["shuffled"][1]:.3f} | '
-                     f'{row["slowed"][0]:.3f} +- {row["slowed"][1]:.3f} |')
+        lines.append(
+            f'| {length} | {1000 * length / 60:.0f} | {row["shuffled"][0]:.3f} +- {row["shuffled"][1]:.3f} | '
+            f'{row["slowed"][0]:.3f} +- {row["slowed"][1]:.3f} |'
+        )
     write_lines(args.out, lines)
     return 0
 

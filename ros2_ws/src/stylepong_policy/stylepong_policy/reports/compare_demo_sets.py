@@ -9,6 +9,7 @@ Reads the datasets' original clips (speed factor 1, 60 Hz). Peak joint speed is 
 over all six joints, unnormalised: it grows with the clips' length). A set against itself averages
 over its distinct pairs of clips, which says how far one take of that style is from another.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -59,9 +60,13 @@ def main(argv: list[str] | None = None) -> int:
     print('| set | set | forward | leftward | rightward | mean |')
     print('|---|---|---|---|---|---|')
     for a, b in itertools.combinations_with_replacement(sets, 2):
-        row = [mean_dtw_rad([q for k, q in sets[a][0] if k == label], [q for k, q in sets[b][0] if k == label],
-                            same_set=a == b) for label in LABELS]
-        known = [d for d in row if not np.isnan(d)]   # a label a set lacks (or has once, within a set) has none
+        row = [
+            mean_dtw_rad(
+                [q for k, q in sets[a][0] if k == label], [q for k, q in sets[b][0] if k == label], same_set=a == b
+            )
+            for label in LABELS
+        ]
+        known = [d for d in row if not np.isnan(d)]  # a label a set lacks (or has once, within a set) has none
         mean = f'{np.mean(known):.1f}' if known else '-'
         print(f'| {a} | {b} | ' + ' | '.join('-' if np.isnan(d) else f'{d:.1f}' for d in row) + f' | {mean} |')
     return 0

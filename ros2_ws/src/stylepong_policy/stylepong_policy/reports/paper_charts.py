@@ -3,6 +3,7 @@
 Each chart carries its setting in its title (what world, which seeds, how many balls), since a bar
 without it cannot be compared with anything. Inputs are plain dicts made by paper_tables.
 """
+
 from __future__ import annotations
 
 import os
@@ -20,8 +21,10 @@ OURS_COLOUR = '#1f6fb2'
 
 def _pyplot():
     import matplotlib
-    matplotlib.use('Agg')   # headless
+
+    matplotlib.use('Agg')  # headless
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -33,8 +36,14 @@ def _save(figure, path: str | os.PathLike) -> pathlib.Path:
     return path
 
 
-def _paired_bars(ax, labels: Sequence[str], paper: Sequence[float | None], ours: Sequence[float | None],
-                 ours_err: Sequence[float | None] | None = None, percent: bool = True) -> None:
+def _paired_bars(
+    ax,
+    labels: Sequence[str],
+    paper: Sequence[float | None],
+    ours: Sequence[float | None],
+    ours_err: Sequence[float | None] | None = None,
+    percent: bool = True,
+) -> None:
     """Paper and ours side by side for each label; a missing value is left out and marked."""
     x = np.arange(len(labels))
     width = 0.38
@@ -42,13 +51,19 @@ def _paired_bars(ax, labels: Sequence[str], paper: Sequence[float | None], ours:
 
     def heights(values):
         return [np.nan if v is None else v * scale for v in values]
+
     errors = None if ours_err is None else [0.0 if e is None else e * scale for e in ours_err]
     ax.bar(x - width / 2, heights(paper), width, color=PAPER_COLOUR, label='paper')
     bars = ax.bar(x + width / 2, heights(ours), width, color=OURS_COLOUR, label='ours', yerr=errors, capsize=3)
     for bar, value in zip(bars, ours):
         if value is not None:
-            ax.annotate(f'{value * scale:.1f}', (bar.get_x() + bar.get_width() / 2, bar.get_height()),
-                        ha='center', va='bottom', fontsize=8)
+            ax.annotate(
+                f'{value * scale:.1f}',
+                (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                ha='center',
+                va='bottom',
+                fontsize=8,
+            )
     for i, value in enumerate(paper):
         if value is None:
             ax.annotate('n/a', (x[i] - width / 2, 0), ha='center', va='bottom', fontsize=8)
@@ -56,9 +71,15 @@ def _paired_bars(ax, labels: Sequence[str], paper: Sequence[float | None], ours:
     ax.legend(loc='lower right', fontsize=8)
 
 
-def success_chart(path: str | os.PathLike, labels: Sequence[str], paper: Sequence[float | None],
-                  ours: Sequence[float | None], ours_std: Sequence[float | None], title: str,
-                  setting: str) -> pathlib.Path:
+def success_chart(
+    path: str | os.PathLike,
+    labels: Sequence[str],
+    paper: Sequence[float | None],
+    ours: Sequence[float | None],
+    ours_std: Sequence[float | None],
+    title: str,
+    setting: str,
+) -> pathlib.Path:
     """Success rates (fractions) of several methods or speed bands, paper beside ours."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(max(5.5, 1.4 * len(labels) + 2), 4.2))
@@ -70,8 +91,13 @@ def success_chart(path: str | os.PathLike, labels: Sequence[str], paper: Sequenc
     return _save(figure, path)
 
 
-def dtw_chart(path: str | os.PathLike, paper_ratio: Sequence[float], ours_ratio: Sequence[float | None],
-              ours_dtw: dict[str, Sequence[float | None]], setting: str) -> pathlib.Path:
+def dtw_chart(
+    path: str | os.PathLike,
+    paper_ratio: Sequence[float],
+    ours_ratio: Sequence[float | None],
+    ours_dtw: dict[str, Sequence[float | None]],
+    setting: str,
+) -> pathlib.Path:
     """Left: the ratio amp/ppo of DTW per direction (comparable across conventions); right: our DTW."""
     plt = _pyplot()
     figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -92,14 +118,17 @@ def dtw_chart(path: str | os.PathLike, paper_ratio: Sequence[float], ours_ratio:
     return _save(figure, path)
 
 
-def smoothness_chart(path: str | os.PathLike, rows: dict[str, dict[str, dict | None]],
-                     reference: dict[str, dict | None], setting: str) -> pathlib.Path:
+def smoothness_chart(
+    path: str | os.PathLike, rows: dict[str, dict[str, dict | None]], reference: dict[str, dict | None], setting: str
+) -> pathlib.Path:
     """Three panels (peak speed, peak acceleration, mean |jerk|), bars per actor and direction; the
     demonstrations' values as ticks."""
     plt = _pyplot()
-    measures = (('peak_joint_speed_rad_s', 'peak joint speed (rad/s)'),
-                ('peak_joint_acceleration_rad_s2', 'peak joint acceleration (rad/s²)'),
-                ('mean_abs_jerk_rad_s3', 'mean |jerk| (rad/s³)'))
+    measures = (
+        ('peak_joint_speed_rad_s', 'peak joint speed (rad/s)'),
+        ('peak_joint_acceleration_rad_s2', 'peak joint acceleration (rad/s²)'),
+        ('mean_abs_jerk_rad_s3', 'mean |jerk| (rad/s³)'),
+    )
     figure, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     x = np.arange(len(DIRECTIONS))
     width = 0.8 / max(len(rows), 1)

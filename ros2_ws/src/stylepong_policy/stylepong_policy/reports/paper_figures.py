@@ -5,6 +5,7 @@ Method names: the paper's "PPO" is our `ppo` actor, its "AMP" (the motion prior 
 reference clips) our `amp-noaug`, its "Our Method" (with them) our `amp`. Every table counts 200
 balls per seed over 10 seeds; "Mean Success" is the mean number of successes per seed.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ ATTEMPTS_PER_SEED = 200
 @dataclass(frozen=True)
 class SuccessFigure:
     """A success row of the paper: attempts, mean successes and success rate."""
+
     attempts: int
     mean_success: float
     success_rate: float
@@ -50,8 +52,8 @@ TABLE_IV = {
 
 # Where the paper's own numbers disagree with each other (worth knowing before comparing with them).
 INCONSISTENCIES = (
-    "Table I gives Our Method 90.32 % while the text says 93 %.",
+    'Table I gives Our Method 90.32 % while the text says 93 %.',
     "Table III's high-speed Our Method row has a mean of 171.00 of 200 (85.50 %) but a rate of 85.91 %.",
     "Table IV's IsaacGym row (71.39 %) is not Table I's 90.32 % for the same method; the paper does not "
-    "say which setting (randomisation, seeds) each used.",
+    'say which setting (randomisation, seeds) each used.',
 )

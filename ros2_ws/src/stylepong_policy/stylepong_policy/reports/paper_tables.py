@@ -20,6 +20,7 @@ deterministic actors; Tables I, II: seeds first-seed.. x balls, all speeds 4.0-6
 seeds band-first-seed.. x balls in the low (4.0-4.8) and high (5.8-6.6 m/s) bands.
 Exit status 0 when written, 2 when an actor is missing or does not load, or for bad arguments.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,10 +55,10 @@ from stylepong_sim.world_spec import (
 )
 
 ACTOR_NAMES = ('ppo', 'amp-noaug', 'amp')
-SHIPPED_FILES = {name: actor_name(name) for name in ACTOR_NAMES}    # amp-noaug: amp_noaug_actor.pt
+SHIPPED_FILES = {name: actor_name(name) for name in ACTOR_NAMES}  # amp-noaug: amp_noaug_actor.pt
 DEFAULT_MODELS_DIR = pathlib.Path('ros2_ws/src/stylepong_policy/models')
 DEFAULT_BAGS = pathlib.Path('ros2_ws/bags')
-BAND_FIRST_SEED = 2000          # Table III's bands: seeds of their own, as for the shipped high-speed evaluation
+BAND_FIRST_SEED = 2000  # Table III's bands: seeds of their own, as for the shipped high-speed evaluation
 BANDS = ('all', 'low', 'high')
 SIM2SIM_PATTERN = 'sim2sim_*.json'
 REFERENCE_NAME = 'reference_dataset.npz'
@@ -70,6 +71,7 @@ class SetupError(RuntimeError):
 @dataclass(frozen=True)
 class Protocol:
     """The evaluation setting the tables state: seeds, balls per seed, first seeds and device."""
+
     seeds: int
     balls: int
     first_seed: int
@@ -91,8 +93,10 @@ class Protocol:
     def _world_and_seeds(self, band: str) -> str:
         first = self.first_seed_of(band)
         seeds = f'seed {first}' if self.seeds == 1 else f'seeds {first}-{first + self.seeds - 1}'
-        return (f'nominal batched world (no randomisation, no sensing noise), deterministic actors; '
-                f'{seeds} x {self.balls} balls')
+        return (
+            f'nominal batched world (no randomisation, no sensing noise), deterministic actors; '
+            f'{seeds} x {self.balls} balls'
+        )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -119,9 +123,11 @@ def resolve_actors(overrides: dict[str, pathlib.Path], models_dir: pathlib.Path)
     actors = {name: overrides.get(name, models_dir / SHIPPED_FILES[name]) for name in ACTOR_NAMES}
     missing = [f'{name}: {path}' for name, path in actors.items() if not path.is_file()]
     if missing:
-        raise SetupError('missing actor(s) ' + '; '.join(missing) + '. The tables need all three '
-                         f'({", ".join(ACTOR_NAMES)}): train and export the missing ones into {models_dir}, or '
-                         'pass --actors name=PATH,... to let another actor stand in.')
+        raise SetupError(
+            'missing actor(s) ' + '; '.join(missing) + '. The tables need all three '
+            f'({", ".join(ACTOR_NAMES)}): train and export the missing ones into {models_dir}, or '
+            'pass --actors name=PATH,... to let another actor stand in.'
+        )
     return actors
 
 
@@ -156,8 +162,9 @@ def build_reference(bags: pathlib.Path, out_path: pathlib.Path) -> pathlib.Path:
 # Running the evaluations
 
 
-def run_all(actors: dict[str, LoadedActor], paths: dict[str, pathlib.Path], protocol: Protocol,
-            log: Callable[[str], None]) -> dict[tuple[str, str], evaluate.Evaluation]:
+def run_all(
+    actors: dict[str, LoadedActor], paths: dict[str, pathlib.Path], protocol: Protocol, log: Callable[[str], None]
+) -> dict[tuple[str, str], evaluate.Evaluation]:
     """Every actor in every band (all; low and high for Table III). An actor file given for several
     names is evaluated once per band: the balls, and so the results, would be the same."""
     done: dict[tuple[pathlib.Path, str], evaluate.Evaluation] = {}
@@ -167,18 +174,29 @@ def run_all(actors: dict[str, LoadedActor], paths: dict[str, pathlib.Path], prot
             key = (paths[name].resolve(), band)
             if key not in done:
                 started = time.perf_counter()
-                done[key] = evaluate.evaluate_actor(actors[name], seeds=protocol.seeds,
-                                                    first_seed=protocol.first_seed_of(band), balls=protocol.balls,
-                                                    speed=band, device=protocol.device)
+                done[key] = evaluate.evaluate_actor(
+                    actors[name],
+                    seeds=protocol.seeds,
+                    first_seed=protocol.first_seed_of(band),
+                    balls=protocol.balls,
+                    speed=band,
+                    device=protocol.device,
+                )
                 rates = [r.success_rate for r in done[key].results]
-                log(f'{name} {band}: success {np.mean(rates):.4f} over {sum(r.balls for r in done[key].results)} '
-                    f'balls, {time.perf_counter() - started:.1f} s')
+                log(
+                    f'{name} {band}: success {np.mean(rates):.4f} over {sum(r.balls for r in done[key].results)} '
+                    f'balls, {time.perf_counter() - started:.1f} s'
+                )
             evaluations[(name, band)] = done[key]
     return evaluations
 
 
-def summarise_all(evaluations: dict[tuple[str, str], evaluate.Evaluation], dataset, dataset_path: str | None,
-                  log: Callable[[str], None]) -> dict[str, dict[str, dict]]:
+def summarise_all(
+    evaluations: dict[tuple[str, str], evaluate.Evaluation],
+    dataset,
+    dataset_path: str | None,
+    log: Callable[[str], None],
+) -> dict[str, dict[str, dict]]:
     """evaluate's summary of each (actor, band); DTW for the all-speeds runs (Table II)."""
     summaries: dict[str, dict[str, dict]] = {name: {} for name in ACTOR_NAMES}
     cache: dict[tuple[int, bool], dict] = {}
@@ -187,8 +205,9 @@ def summarise_all(evaluations: dict[tuple[str, str], evaluate.Evaluation], datas
         key = (id(evaluation), with_dtw)
         if key not in cache:
             started = time.perf_counter()
-            cache[key] = evaluate.summarise(evaluation, dataset=dataset if with_dtw else None,
-                                            dataset_path=dataset_path)
+            cache[key] = evaluate.summarise(
+                evaluation, dataset=dataset if with_dtw else None, dataset_path=dataset_path
+            )
             if with_dtw:
                 log(f'{name}: DTW of {len(evaluation.strokes)} strokes, {time.perf_counter() - started:.1f} s')
         summaries[name][band] = cache[key]
@@ -200,8 +219,11 @@ def reference_smoothness(dataset, speed_factor: int) -> dict[str, dict | None]:
     table = {}
     for direction in DIRECTIONS:
         clips = dataset.select(labels=[direction], speed_factors=[speed_factor])
-        values = [style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz) for c in clips
-                  if dataset.clip_length[c] >= 4]
+        values = [
+            style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
+            for c in clips
+            if dataset.clip_length[c] >= 4
+        ]
         table[direction] = style_metrics.mean_smoothness(values)
     return table
 
@@ -235,10 +257,16 @@ def load_sim2sim(folder: pathlib.Path) -> list[dict]:
         mean = data.get('mean_successes_per_seed')
         if mean is None and per_seed:
             mean = rate * float(per_seed)
-        row.update(label=str(data.get('simulator') or data.get('world') or data.get('name') or path.stem),
-                   success_rate=rate, success_rate_std=data.get('success_rate_std'), balls_per_seed=per_seed,
-                   seeds=seed_count, mean_successes_per_seed=mean, actor=data.get('actor'),
-                   command=data.get('command'))
+        row.update(
+            label=str(data.get('simulator') or data.get('world') or data.get('name') or path.stem),
+            success_rate=rate,
+            success_rate_std=data.get('success_rate_std'),
+            balls_per_seed=per_seed,
+            seeds=seed_count,
+            mean_successes_per_seed=mean,
+            actor=data.get('actor'),
+            command=data.get('command'),
+        )
         rows.append(row)
     return rows
 
@@ -272,14 +300,38 @@ def table_one(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
     for name in ACTOR_NAMES:
         ours = summaries[name]['all']
         fig = paper.TABLE_I[name]
-        rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)', f'{fig.attempts} / {ours["balls_per_seed"]}',
-                     number(fig.mean_success), number(ours['mean_successes_per_seed']), percent(fig.success_rate),
-                     percent(ours['success_rate'], ours['success_rate_std']), percent(ours['hit_rate'])])
-    return ['## Table I: success rate, all speeds', '', f'Setting: {protocol.setting("all")}.', '',
-            *markdown.table(['Method', 'Attempts per seed (paper / ours)', 'Mean success (paper)',
-                             'Mean success (ours)', 'Success rate (paper)', 'Success rate (ours, ± std over seeds)',
-                             'Hit rate (ours)'], rows),
-            '', '![Table I](table1_success.png)', '']
+        rows.append(
+            [
+                f'{paper.PAPER_NAMES[name]} (`{name}`)',
+                f'{fig.attempts} / {ours["balls_per_seed"]}',
+                number(fig.mean_success),
+                number(ours['mean_successes_per_seed']),
+                percent(fig.success_rate),
+                percent(ours['success_rate'], ours['success_rate_std']),
+                percent(ours['hit_rate']),
+            ]
+        )
+    return [
+        '## Table I: success rate, all speeds',
+        '',
+        f'Setting: {protocol.setting("all")}.',
+        '',
+        *markdown.table(
+            [
+                'Method',
+                'Attempts per seed (paper / ours)',
+                'Mean success (paper)',
+                'Mean success (ours)',
+                'Success rate (paper)',
+                'Success rate (ours, ± std over seeds)',
+                'Hit rate (ours)',
+            ],
+            rows,
+        ),
+        '',
+        '![Table I](table1_success.png)',
+        '',
+    ]
 
 
 def dtw_ratio(summaries: dict[str, dict[str, dict]], direction: str) -> float | None:
@@ -295,34 +347,56 @@ def table_two(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list
     rows = []
     for name in ('ppo', 'amp'):
         dtw = summaries[name]['all']['dtw']
-        rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)'] +
-                    [cell for d in DIRECTIONS
-                     for cell in (number(paper.TABLE_II[name][d]), number(dtw[d]['mean_rad']))])
-    rows.append(['ratio amp / ppo'] + [cell for d in DIRECTIONS for cell in (
-        number(paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d], 3), number(dtw_ratio(summaries, d), 3))])
+        rows.append(
+            [f'{paper.PAPER_NAMES[name]} (`{name}`)']
+            + [cell for d in DIRECTIONS for cell in (number(paper.TABLE_II[name][d]), number(dtw[d]['mean_rad']))]
+        )
+    rows.append(
+        ['ratio amp / ppo']
+        + [
+            cell
+            for d in DIRECTIONS
+            for cell in (
+                number(paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d], 3),
+                number(dtw_ratio(summaries, d), 3),
+            )
+        ]
+    )
     extra = []
     for name in ACTOR_NAMES:
         dtw = summaries[name]['all']['dtw']
-        extra.append([f'`{name}`']
-                     + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in DIRECTIONS]
-                     + [number(dtw[d]['mean_per_path_step_rad'], 4) for d in DIRECTIONS]
-                     + [' / '.join(str(dtw[d]['strokes']) for d in DIRECTIONS)])
+        extra.append(
+            [f'`{name}`']
+            + [f'{number(dtw[d]["mean_rad"])} ± {number(dtw[d]["std_rad"])}' for d in DIRECTIONS]
+            + [number(dtw[d]['mean_per_path_step_rad'], 4) for d in DIRECTIONS]
+            + [' / '.join(str(dtw[d]['strokes']) for d in DIRECTIONS)]
+        )
     dtw_ppo = summaries['ppo']['all']['dtw']
     clip_counts = ', '.join(f'{d} {dtw_ppo[d]["reference_clips"]}' for d in DIRECTIONS)
-    return ['## Table II: DTW distance to the demonstrations (lower is better)', '',
-            f'Setting: {protocol.setting("all")}; every ball\'s stroke, labelled by the direction it came from.', '',
-            *markdown.table(header, rows), '',
-            'Ours in every actor, with the spread over strokes and the distance per warping-path step '
-            '(rad; strokes per direction forward / leftward / rightward):', '',
-            *markdown.table(['Actor'] + [f'{d} (rad)' for d in DIRECTIONS] + [f'{d} per step' for d in DIRECTIONS]
-                            + ['strokes'], extra), '',
-            f'DTW: joint positions (rad, 6 joints) at 60 Hz from the ball\'s launch to {FOLLOW_THROUGH_S} s after '
-            'the paddle\'s first contact, against every demonstration clip of the same label (all speed factors: '
-            f'{clip_counts} clips), the smallest per '
-            'stroke, the mean over strokes. Local cost the Euclidean distance, symmetric unweighted steps, not '
-            f'normalised: `{evaluate.DTW_CALL}`. The paper does not give its DTW convention or sequence lengths, so '
-            'its absolute numbers are not comparable with ours; the ratio amp / ppo is.', '',
-            '![Table II](table2_dtw.png)', '']
+    return [
+        '## Table II: DTW distance to the demonstrations (lower is better)',
+        '',
+        f"Setting: {protocol.setting('all')}; every ball's stroke, labelled by the direction it came from.",
+        '',
+        *markdown.table(header, rows),
+        '',
+        'Ours in every actor, with the spread over strokes and the distance per warping-path step '
+        '(rad; strokes per direction forward / leftward / rightward):',
+        '',
+        *markdown.table(
+            ['Actor'] + [f'{d} (rad)' for d in DIRECTIONS] + [f'{d} per step' for d in DIRECTIONS] + ['strokes'], extra
+        ),
+        '',
+        f"DTW: joint positions (rad, 6 joints) at 60 Hz from the ball's launch to {FOLLOW_THROUGH_S} s after "
+        "the paddle's first contact, against every demonstration clip of the same label (all speed factors: "
+        f'{clip_counts} clips), the smallest per '
+        'stroke, the mean over strokes. Local cost the Euclidean distance, symmetric unweighted steps, not '
+        f'normalised: `{evaluate.DTW_CALL}`. The paper does not give its DTW convention or sequence lengths, so '
+        'its absolute numbers are not comparable with ours; the ratio amp / ppo is.',
+        '',
+        '![Table II](table2_dtw.png)',
+        '',
+    ]
 
 
 def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
@@ -335,36 +409,55 @@ def dtw_breakdown_section(summaries: dict[str, dict[str, dict]], protocol: Proto
         strokes = sum(dtw[d]['strokes'] for d in DIRECTIONS if dtw[d]['sum_by_joint_rad'] is not None)
         if not strokes:
             continue
-        per_stroke = {part: sum(dtw[d][key][part] for d in DIRECTIONS if dtw[d][key] is not None) / strokes
-                      for key, parts in (('sum_by_joint_rad', JOINT_NAMES), ('sum_by_phase_rad', style_metrics.PHASES))
-                      for part in parts}
+        per_stroke = {
+            part: sum(dtw[d][key][part] for d in DIRECTIONS if dtw[d][key] is not None) / strokes
+            for key, parts in (('sum_by_joint_rad', JOINT_NAMES), ('sum_by_phase_rad', style_metrics.PHASES))
+            for part in parts
+        }
         total = sum(per_stroke[joint] for joint in JOINT_NAMES)
         columns = (*JOINT_NAMES, *style_metrics.PHASES)
         rows.append([f'`{name}`', number(total)] + [number(per_stroke[column], 1) for column in columns])
-    header = (['Actor', 'DTW (rad)'] + [f'`{joint}`' for joint in JOINT_NAMES]
-              + [p.replace('_', '-') for p in style_metrics.PHASES])
+    header = (
+        ['Actor', 'DTW (rad)']
+        + [f'`{joint}`' for joint in JOINT_NAMES]
+        + [p.replace('_', '-') for p in style_metrics.PHASES]
+    )
     offsets = summaries['ppo']['all']['dtw_by_lateral_offset']
-    offset_rows = [[f'`{name}`'] + [f'{number(entry["mean_rad"])} ({entry["strokes"]})'
-                                     for entry in summaries[name]['all']['dtw_by_lateral_offset'].values()]
-                   for name in ACTOR_NAMES]
-    return ['## Where the DTW distance lies (not in the paper)', '',
-            f'Setting: {protocol.setting("all")}; the strokes and nearest clips of Table II.', '',
-            *markdown.table(header, rows), '',
-            'Per stroke, the mean over the strokes of all three directions (rad): each frame pair on the optimal '
-            'warping path adds its Euclidean distance |d|, shared among the joints as d_k^2 / |d| and given to the '
-            f'phase of its stroke frame: waiting until {style_metrics.SWING_S} s before the paddle\'s hit, the swing '
-            'from there to the hit, the follow-through after it '
-            '(`stylepong_policy.evaluation.style_metrics.cost_breakdown`). '
-            'The joints add up to the DTW column, and so do the phases.', '',
-            'By how far to the side of the paddle\'s home the ball arrives (|arrival y - home y|; the demonstrated '
-            'hits lie within 0.18 m of it): mean DTW distance (rad) and strokes.', '',
-            *markdown.table(['Actor'] + list(offsets), offset_rows), '']
+    offset_rows = [
+        [f'`{name}`']
+        + [
+            f'{number(entry["mean_rad"])} ({entry["strokes"]})'
+            for entry in summaries[name]['all']['dtw_by_lateral_offset'].values()
+        ]
+        for name in ACTOR_NAMES
+    ]
+    return [
+        '## Where the DTW distance lies (not in the paper)',
+        '',
+        f'Setting: {protocol.setting("all")}; the strokes and nearest clips of Table II.',
+        '',
+        *markdown.table(header, rows),
+        '',
+        'Per stroke, the mean over the strokes of all three directions (rad): each frame pair on the optimal '
+        'warping path adds its Euclidean distance |d|, shared among the joints as d_k^2 / |d| and given to the '
+        f"phase of its stroke frame: waiting until {style_metrics.SWING_S} s before the paddle's hit, the swing "
+        'from there to the hit, the follow-through after it '
+        '(`stylepong_policy.evaluation.style_metrics.cost_breakdown`). '
+        'The joints add up to the DTW column, and so do the phases.',
+        '',
+        "By how far to the side of the paddle's home the ball arrives (|arrival y - home y|; the demonstrated "
+        'hits lie within 0.18 m of it): mean DTW distance (rad) and strokes.',
+        '',
+        *markdown.table(['Actor'] + list(offsets), offset_rows),
+        '',
+    ]
 
 
 @dataclass(frozen=True)
 class PairedDifference:
     """amp's success rate minus amp-noaug's in one band, seed by seed (both meet the same balls)."""
-    mean_points: float                  # percentage points
+
+    mean_points: float  # percentage points
     standard_error_points: float | None  # of the mean difference; None with one seed
     seeds: int
 
@@ -392,12 +485,17 @@ def augmentation_lines(summaries: dict[str, dict[str, dict]]) -> list[str]:
     parts = []
     for band in ('low', 'high'):
         effect = augmentation_effect(summaries, band)
-        error = (f' ± {effect.standard_error_points:.2f} standard error'
-                 if effect.standard_error_points is not None else '')
-        parts.append(f'{effect.mean_points:+.2f} points at {band} speeds{error} over {effect.seeds} seeds '
-                     f'({effect.verdict()})')
-    return ['What the x2/x3/x5 speed-ups changed, `amp` minus `amp-noaug` seed by seed (both meet the same '
-            'balls): ' + '; '.join(parts) + '. Why they do or do not help here: docs/DESIGN.md, Known limits.', '']
+        error = (
+            f' ± {effect.standard_error_points:.2f} standard error' if effect.standard_error_points is not None else ''
+        )
+        parts.append(
+            f'{effect.mean_points:+.2f} points at {band} speeds{error} over {effect.seeds} seeds ({effect.verdict()})'
+        )
+    return [
+        'What the x2/x3/x5 speed-ups changed, `amp` minus `amp-noaug` seed by seed (both meet the same '
+        'balls): ' + '; '.join(parts) + '. Why they do or do not help here: docs/DESIGN.md, Known limits.',
+        '',
+    ]
 
 
 def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
@@ -407,20 +505,44 @@ def table_three(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> li
         for name in ('amp-noaug', 'amp', 'ppo'):
             ours = summaries[name][band]
             fig = paper.TABLE_III.get((name, band))
-            rows.append([f'{paper.PAPER_NAMES[name]} (`{name}`)' + ('' if fig else ' (not in the paper)'), band,
-                         f'{fig.attempts if fig else "-"} / {ours["balls_per_seed"]}',
-                         number(fig.mean_success) if fig else '-', number(ours['mean_successes_per_seed']),
-                         percent(fig.success_rate) if fig else '-',
-                         percent(ours['success_rate'], ours['success_rate_std'])])
-    return ['## Table III: success at low and high incoming speeds', '',
-            f'Setting: {protocol.bands_setting()}: low {band_text("low")}, high {band_text("high")} m/s.', '',
-            *markdown.table(['Method', 'Speed', 'Attempts per seed (paper / ours)', 'Mean (paper)', 'Mean (ours)',
-                             'Success rate (paper)', 'Success rate (ours, ± std over seeds)'], rows), '',
-            *augmentation_lines(summaries), '![Table III](table3_speed.png)', '']
+            rows.append(
+                [
+                    f'{paper.PAPER_NAMES[name]} (`{name}`)' + ('' if fig else ' (not in the paper)'),
+                    band,
+                    f'{fig.attempts if fig else "-"} / {ours["balls_per_seed"]}',
+                    number(fig.mean_success) if fig else '-',
+                    number(ours['mean_successes_per_seed']),
+                    percent(fig.success_rate) if fig else '-',
+                    percent(ours['success_rate'], ours['success_rate_std']),
+                ]
+            )
+    return [
+        '## Table III: success at low and high incoming speeds',
+        '',
+        f'Setting: {protocol.bands_setting()}: low {band_text("low")}, high {band_text("high")} m/s.',
+        '',
+        *markdown.table(
+            [
+                'Method',
+                'Speed',
+                'Attempts per seed (paper / ours)',
+                'Mean (paper)',
+                'Mean (ours)',
+                'Success rate (paper)',
+                'Success rate (ours, ± std over seeds)',
+            ],
+            rows,
+        ),
+        '',
+        *augmentation_lines(summaries),
+        '![Table III](table3_speed.png)',
+        '',
+    ]
 
 
-def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[str, dict | None],
-                       protocol: Protocol) -> list[str]:
+def smoothness_section(
+    summaries: dict[str, dict[str, dict]], reference: dict[str, dict | None], protocol: Protocol
+) -> list[str]:
     """The smoothness and DTW section: each actor per direction, and the demonstrations."""
     rows = []
     for name in ACTOR_NAMES:
@@ -428,24 +550,59 @@ def smoothness_section(summaries: dict[str, dict[str, dict]], reference: dict[st
         for d in DIRECTIONS:
             s = summary['smoothness'][d]
             dtw = summary['dtw'][d]
-            rows.append([f'`{name}`', d, str(summary['directions'][d]['balls']),
-                         number(s and s['peak_joint_speed_rad_s']),
-                         number(s and s['peak_joint_acceleration_rad_s2'], 1),
-                         number(s and s['mean_abs_jerk_rad_s3'], 1), number(dtw['mean_rad']),
-                         number(dtw['mean_per_path_step_rad'], 4)])
+            rows.append(
+                [
+                    f'`{name}`',
+                    d,
+                    str(summary['directions'][d]['balls']),
+                    number(s and s['peak_joint_speed_rad_s']),
+                    number(s and s['peak_joint_acceleration_rad_s2'], 1),
+                    number(s and s['mean_abs_jerk_rad_s3'], 1),
+                    number(dtw['mean_rad']),
+                    number(dtw['mean_per_path_step_rad'], 4),
+                ]
+            )
     for d in DIRECTIONS:
         s = reference[d]
-        rows.append(['demonstrations (x1)', d, '-', number(s and s['peak_joint_speed_rad_s']),
-                     number(s and s['peak_joint_acceleration_rad_s2'], 1), number(s and s['mean_abs_jerk_rad_s3'], 1),
-                     '-', '-'])
-    return ['## Smoothness beside DTW (not in the paper)', '', f'Setting: {protocol.setting("all")}.', '',
-            *markdown.table(['Actor', 'Direction', 'Strokes', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
-                             'Mean |jerk| (rad/s³)', 'DTW (rad)', 'DTW per step (rad)'], rows), '',
-            'Per stroke (the DTW sequences), then the mean over strokes: backward differences of the 60 Hz joint '
-            'positions, qdot = Δq/Δt, qddot = Δqdot/Δt, jerk = Δqddot/Δt; peak speed and acceleration are the '
-            'largest magnitude over frames and joints, the jerk the mean magnitude over frames and joints. '
-            'The demonstrations\' rows are the original (x1) clips, measured the same way.', '',
-            '![Smoothness](smoothness.png)', '']
+        rows.append(
+            [
+                'demonstrations (x1)',
+                d,
+                '-',
+                number(s and s['peak_joint_speed_rad_s']),
+                number(s and s['peak_joint_acceleration_rad_s2'], 1),
+                number(s and s['mean_abs_jerk_rad_s3'], 1),
+                '-',
+                '-',
+            ]
+        )
+    return [
+        '## Smoothness beside DTW (not in the paper)',
+        '',
+        f'Setting: {protocol.setting("all")}.',
+        '',
+        *markdown.table(
+            [
+                'Actor',
+                'Direction',
+                'Strokes',
+                'Peak joint speed (rad/s)',
+                'Peak joint acc. (rad/s²)',
+                'Mean |jerk| (rad/s³)',
+                'DTW (rad)',
+                'DTW per step (rad)',
+            ],
+            rows,
+        ),
+        '',
+        'Per stroke (the DTW sequences), then the mean over strokes: backward differences of the 60 Hz joint '
+        'positions, qdot = Δq/Δt, qddot = Δqdot/Δt, jerk = Δqddot/Δt; peak speed and acceleration are the '
+        'largest magnitude over frames and joints, the jerk the mean magnitude over frames and joints. '
+        "The demonstrations' rows are the original (x1) clips, measured the same way.",
+        '',
+        '![Smoothness](smoothness.png)',
+        '',
+    ]
 
 
 def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
@@ -454,74 +611,128 @@ def directions_section(summaries: dict[str, dict[str, dict]], protocol: Protocol
     rows = []
     for name in ACTOR_NAMES:
         directions = summaries[name]['all']['directions']
-        rows.append([f'`{name}`'] + [f'{directions[d]["balls"]}: {percent(directions[d]["success_rate"])}'
-                                     for d in DIRECTIONS])
-    return ['## Success per direction', '', f'Setting: {protocol.setting("all")}.', '',
-            *markdown.table(['Actor'] + [f'{d} (balls: success)' for d in DIRECTIONS], rows), '',
-            f'A ball\'s direction is where it crosses the paddle\'s home plane x = {rule["plane_x_m"]} m after its '
-            f'bounce, relative to the paddle\'s home y = {rule["paddle_home_y_m"]} m (world +y is the robot\'s left): '
-            f'leftward above +{rule["leftward_above_m"]} m, rightward below {rule["rightward_below_m"]} m, forward '
-            'between (halfway between the demonstrations\' hitting points; stylepong_policy.evaluation.strokes).', '']
+        rows.append(
+            [f'`{name}`'] + [f'{directions[d]["balls"]}: {percent(directions[d]["success_rate"])}' for d in DIRECTIONS]
+        )
+    return [
+        '## Success per direction',
+        '',
+        f'Setting: {protocol.setting("all")}.',
+        '',
+        *markdown.table(['Actor'] + [f'{d} (balls: success)' for d in DIRECTIONS], rows),
+        '',
+        f"A ball's direction is where it crosses the paddle's home plane x = {rule['plane_x_m']} m after its "
+        f"bounce, relative to the paddle's home y = {rule['paddle_home_y_m']} m (world +y is the robot's left): "
+        f'leftward above +{rule["leftward_above_m"]} m, rightward below {rule["rightward_below_m"]} m, forward '
+        "between (halfway between the demonstrations' hitting points; stylepong_policy.evaluation.strokes).",
+        '',
+    ]
 
 
 def table_four(rows: list[dict], summaries: dict[str, dict[str, dict]], protocol: Protocol) -> list[str]:
     """Table IV: the paper's rows in two simulators beside ours (the batched world, then each sim2sim row)."""
-    out = [[f'{label} (paper)', str(fig.attempts), number(fig.mean_success), percent(fig.success_rate), '-']
-           for label, fig in paper.TABLE_IV.items()]
+    out = [
+        [f'{label} (paper)', str(fig.attempts), number(fig.mean_success), percent(fig.success_rate), '-']
+        for label, fig in paper.TABLE_IV.items()
+    ]
     amp = summaries['amp']['all']
-    out.append(['batched world, training simulator (ours, Table I setting)', str(amp['balls_per_seed']),
-                number(amp['mean_successes_per_seed']), percent(amp['success_rate'], amp['success_rate_std']),
-                f'`{amp["actor"]}`'])
+    out.append(
+        [
+            'batched world, training simulator (ours, Table I setting)',
+            str(amp['balls_per_seed']),
+            number(amp['mean_successes_per_seed']),
+            percent(amp['success_rate'], amp['success_rate_std']),
+            f'`{amp["actor"]}`',
+        ]
+    )
     for row in rows:
         if 'error' in row:
             out.append([f'{row["file"]}', '-', '-', row['error'], '-'])
             continue
-        out.append([f'{row["label"]} (ours, `{row["file"]}`)', str(row['balls_per_seed'] or 'n/a'),
-                    number(row['mean_successes_per_seed']), percent(row['success_rate'], row['success_rate_std']),
-                    f'`{row["actor"]}`' if row['actor'] else 'n/a'])
+        out.append(
+            [
+                f'{row["label"]} (ours, `{row["file"]}`)',
+                str(row['balls_per_seed'] or 'n/a'),
+                number(row['mean_successes_per_seed']),
+                percent(row['success_rate'], row['success_rate_std']),
+                f'`{row["actor"]}`' if row['actor'] else 'n/a',
+            ]
+        )
     if not rows:
-        out.append(['MuJoCo cell (ur5_sim) with the player: other simulator (ours)', '-', '-', 'not measured',
-                    f'no {SIM2SIM_PATTERN} in this folder yet'])
+        out.append(
+            [
+                'MuJoCo cell (ur5_sim) with the player: other simulator (ours)',
+                '-',
+                '-',
+                'not measured',
+                f'no {SIM2SIM_PATTERN} in this folder yet',
+            ]
+        )
     commands = [f'- `{row["file"]}`: `{row["command"]}`' for row in rows if row.get('command')]
-    return ['## Table IV: sim2sim transfer', '',
-            f'Rows of ours other than the batched world come from {SIM2SIM_PATTERN} files in this folder (the '
-            'deployment work writes them); each states its own setting there.', '',
-            *markdown.table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out), '',
-            *(['Measured with:', '', *commands, ''] if commands else [])]
+    return [
+        '## Table IV: sim2sim transfer',
+        '',
+        f'Rows of ours other than the batched world come from {SIM2SIM_PATTERN} files in this folder (the '
+        'deployment work writes them); each states its own setting there.',
+        '',
+        *markdown.table(['Simulator', 'Attempts per seed', 'Mean success', 'Success rate', 'Actor'], out),
+        '',
+        *(['Measured with:', '', *commands, ''] if commands else []),
+    ]
 
 
 def figure_section(figure: dict | None, protocol: Protocol) -> list[str]:
     """The Fig. 2 section (or why it was not rendered)."""
     if figure is None:
         return ['## Fig. 2: strokes', '', 'Not rendered (--no-figure, or no ball of the chosen direction).', '']
-    return ['## Fig. 2: strokes', '',
-            f'The same {figure["direction"]} ball (seed {figure["seed"]}, ball {figure["ball"]}, '
-            f'{figure["launch_speed_m_s"]} m/s) for PPO ({figure["outcomes"]["ppo"]}) and '
-            f'AMP ({figure["outcomes"]["amp"]}), '
-            f'and the {figure["reference_row"]}: seven frames each, the cell\'s MuJoCo scene, camera '
-            f'`{figure["camera"]}`. Setting: {protocol.setting("all")}.', '', '![Fig. 2](strokes.png)', '']
+    return [
+        '## Fig. 2: strokes',
+        '',
+        f'The same {figure["direction"]} ball (seed {figure["seed"]}, ball {figure["ball"]}, '
+        f'{figure["launch_speed_m_s"]} m/s) for PPO ({figure["outcomes"]["ppo"]}) and '
+        f'AMP ({figure["outcomes"]["amp"]}), '
+        f"and the {figure['reference_row']}: seven frames each, the cell's MuJoCo scene, camera "
+        f'`{figure["camera"]}`. Setting: {protocol.setting("all")}.',
+        '',
+        '![Fig. 2](strokes.png)',
+        '',
+    ]
 
 
 def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protocol, context: dict) -> str:
     """The whole README.md of the tables."""
     actors = context['actors']
     stand_ins = {path for path in actors.values() if list(actors.values()).count(path) > 1}
-    lines = ['# The paper\'s tables for our actors', '',
-             'Written by `' + context['command'] + '` (do not edit: re-run it); '
-             f'{context["generated"]}, {context["wall_time_s"]:.0f} s on {context["machine"]}.', '',
-             'Actors: ' + ', '.join(f'`{name}` = `{path}`' for name, path in actors.items()) + '.', '']
+    lines = [
+        "# The paper's tables for our actors",
+        '',
+        'Written by `' + context['command'] + '` (do not edit: re-run it); '
+        f'{context["generated"]}, {context["wall_time_s"]:.0f} s on {context["machine"]}.',
+        '',
+        'Actors: ' + ', '.join(f'`{name}` = `{path}`' for name, path in actors.items()) + '.',
+        '',
+    ]
     if stand_ins:
-        lines += ['**Stand-in actors:** ' + ', '.join(f'`{p}`' for p in sorted(stand_ins)) + ' fills several rows, '
-                  'so those rows are not the paper\'s methods.', '']
+        lines += [
+            '**Stand-in actors:** ' + ', '.join(f'`{p}`' for p in sorted(stand_ins)) + ' fills several rows, '
+            "so those rows are not the paper's methods.",
+            '',
+        ]
     lines += table_one(summaries, protocol) + table_two(summaries, protocol)
     lines += dtw_breakdown_section(summaries, protocol) + table_three(summaries, protocol)
     lines += smoothness_section(summaries, reference_rows, protocol) + directions_section(summaries, protocol)
     lines += table_four(sim2sim, summaries, protocol) + figure_section(figure, protocol)
-    lines += ['## About the paper\'s figures', ''] + [f'- {note}' for note in paper.INCONSISTENCIES] + [
-        '- The paper ran IsaacGym; ours is the batched torch world of this project '
-        '(stylepong_sim.batched.batched_world), '
-        'with its own ball distribution, robot servo and referee, so equal numbers are not expected: the '
-        'comparison is between methods under one setting.', '']
+    lines += (
+        ["## About the paper's figures", '']
+        + [f'- {note}' for note in paper.INCONSISTENCIES]
+        + [
+            '- The paper ran IsaacGym; ours is the batched torch world of this project '
+            '(stylepong_sim.batched.batched_world), '
+            'with its own ball distribution, robot servo and referee, so equal numbers are not expected: the '
+            'comparison is between methods under one setting.',
+            '',
+        ]
+    )
     return '\n'.join(lines)
 
 
@@ -532,24 +743,38 @@ def render_markdown(summaries, reference_rows, sim2sim, figure, protocol: Protoc
 def write_charts(out: pathlib.Path, summaries, reference_rows, protocol: Protocol) -> list[str]:
     """Write the charts of Tables I-III and of smoothness into `out`; returns their file names."""
     names = [f'{paper.PAPER_NAMES[n]}\n({n})' for n in ACTOR_NAMES]
-    charts.success_chart(out / 'table1_success.png', names, [paper.TABLE_I[n].success_rate for n in ACTOR_NAMES],
-                         [summaries[n]['all']['success_rate'] for n in ACTOR_NAMES],
-                         [summaries[n]['all']['success_rate_std'] for n in ACTOR_NAMES],
-                         'Table I: success rate, all speeds', protocol.setting('all'))
-    charts.dtw_chart(out / 'table2_dtw.png',
-                     [paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d] for d in DIRECTIONS],
-                     [dtw_ratio(summaries, d) for d in DIRECTIONS],
-                     {n: [summaries[n]['all']['dtw'][d]['mean_rad'] for d in DIRECTIONS] for n in ACTOR_NAMES},
-                     'Table II: ' + protocol.setting('all'))
+    charts.success_chart(
+        out / 'table1_success.png',
+        names,
+        [paper.TABLE_I[n].success_rate for n in ACTOR_NAMES],
+        [summaries[n]['all']['success_rate'] for n in ACTOR_NAMES],
+        [summaries[n]['all']['success_rate_std'] for n in ACTOR_NAMES],
+        'Table I: success rate, all speeds',
+        protocol.setting('all'),
+    )
+    charts.dtw_chart(
+        out / 'table2_dtw.png',
+        [paper.TABLE_II['amp'][d] / paper.TABLE_II['ppo'][d] for d in DIRECTIONS],
+        [dtw_ratio(summaries, d) for d in DIRECTIONS],
+        {n: [summaries[n]['all']['dtw'][d]['mean_rad'] for d in DIRECTIONS] for n in ACTOR_NAMES},
+        'Table II: ' + protocol.setting('all'),
+    )
     pairs = [(n, b) for b in ('low', 'high') for n in ('amp-noaug', 'amp', 'ppo')]
-    charts.success_chart(out / 'table3_speed.png', [f'{n}\n{b}' for n, b in pairs],
-                         [paper.TABLE_III[p].success_rate if p in paper.TABLE_III else None for p in pairs],
-                         [summaries[n][b]['success_rate'] for n, b in pairs],
-                         [summaries[n][b]['success_rate_std'] for n, b in pairs],
-                         'Table III: low (4.0-4.8) and high (5.8-6.6 m/s) incoming speeds',
-                         protocol.bands_setting())
-    charts.smoothness_chart(out / 'smoothness.png', {n: summaries[n]['all']['smoothness'] for n in ACTOR_NAMES},
-                            reference_rows, 'Smoothness per direction: ' + protocol.setting('all'))
+    charts.success_chart(
+        out / 'table3_speed.png',
+        [f'{n}\n{b}' for n, b in pairs],
+        [paper.TABLE_III[p].success_rate if p in paper.TABLE_III else None for p in pairs],
+        [summaries[n][b]['success_rate'] for n, b in pairs],
+        [summaries[n][b]['success_rate_std'] for n, b in pairs],
+        'Table III: low (4.0-4.8) and high (5.8-6.6 m/s) incoming speeds',
+        protocol.bands_setting(),
+    )
+    charts.smoothness_chart(
+        out / 'smoothness.png',
+        {n: summaries[n]['all']['smoothness'] for n in ACTOR_NAMES},
+        reference_rows,
+        'Smoothness per direction: ' + protocol.setting('all'),
+    )
     return ['table1_success.png', 'table2_dtw.png', 'table3_speed.png', 'smoothness.png']
 
 
@@ -561,10 +786,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command line of paper_tables."""
     parser = argparse.ArgumentParser(prog='paper_tables', description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=pathlib.Path, required=True, help='folder for README.md, charts, JSON')
-    parser.add_argument('--actors',
-                        help=f'name=path,... for any of {", ".join(ACTOR_NAMES)} (default: the shipped ones)')
-    parser.add_argument('--models-dir', type=pathlib.Path, default=DEFAULT_MODELS_DIR,
-                        help='where the shipped actors are')
+    parser.add_argument(
+        '--actors', help=f'name=path,... for any of {", ".join(ACTOR_NAMES)} (default: the shipped ones)'
+    )
+    parser.add_argument(
+        '--models-dir', type=pathlib.Path, default=DEFAULT_MODELS_DIR, help='where the shipped actors are'
+    )
     parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='seeds per table')
     parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED, help='balls per seed')
     parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED, help='first seed of Tables I, II')
@@ -574,10 +801,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     source.add_argument('--bags', type=pathlib.Path, default=DEFAULT_BAGS, help='demonstration bags to build it from')
     parser.add_argument('--no-figure', action='store_true', help='skip Fig. 2 (rendering)')
     parser.add_argument('--figure-direction', choices=DIRECTIONS, default='forward', help='the ball of Fig. 2')
-    parser.add_argument('--camera', default='figure', help="Fig. 2's camera: figure (close to the robot), or the "
-                        "scene's overview or robot_view")
-    parser.add_argument('--save-strokes', action='store_true',
-                        help='also write every stroke (strokes_<actor>_<band>.npz)')
+    parser.add_argument(
+        '--camera',
+        default='figure',
+        help="Fig. 2's camera: figure (close to the robot), or the scene's overview or robot_view",
+    )
+    parser.add_argument(
+        '--save-strokes', action='store_true', help='also write every stroke (strokes_<actor>_<band>.npz)'
+    )
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
     args = parser.parse_args(argv)
@@ -595,10 +826,12 @@ def command_line(args: argparse.Namespace) -> str:
     if args.actor_overrides:
         overrides = ','.join(f'{n}={evaluate.portable_path(p)}' for n, p in args.actor_overrides.items())
         parts.append(f'--actors {overrides}')
-    for flag, value, default in (('--seeds', args.seeds, EVALUATION_SEEDS),
-                                 ('--balls', args.balls, EVALUATION_BALLS_PER_SEED),
-                                 ('--first-seed', args.first_seed, FIRST_EVALUATION_SEED),
-                                 ('--band-first-seed', args.band_first_seed, BAND_FIRST_SEED)):
+    for flag, value, default in (
+        ('--seeds', args.seeds, EVALUATION_SEEDS),
+        ('--balls', args.balls, EVALUATION_BALLS_PER_SEED),
+        ('--first-seed', args.first_seed, FIRST_EVALUATION_SEED),
+        ('--band-first-seed', args.band_first_seed, BAND_FIRST_SEED),
+    ):
         if value != default:
             parts.append(f'{flag} {value}')
     if args.dataset is not None:
@@ -617,11 +850,17 @@ def main(argv: list[str] | None = None) -> int:
     def log(message: str) -> None:
         print(f'[paper_tables {time.perf_counter() - started:6.1f} s] {message}', flush=True)
 
-    protocol = Protocol(seeds=args.seeds, balls=args.balls, first_seed=args.first_seed,
-                        band_first_seed=args.band_first_seed, device=args.device)
+    protocol = Protocol(
+        seeds=args.seeds,
+        balls=args.balls,
+        first_seed=args.first_seed,
+        band_first_seed=args.band_first_seed,
+        device=args.device,
+    )
     out = args.out
     if not args.no_figure:
         from stylepong_policy.reports.stroke_figure import CAMERAS
+
         if args.camera not in CAMERAS:
             print(f'paper_tables: unknown camera {args.camera!r}; choose one of {", ".join(CAMERAS)}', file=sys.stderr)
             return 2
@@ -641,8 +880,14 @@ def main(argv: list[str] | None = None) -> int:
     reference_rows = reference_smoothness(dataset, speed_factor=1)
     if args.save_strokes:
         for (name, band), evaluation in evaluations.items():
-            save_strokes(out / f'strokes_{name}_{band}.npz', evaluation.strokes, rate_hz=ACTION_RATE_HZ,
-                         joint_names=dataset.joint_names, actor=evaluate.portable_path(paths[name]), speed=band)
+            save_strokes(
+                out / f'strokes_{name}_{band}.npz',
+                evaluation.strokes,
+                rate_hz=ACTION_RATE_HZ,
+                joint_names=dataset.joint_names,
+                actor=evaluate.portable_path(paths[name]),
+                speed=band,
+            )
         log('strokes written')
     figure = None
     if not args.no_figure:
@@ -651,15 +896,27 @@ def main(argv: list[str] | None = None) -> int:
     images = write_charts(out, summaries, reference_rows, protocol)
     sim2sim = load_sim2sim(out)
     wall_time_s = time.perf_counter() - started
-    context = {'command': command_line(args), 'actors': {n: evaluate.portable_path(p) for n, p in paths.items()},
-               'generated': datetime.date.today().isoformat(), 'wall_time_s': wall_time_s,
-               'machine': f'{os.cpu_count()} CPU cores, {args.num_threads} torch threads, device {args.device}'}
+    context = {
+        'command': command_line(args),
+        'actors': {n: evaluate.portable_path(p) for n, p in paths.items()},
+        'generated': datetime.date.today().isoformat(),
+        'wall_time_s': wall_time_s,
+        'machine': f'{os.cpu_count()} CPU cores, {args.num_threads} torch threads, device {args.device}',
+    }
     (out / 'README.md').write_text(render_markdown(summaries, reference_rows, sim2sim, figure, protocol, context))
-    record = {'command': context['command'], 'actors': context['actors'], 'protocol': protocol.__dict__,
-              'settings': {band: protocol.setting(band) for band in BANDS},
-              'reference_dataset': evaluate.portable_path(dataset_path), 'evaluations': summaries,
-              'reference_smoothness_x1': reference_rows, 'sim2sim': sim2sim, 'figure': figure,
-              'charts': images, 'wall_time_s': round(wall_time_s, 1)}
+    record = {
+        'command': context['command'],
+        'actors': context['actors'],
+        'protocol': protocol.__dict__,
+        'settings': {band: protocol.setting(band) for band in BANDS},
+        'reference_dataset': evaluate.portable_path(dataset_path),
+        'evaluations': summaries,
+        'reference_smoothness_x1': reference_rows,
+        'sim2sim': sim2sim,
+        'figure': figure,
+        'charts': images,
+        'wall_time_s': round(wall_time_s, 1),
+    }
     (out / 'paper_tables.json').write_text(json.dumps(record, indent=2) + '\n')
     log(f'wrote {evaluate.portable_path(out / "README.md")} and the charts; {wall_time_s:.0f} s in all')
     return 0
@@ -667,9 +924,17 @@ def main(argv: list[str] | None = None) -> int:
 
 def _figure(out: pathlib.Path, evaluations, dataset, args: argparse.Namespace, protocol: Protocol) -> dict | None:
     from stylepong_policy.reports.stroke_figure import stroke_figure
-    return stroke_figure(out / 'strokes.png', evaluations[('ppo', 'all')].strokes, evaluations[('amp', 'all')].strokes,
-                         dataset, ACTION_RATE_HZ, direction=args.figure_direction, camera=args.camera,
-                         setting=protocol.setting('all') + '.')
+
+    return stroke_figure(
+        out / 'strokes.png',
+        evaluations[('ppo', 'all')].strokes,
+        evaluations[('amp', 'all')].strokes,
+        dataset,
+        ACTION_RATE_HZ,
+        direction=args.figure_direction,
+        camera=args.camera,
+        setting=protocol.setting('all') + '.',
+    )
 
 
 if __name__ == '__main__':

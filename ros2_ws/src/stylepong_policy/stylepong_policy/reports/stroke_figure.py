@@ -10,6 +10,7 @@ to the stroke's end (0.3 s after it), the clip's over the whole clip. The defaul
 FIGURE_CAMERA, is a free camera close to the robot (three-quarter view from the robot's left front,
 where the arm fills the frame); any of the scene's named cameras can be used instead.
 """
+
 from __future__ import annotations
 
 import os
@@ -23,8 +24,8 @@ from stylepong_policy import png
 from stylepong_policy.evaluation import strokes, style_metrics
 
 FRAMES_PER_ROW = 7
-SWING_LEAD_S = 0.45           # the back-swing starts about this long before a 5 m/s ball is met
-FRAME_SIZE_PX = (320, 240)    # width, height of one rendered frame
+SWING_LEAD_S = 0.45  # the back-swing starts about this long before a 5 m/s ball is met
+FRAME_SIZE_PX = (320, 240)  # width, height of one rendered frame
 FIGURE_CAMERA = 'figure'
 # The free camera: looking at a point above the paddle's home pose, from 1.7 m away, 135 degrees of
 # azimuth (from the robot's left front) and 12 degrees down.
@@ -32,20 +33,22 @@ FIGURE_CAMERA_LOOKAT_M = (-1.6, 0.05, 1.1)
 FIGURE_CAMERA_DISTANCE_M = 1.7
 FIGURE_CAMERA_AZIMUTH_DEG = 135.0
 FIGURE_CAMERA_ELEVATION_DEG = -12.0
-CAMERAS = (FIGURE_CAMERA, 'overview', 'robot_view')   # ours and the scene's
+CAMERAS = (FIGURE_CAMERA, 'overview', 'robot_view')  # ours and the scene's
 
 
 @dataclass
 class FigureRow:
     """One row of the figure: a label, and the joint positions, ball and time of its seven frames."""
+
     label: str
-    joint_positions_rad: np.ndarray     # [7, 6]
+    joint_positions_rad: np.ndarray  # [7, 6]
     ball_position_m: np.ndarray | None  # [7, 3]; None: no ball (a demonstration has none)
-    times_s: np.ndarray                 # [7] time of each frame relative to the paddle's contact (or the clip start)
+    times_s: np.ndarray  # [7] time of each frame relative to the paddle's contact (or the clip start)
 
 
-def choose_ball(first: Sequence[strokes.Stroke], second: Sequence[strokes.Stroke],
-                direction: str) -> tuple[int, int] | None:
+def choose_ball(
+    first: Sequence[strokes.Stroke], second: Sequence[strokes.Stroke], direction: str
+) -> tuple[int, int] | None:
     """(seed, ball) of the first ball of `direction` that both actors returned, else the first of that
     direction; None when no ball has it. Both lists are strokes of the same seeds and balls."""
     first_by_key = {(s.seed, s.ball): s for s in first}
@@ -68,8 +71,12 @@ def policy_row(label: str, stroke: strokes.Stroke, rate_hz: float) -> FigureRow:
     """The figure row of a policy stroke, timed relative to the paddle's first contact."""
     frames = stroke_frames(stroke, rate_hz)
     contact = stroke.hit_frame if stroke.hit_frame != strokes.NO_FRAME else frames[-1]
-    return FigureRow(label=label, joint_positions_rad=stroke.joint_positions_rad[frames],
-                     ball_position_m=stroke.ball_position_m[frames], times_s=(frames - contact) / rate_hz)
+    return FigureRow(
+        label=label,
+        joint_positions_rad=stroke.joint_positions_rad[frames],
+        ball_position_m=stroke.ball_position_m[frames],
+        times_s=(frames - contact) / rate_hz,
+    )
 
 
 def reference_row(label: str, dataset, direction: str, near: strokes.Stroke) -> FigureRow:
@@ -80,8 +87,12 @@ def reference_row(label: str, dataset, direction: str, near: strokes.Stroke) -> 
     match = style_metrics.nearest_reference(near.joint_positions_rad, originals)
     q = dataset.clip(match.clip).q
     frames = np.round(np.linspace(0, len(q) - 1, FRAMES_PER_ROW)).astype(int)
-    return FigureRow(label=f'{label} (clip {match.clip}, x1)', joint_positions_rad=q[frames], ball_position_m=None,
-                     times_s=frames / dataset.rate_hz)
+    return FigureRow(
+        label=f'{label} (clip {match.clip}, x1)',
+        joint_positions_rad=q[frames],
+        ball_position_m=None,
+        times_s=frames / dataset.rate_hz,
+    )
 
 
 def _camera(name: str):
@@ -119,8 +130,9 @@ def render_rows(rows: Sequence[FigureRow], camera: str = FIGURE_CAMERA) -> list[
             row_images = []
             for k in range(len(row.joint_positions_rad)):
                 data.qpos[qpos_index] = row.joint_positions_rad[k]
-                data.mocap_pos[ball_mocap] = (scene.BALL_PARKING_POSITION_M if row.ball_position_m is None
-                                              else row.ball_position_m[k])
+                data.mocap_pos[ball_mocap] = (
+                    scene.BALL_PARKING_POSITION_M if row.ball_position_m is None else row.ball_position_m[k]
+                )
                 mujoco.mj_forward(model, data)
                 renderer.update_scene(data, camera=view)
                 row_images.append(np.array(renderer.render()))
@@ -130,10 +142,12 @@ def render_rows(rows: Sequence[FigureRow], camera: str = FIGURE_CAMERA) -> list[
     return images
 
 
-def save_grid(path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequence[Sequence[np.ndarray]],
-              title: str) -> pathlib.Path:
+def save_grid(
+    path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequence[Sequence[np.ndarray]], title: str
+) -> pathlib.Path:
     """Save the rendered frames as a grid, one row per FigureRow; returns the path."""
     import matplotlib
+
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
@@ -156,22 +170,39 @@ def save_grid(path: str | os.PathLike, rows: Sequence[FigureRow], images: Sequen
     return path
 
 
-def stroke_figure(path: str | os.PathLike, ppo: Sequence[strokes.Stroke], amp: Sequence[strokes.Stroke], dataset,
-                  rate_hz: float, direction: str = 'forward', camera: str = FIGURE_CAMERA,
-                  setting: str = '') -> dict | None:
+def stroke_figure(
+    path: str | os.PathLike,
+    ppo: Sequence[strokes.Stroke],
+    amp: Sequence[strokes.Stroke],
+    dataset,
+    rate_hz: float,
+    direction: str = 'forward',
+    camera: str = FIGURE_CAMERA,
+    setting: str = '',
+) -> dict | None:
     """Render the 3x7 grid to `path`; returns what was shown (None when no ball of that direction came)."""
     key = choose_ball(ppo, amp, direction)
     if key is None:
         return None
     ppo_stroke = next(s for s in ppo if (s.seed, s.ball) == key)
     amp_stroke = next(s for s in amp if (s.seed, s.ball) == key)
-    rows = [policy_row(f'PPO ({ppo_stroke.outcome})', ppo_stroke, rate_hz),
-            policy_row(f'AMP ({amp_stroke.outcome})', amp_stroke, rate_hz),
-            reference_row(f'demonstration, {direction}', dataset, direction, amp_stroke)]
-    title = (f'Fig. 2: a {direction} ball (seed {key[0]}, ball {key[1]}, {ppo_stroke.launch_speed_m_s:.2f} m/s); '
-             f'policy frames at times from the paddle\'s first contact, clip frames from its start; camera {camera}.'
-             f'\n{setting}')
+    rows = [
+        policy_row(f'PPO ({ppo_stroke.outcome})', ppo_stroke, rate_hz),
+        policy_row(f'AMP ({amp_stroke.outcome})', amp_stroke, rate_hz),
+        reference_row(f'demonstration, {direction}', dataset, direction, amp_stroke),
+    ]
+    title = (
+        f'Fig. 2: a {direction} ball (seed {key[0]}, ball {key[1]}, {ppo_stroke.launch_speed_m_s:.2f} m/s); '
+        f"policy frames at times from the paddle's first contact, clip frames from its start; camera {camera}."
+        f'\n{setting}'
+    )
     save_grid(path, rows, render_rows(rows, camera), title)
-    return {'direction': direction, 'seed': key[0], 'ball': key[1], 'camera': camera,
-            'launch_speed_m_s': round(ppo_stroke.launch_speed_m_s, 3),
-            'outcomes': {'ppo': ppo_stroke.outcome, 'amp': amp_stroke.outcome}, 'reference_row': rows[2].label}
+    return {
+        'direction': direction,
+        'seed': key[0],
+        'ball': key[1],
+        'camera': camera,
+        'launch_speed_m_s': round(ppo_stroke.launch_speed_m_s, 3),
+        'outcomes': {'ppo': ppo_stroke.outcome, 'amp': amp_stroke.outcome},
+        'reference_row': rows[2].label,
+    }

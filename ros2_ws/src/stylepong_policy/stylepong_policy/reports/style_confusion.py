@@ -29,6 +29,7 @@ its file (a skill's <name>.json, a learn_style run's learn_style.json). Without 
 report is written.
 Exit status 0, 2 for invalid arguments (a missing file, an actor that does not fit, a set with no clip).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,7 +63,7 @@ OVERALL = 'overall'
 MARKDOWN_NAME = 'style_confusion.md'
 JSON_NAME = 'style_confusion.json'
 PNG_NAME = 'style_confusion.png'
-STYLES_DIR = 'styles'       # OUT/styles/<set>/: each learned style's report and ONNX actor
+STYLES_DIR = 'styles'  # OUT/styles/<set>/: each learned style's report and ONNX actor
 ONNX_NAME = 'actor.onnx'
 
 
@@ -73,13 +74,15 @@ ONNX_NAME = 'actor.onnx'
 @dataclass(frozen=True)
 class SetDistance:
     """An actor's mean DTW to one set: per direction and over every stroke with clips of its label (rad)."""
+
     by_direction_rad: dict[str, float | None]
     overall_rad: float | None
     strokes_compared: int
 
 
-def set_distance(strokes: Sequence[Stroke], dataset: ReferenceDataset,
-                 matches: Sequence[style_metrics.DtwMatch | None] | None = None) -> SetDistance:
+def set_distance(
+    strokes: Sequence[Stroke], dataset: ReferenceDataset, matches: Sequence[style_metrics.DtwMatch | None] | None = None
+) -> SetDistance:
     """Each stroke's DTW to the nearest clip of its own label in `dataset` (evaluate's), averaged; `matches`:
     the strokes' evaluate.nearest_matches against it when already measured."""
     if matches is None:
@@ -89,8 +92,11 @@ def set_distance(strokes: Sequence[Stroke], dataset: ReferenceDataset,
         distances = [m.distance for s, m in zip(strokes, matches) if m is not None and s.direction == direction]
         by_direction[direction] = float(np.mean(distances)) if distances else None
     compared = [m.distance for m in matches if m is not None]
-    return SetDistance(by_direction_rad=by_direction, overall_rad=float(np.mean(compared)) if compared else None,
-                       strokes_compared=len(compared))
+    return SetDistance(
+        by_direction_rad=by_direction,
+        overall_rad=float(np.mean(compared)) if compared else None,
+        strokes_compared=len(compared),
+    )
 
 
 def normalised(distance: float | None, baseline: float | None) -> float | None:
@@ -101,10 +107,11 @@ def normalised(distance: float | None, baseline: float | None) -> float | None:
 @dataclass(frozen=True)
 class Verdict:
     """An actor's nearest set by normalised distance, and by how much the next one is further."""
+
     nearest: str | None
-    margin: float | None         # next smallest minus smallest normalised distance
-    margin_ratio: float | None   # next smallest over smallest
-    own_set: str | None          # the set named like the actor, if any
+    margin: float | None  # next smallest minus smallest normalised distance
+    margin_ratio: float | None  # next smallest over smallest
+    own_set: str | None  # the set named like the actor, if any
     nearest_is_own: bool | None
 
 
@@ -172,60 +179,113 @@ def render_markdown(record: dict) -> str:
     actors = list(record['actors'])
     raw = record['dtw_rad']
     norm = record['normalised']
-    lines = ['# Style confusion: each actor\'s strokes against each demonstration set', '',
-             f'Generated {record["generated"]} by `{record["command"]}` ({record["wall_time_s"]:.0f} s).', '',
-             f'Setting: {record["setting"]}. Each stroke is compared by DTW with the clips of its own label in a '
-             f'set (all speed factors, the nearest counts: `{evaluate.DTW_CALL}`); an actor\'s distance to a set is '
-             f'the mean over its strokes whose label the set has. Normalised: over the baseline '
-             f'(`{record["baseline"]}`, no style) on the same set, since unnormalised DTW grows with the clips\' '
-             'length.', '',
-             'Sets (original clips per label forward / leftward / rightward):', '']
-    lines += [f'- `{name}`: `{info["path"]}`, ' + ' / '.join(str(info['clips_per_label'][d]) for d in DIRECTIONS)
-              for name, info in record['sets'].items()]
+    lines = [
+        "# Style confusion: each actor's strokes against each demonstration set",
+        '',
+        f'Generated {record["generated"]} by `{record["command"]}` ({record["wall_time_s"]:.0f} s).',
+        '',
+        f'Setting: {record["setting"]}. Each stroke is compared by DTW with the clips of its own label in a '
+        f"set (all speed factors, the nearest counts: `{evaluate.DTW_CALL}`); an actor's distance to a set is "
+        f'the mean over its strokes whose label the set has. Normalised: over the baseline '
+        f"(`{record['baseline']}`, no style) on the same set, since unnormalised DTW grows with the clips' "
+        'length.',
+        '',
+        'Sets (original clips per label forward / leftward / rightward):',
+        '',
+    ]
+    lines += [
+        f'- `{name}`: `{info["path"]}`, ' + ' / '.join(str(info['clips_per_label'][d]) for d in DIRECTIONS)
+        for name, info in record['sets'].items()
+    ]
     rows = []
     for a in actors:
         nearest = record['verdicts'][a]['nearest']
         cells = [f'**{_number(norm[a][s][OVERALL])}**' if nearest == s else _number(norm[a][s][OVERALL]) for s in sets]
-        rows.append([f'`{a}`', *cells, f'`{nearest}`' if nearest else 'n/a', _number(record['verdicts'][a]['margin']),
-                     _number(record['verdicts'][a]['margin_ratio'], 2)])
-    lines += ['', '## Normalised distance (actor / baseline on the same set; smaller is nearer)', '',
-              *markdown.table(['Actor'] + [f'`{s}`' for s in sets] + ['nearest', 'margin', 'next / nearest'], rows), '',
-              f'![confusion]({PNG_NAME})', '']
+        rows.append(
+            [
+                f'`{a}`',
+                *cells,
+                f'`{nearest}`' if nearest else 'n/a',
+                _number(record['verdicts'][a]['margin']),
+                _number(record['verdicts'][a]['margin_ratio'], 2),
+            ]
+        )
+    lines += [
+        '',
+        '## Normalised distance (actor / baseline on the same set; smaller is nearer)',
+        '',
+        *markdown.table(['Actor'] + [f'`{s}`' for s in sets] + ['nearest', 'margin', 'next / nearest'], rows),
+        '',
+        f'![confusion]({PNG_NAME})',
+        '',
+    ]
     own = [(a, v) for a, v in record['verdicts'].items() if v['own_set'] is not None]
     if own:
-        lines += ['Actors named like a set: '
-                  + '; '.join(f'`{a}` is {"" if v["nearest_is_own"] else "NOT "}nearest its own set' for a, v in own)
-                  + '.', '']
+        lines += [
+            'Actors named like a set: '
+            + '; '.join(f'`{a}` is {"" if v["nearest_is_own"] else "NOT "}nearest its own set' for a, v in own)
+            + '.',
+            '',
+        ]
     if record.get('reports'):
-        lines += [f'Each learned style\'s report (its strokes beside its demonstrations, the baseline\'s and '
-                  f'`{skills.SHIPPED}`\'s, from these evaluations) and its actor as ONNX: '
-                  + ', '.join(f'[`{name}`]({files["report"]}) ([{ONNX_NAME}]({files["onnx"]}))'
-                              for name, files in record['reports'].items()) + '.', '']
-    lines += ['## Mean DTW (rad, not normalised)', '',
-              *markdown.table(['Actor'] + [f'`{s}`' for s in sets],
-                               [[f'`{a}`'] + [_number(raw[a][s][OVERALL], 2) for s in sets]
-                                for a in [*actors, BASELINE]]), '',
-              '## Normalised distance per direction', '',
-              *markdown.table(['Actor', 'Set'] + list(DIRECTIONS),
-                               [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS]
-                                for a in actors for s in sets]), '']
+        lines += [
+            f"Each learned style's report (its strokes beside its demonstrations, the baseline's and "
+            f"`{skills.SHIPPED}`'s, from these evaluations) and its actor as ONNX: "
+            + ', '.join(
+                f'[`{name}`]({files["report"]}) ([{ONNX_NAME}]({files["onnx"]}))'
+                for name, files in record['reports'].items()
+            )
+            + '.',
+            '',
+        ]
+    lines += [
+        '## Mean DTW (rad, not normalised)',
+        '',
+        *markdown.table(
+            ['Actor'] + [f'`{s}`' for s in sets],
+            [[f'`{a}`'] + [_number(raw[a][s][OVERALL], 2) for s in sets] for a in [*actors, BASELINE]],
+        ),
+        '',
+        '## Normalised distance per direction',
+        '',
+        *markdown.table(
+            ['Actor', 'Set'] + list(DIRECTIONS),
+            [[f'`{a}`', f'`{s}`'] + [_number(norm[a][s][d]) for d in DIRECTIONS] for a in actors for s in sets],
+        ),
+        '',
+    ]
     blades = record['contacts']
     rows = {f'`{s}` demonstrations': blades['demonstrations'][s] for s in sets}
     rows |= {f'`{a}`': blades['actors'][a] for a in [*actors, BASELINE]}
-    lines += ['## The blade at contact', '', contacts.TABLE_NOTE, '',
-              *markdown.table(*contacts.contact_table(rows)), '']
+    lines += [
+        '## The blade at contact',
+        '',
+        contacts.TABLE_NOTE,
+        '',
+        *markdown.table(*contacts.contact_table(rows)),
+        '',
+    ]
     return '\n'.join(lines)
 
 
 def heatmap(path: pathlib.Path, record: dict) -> pathlib.Path:
     """The normalised matrix, actors by sets, each cell annotated."""
     import matplotlib
+
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     sets, actors = list(record['sets']), list(record['actors'])
-    values = np.array([[np.nan if record['normalised'][a][s][OVERALL] is None else record['normalised'][a][s][OVERALL]
-                        for s in sets] for a in actors], dtype=float)
+    values = np.array(
+        [
+            [
+                np.nan if record['normalised'][a][s][OVERALL] is None else record['normalised'][a][s][OVERALL]
+                for s in sets
+            ]
+            for a in actors
+        ],
+        dtype=float,
+    )
     figure, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.5 * len(sets)), 2.0 + 0.7 * len(actors)))
     image = ax.imshow(values, cmap='viridis_r', aspect='auto')
     low, high = np.nanmin(values), np.nanmax(values)
@@ -234,16 +294,26 @@ def heatmap(path: pathlib.Path, record: dict) -> pathlib.Path:
             value = values[i, j]
             # viridis_r is dark at the high end: light text there.
             dark = not np.isnan(value) and high > low and (value - low) / (high - low) > 0.5
-            ax.text(j, i, 'n/a' if np.isnan(value) else f'{value:.3f}', ha='center', va='center',
-                    color='w' if dark else 'k', fontsize=9,
-                    fontweight='bold' if record['verdicts'][actor]['nearest'] == name else 'normal')
+            ax.text(
+                j,
+                i,
+                'n/a' if np.isnan(value) else f'{value:.3f}',
+                ha='center',
+                va='center',
+                color='w' if dark else 'k',
+                fontsize=9,
+                fontweight='bold' if record['verdicts'][actor]['nearest'] == name else 'normal',
+            )
     ax.set_xticks(range(len(sets)), sets)
     ax.set_yticks(range(len(actors)), actors)
     ax.set_xlabel('demonstration set')
     ax.set_ylabel('actor')
-    figure.colorbar(image, ax=ax, label='mean DTW / baseline\'s')
-    ax.set_title(f'Style confusion, normalised by the baseline (bold: each actor\'s nearest set)\n'
-                 f'{record["setting"].split("; ", 1)[1]}', fontsize=8)
+    figure.colorbar(image, ax=ax, label="mean DTW / baseline's")
+    ax.set_title(
+        f"Style confusion, normalised by the baseline (bold: each actor's nearest set)\n"
+        f'{record["setting"].split("; ", 1)[1]}',
+        fontsize=8,
+    )
     figure.tight_layout()
     png.save_figure(figure, path, dpi=110)
     plt.close(figure)
@@ -274,13 +344,19 @@ def learned_record(actor: pathlib.Path) -> tuple[pathlib.Path, dict] | None:
         # ship_skill's record holds the run's command and stages; an exported actor's sidecar holds neither.
         if isinstance(shipped, dict) and 'command' in shipped and 'choose' in shipped:
             stages = {k: v for k, v in shipped.items() if isinstance(v, dict) and 'wall_time_s' in v}
-            return beside, {'command': shipped['command'], 'started_from': shipped.get('started_from'),
-                            'stages': stages}
+            return beside, {
+                'command': shipped['command'],
+                'started_from': shipped.get('started_from'),
+                'stages': stages,
+            }
     state = actor.parent / learn_style.STATE_NAME
     if actor.name == learn_style.ACTOR_NAME and state.is_file():
         run = json.loads(state.read_text())
-        return state, {'command': run.get('command'), 'stages': run.get('stages', {}),
-                       'started_from': run.get('skill') and evaluate.portable_path(run['skill'])}
+        return state, {
+            'command': run.get('command'),
+            'stages': run.get('stages', {}),
+            'started_from': run.get('skill') and evaluate.portable_path(run['skill']),
+        }
     return None
 
 
@@ -289,28 +365,46 @@ def report_notes(name: str, record: Mapping, learned: tuple[pathlib.Path, dict] 
     from stylepong_policy.training.learn_style import describe_skills
 
     clips = record['sets'][name]['clips_per_label']
-    notes = [f'Demonstrations: `{record["sets"][name]["path"]}`, original clips per label: '
-             + ', '.join(f'{d} {clips[d]}' for d in DIRECTIONS) + '.',
-             f'The new style actor is `{record["actors"][name]["path"]}` ({ONNX_NAME} beside this report, for the '
-             f'player), PPO `{record["baseline"]}`, the shipped style actor '
-             f'`{record["actors"][skills.SHIPPED]["path"]}`; at all speeds only (no high-speed evaluation here).']
+    notes = [
+        f'Demonstrations: `{record["sets"][name]["path"]}`, original clips per label: '
+        + ', '.join(f'{d} {clips[d]}' for d in DIRECTIONS)
+        + '.',
+        f'The new style actor is `{record["actors"][name]["path"]}` ({ONNX_NAME} beside this report, for the '
+        f'player), PPO `{record["baseline"]}`, the shipped style actor '
+        f'`{record["actors"][skills.SHIPPED]["path"]}`; at all speeds only (no high-speed evaluation here).',
+    ]
     if learned is None:
-        return notes + ['No record of how it was learned lies beside it (a skill\'s <name>.json, a learn_style '
-                        'run\'s learn_style.json): no run section.']
+        return notes + [
+            "No record of how it was learned lies beside it (a skill's <name>.json, a learn_style "
+            "run's learn_style.json): no run section."
+        ]
     path, facts = learned
-    notes.append(f'Learned by `{facts["command"]}` from the skill `{facts["started_from"]}`; the run section is its '
-                 f'record, `{evaluate.portable_path(path)}`.')
+    notes.append(
+        f'Learned by `{facts["command"]}` from the skill `{facts["started_from"]}`; the run section is its '
+        f'record, `{evaluate.portable_path(path)}`.'
+    )
     chosen = facts['stages'].get('skill', {})
     if chosen.get('validation_mean_dtw_rad'):
-        rows = [{'candidate': k, 'mean_dtw_rad': v, 'success_rate': chosen['validation_success'][k]}
-                for k, v in chosen['validation_mean_dtw_rad'].items()]
-        notes.append('The skill was chosen from the library on the validation seeds (mean DTW to these '
-                     f'demonstrations and success): {describe_skills(rows)}.')
+        rows = [
+            {'candidate': k, 'mean_dtw_rad': v, 'success_rate': chosen['validation_success'][k]}
+            for k, v in chosen['validation_mean_dtw_rad'].items()
+        ]
+        notes.append(
+            'The skill was chosen from the library on the validation seeds (mean DTW to these '
+            f'demonstrations and success): {describe_skills(rows)}.'
+        )
     return notes
 
 
-def write_style_report(folder: pathlib.Path, name: str, record: Mapping, evaluations: Mapping[str, evaluate.Evaluation],
-                       summaries: Mapping[str, dict], dataset: ReferenceDataset, actor) -> pathlib.Path:
+def write_style_report(
+    folder: pathlib.Path,
+    name: str,
+    record: Mapping,
+    evaluations: Mapping[str, evaluate.Evaluation],
+    summaries: Mapping[str, dict],
+    dataset: ReferenceDataset,
+    actor,
+) -> pathlib.Path:
     """FOLDER/report.md (style_report) of the style `name` from the evaluations and their summaries against
     its set (evaluate.summarise with DTW; both by actor name, the baseline standing for PPO), and
     FOLDER/actor.onnx of `actor` (the style's LoadedActor); returns the report's path."""
@@ -318,18 +412,32 @@ def write_style_report(folder: pathlib.Path, name: str, record: Mapping, evaluat
 
     roles = {'style': name, 'ppo': BASELINE, 'shipped': skills.SHIPPED}
     set_path = record['sets'][name]['path']
-    results = {role: style_report.ActorResults(name=role, all_speeds=summaries[actor_name], high_speeds=None,
-                                               strokes=evaluations[actor_name].strokes, rate_hz=evaluate.ACTION_RATE_HZ)
-               for role, actor_name in roles.items()}
+    results = {
+        role: style_report.ActorResults(
+            name=role,
+            all_speeds=summaries[actor_name],
+            high_speeds=None,
+            strokes=evaluations[actor_name].strokes,
+            rate_hz=evaluate.ACTION_RATE_HZ,
+        )
+        for role, actor_name in roles.items()
+    }
     learned = learned_record(pathlib.Path(actor.path))
     timings, checkpoints = {}, None
     if learned is not None:
         stages = learned[1]['stages']
         timings = {stage: facts['wall_time_s'] for stage, facts in stages.items() if 'wall_time_s' in facts}
         checkpoints = {'train': stages.get('train'), 'choose': stages.get('choose')}
-    report = style_report.write_report_of(folder, results, dataset, dataset_name=set_path,
-                                          source=f'`{record["command"]}`, from its evaluations', timings_s=timings,
-                                          checkpoints=checkpoints, notes=report_notes(name, record, learned))
+    report = style_report.write_report_of(
+        folder,
+        results,
+        dataset,
+        dataset_name=set_path,
+        source=f'`{record["command"]}`, from its evaluations',
+        timings_s=timings,
+        checkpoints=checkpoints,
+        notes=report_notes(name, record, learned),
+    )
     write_onnx_of(actor, folder / ONNX_NAME)
     return report
 
@@ -347,12 +455,14 @@ def load_named_actor(name: str, path: pathlib.Path, folder: pathlib.Path):
     import torch
 
     from stylepong_policy.training.select_checkpoint import export_checkpoint
+
     checkpoint = torch.load(path, map_location='cpu', weights_only=False)
     loaded = load_actor(export_checkpoint(checkpoint, folder / f'{name}.pt', onnx=False))
     # The file it came from is the checkpoint, not the temporary export: an ONNX file written from it names
     # that (its exported_from), the same bytes whatever the export was called.
-    return dataclasses.replace(loaded, path=path, metadata={**loaded.metadata, 'actor_file': path.name,
-                                                            'actor_sha256': file_sha256(path)})
+    return dataclasses.replace(
+        loaded, path=path, metadata={**loaded.metadata, 'actor_file': path.name, 'actor_sha256': file_sha256(path)}
+    )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -364,18 +474,38 @@ def build_parser() -> argparse.ArgumentParser:
     from stylepong_sim.world_spec import EVALUATION_BALLS_PER_SEED, EVALUATION_SEEDS, FIRST_EVALUATION_SEED
 
     parser = argparse.ArgumentParser(prog='style_confusion', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--actor', dest='actors', action='append', type=parse_named, required=True,
-                        metavar='NAME=ACTOR.pt',
-                        help='an exported actor, or a training checkpoint such as models/skills/NAME.pt (repeat)')
-    parser.add_argument('--set', dest='sets', action='append', type=parse_named, required=True,
-                        metavar='NAME=BAGS_DIR_OR_DATASET', help='a demonstration set (repeat)')
-    parser.add_argument('--baseline', required=True, type=pathlib.Path, metavar='ACTOR.pt',
-                        help='the actor every distance is normalised by (PPO: no style)')
+    parser.add_argument(
+        '--actor',
+        dest='actors',
+        action='append',
+        type=parse_named,
+        required=True,
+        metavar='NAME=ACTOR.pt',
+        help='an exported actor, or a training checkpoint such as models/skills/NAME.pt (repeat)',
+    )
+    parser.add_argument(
+        '--set',
+        dest='sets',
+        action='append',
+        type=parse_named,
+        required=True,
+        metavar='NAME=BAGS_DIR_OR_DATASET',
+        help='a demonstration set (repeat)',
+    )
+    parser.add_argument(
+        '--baseline',
+        required=True,
+        type=pathlib.Path,
+        metavar='ACTOR.pt',
+        help='the actor every distance is normalised by (PPO: no style)',
+    )
     parser.add_argument('--seeds', type=int, default=EVALUATION_SEEDS, help='evaluation seeds (default %(default)s)')
-    parser.add_argument('--first-seed', type=int, default=FIRST_EVALUATION_SEED,
-                        help='first seed (default %(default)s)')
-    parser.add_argument('--balls', type=int, default=EVALUATION_BALLS_PER_SEED,
-                        help='balls per seed (default %(default)s)')
+    parser.add_argument(
+        '--first-seed', type=int, default=FIRST_EVALUATION_SEED, help='first seed (default %(default)s)'
+    )
+    parser.add_argument(
+        '--balls', type=int, default=EVALUATION_BALLS_PER_SEED, help='balls per seed (default %(default)s)'
+    )
     parser.add_argument('--out', required=True, type=pathlib.Path, help='folder for the .md, .json and .png')
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
@@ -412,8 +542,10 @@ def run(argv: Sequence[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory(prefix='style_confusion_') as folder:
         try:
-            loaded = {name: load_named_actor(name, path, pathlib.Path(folder))
-                      for name, path in {**actor_paths, BASELINE: args.baseline}.items()}
+            loaded = {
+                name: load_named_actor(name, path, pathlib.Path(folder))
+                for name, path in {**actor_paths, BASELINE: args.baseline}.items()
+            }
         except (ActorMismatchError, OSError, ValueError, KeyError) as error:
             print(f'style_confusion: {one_line(error)}', file=sys.stderr)
             return 2
@@ -433,8 +565,9 @@ def run(argv: Sequence[str] | None = None) -> int:
     for name, actor in loaded.items():
         key = pathlib.Path(actor.path).resolve()
         if key not in evaluation_of_file:
-            evaluation = evaluate.evaluate_actor(actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls,
-                                                 device=args.device)
+            evaluation = evaluate.evaluate_actor(
+                actor, seeds=args.seeds, first_seed=args.first_seed, balls=args.balls, device=args.device
+            )
             evaluation_of_file[key] = evaluation
             success_of_file[key] = evaluate.summarise(evaluation)['success_rate']
             log(f'{name}: evaluated, success {success_of_file[key]:.3f} over {len(evaluation.strokes)} balls')
@@ -453,15 +586,21 @@ def run(argv: Sequence[str] | None = None) -> int:
         for name in loaded:
             matches = evaluate.nearest_matches(strokes[name], references)
             distance = set_distance(strokes[name], dataset, matches)
-            raw[name][set_name] = {**distance.by_direction_rad, OVERALL: distance.overall_rad,
-                                   'strokes_compared': distance.strokes_compared}
+            raw[name][set_name] = {
+                **distance.by_direction_rad,
+                OVERALL: distance.overall_rad,
+                'strokes_compared': distance.strokes_compared,
+            }
             if set_name in reported and name in (set_name, BASELINE, skills.SHIPPED):
-                summaries[set_name][name] = evaluate.summarise(evaluations[name], dataset=dataset,
-                                                               dataset_path=set_paths[set_name], matches=matches)
+                summaries[set_name][name] = evaluate.summarise(
+                    evaluations[name], dataset=dataset, dataset_path=set_paths[set_name], matches=matches
+                )
         log(f'set {set_name}: DTW of every actor measured')
     columns = (*DIRECTIONS, OVERALL)
-    norm = {name: {s: {c: normalised(raw[name][s][c], raw[BASELINE][s][c]) for c in columns} for s in datasets}
-            for name in actor_paths}
+    norm = {
+        name: {s: {c: normalised(raw[name][s][c], raw[BASELINE][s][c]) for c in columns} for s in datasets}
+        for name in actor_paths
+    }
     verdicts = {name: verdict(name, {s: norm[name][s][OVERALL] for s in datasets}).__dict__ for name in actor_paths}
 
     last_seed = args.first_seed + args.seeds - 1
@@ -471,23 +610,40 @@ def run(argv: Sequence[str] | None = None) -> int:
         'generated': datetime.date.today().isoformat(),
         'setting': f'{evaluate.WORLDS[False]}; {seeds} x {args.balls} balls; all speeds; deterministic actors',
         'baseline': evaluate.portable_path(args.baseline),
-        'actors': {name: {'path': evaluate.portable_path(path), 'success_rate': success[name]}
-                   for name, path in actor_paths.items()},
+        'actors': {
+            name: {'path': evaluate.portable_path(path), 'success_rate': success[name]}
+            for name, path in actor_paths.items()
+        },
         'baseline_success_rate': success[BASELINE],
-        'sets': {name: {'path': evaluate.portable_path(path), 'clips': datasets[name].num_clips,
-                        'clips_per_label': clips_per_label(datasets[name])} for name, path in set_paths.items()},
-        'dtw_rad': raw, 'normalised': norm, 'verdicts': verdicts, 'dtw_call': evaluate.DTW_CALL,
-        'contacts': {'demonstrations': {name: contacts.mean_blades(contacts.demonstrated_contacts(dataset))
-                                        for name, dataset in datasets.items()},
-                     'actors': {name: contacts.mean_blades(contacts.actor_contacts(strokes[name])) for name in loaded}},
+        'sets': {
+            name: {
+                'path': evaluate.portable_path(path),
+                'clips': datasets[name].num_clips,
+                'clips_per_label': clips_per_label(datasets[name]),
+            }
+            for name, path in set_paths.items()
+        },
+        'dtw_rad': raw,
+        'normalised': norm,
+        'verdicts': verdicts,
+        'dtw_call': evaluate.DTW_CALL,
+        'contacts': {
+            'demonstrations': {
+                name: contacts.mean_blades(contacts.demonstrated_contacts(dataset))
+                for name, dataset in datasets.items()
+            },
+            'actors': {name: contacts.mean_blades(contacts.actor_contacts(strokes[name])) for name in loaded},
+        },
     }
     args.out.mkdir(parents=True, exist_ok=True)
     record['reports'] = {}
     for name in reported:
         folder = args.out / STYLES_DIR / name
         write_style_report(folder, name, record, evaluations, summaries[name], datasets[name], loaded[name])
-        record['reports'][name] = {'report': f'{STYLES_DIR}/{name}/{style_report.REPORT_MD}',
-                                   'onnx': f'{STYLES_DIR}/{name}/{ONNX_NAME}'}
+        record['reports'][name] = {
+            'report': f'{STYLES_DIR}/{name}/{style_report.REPORT_MD}',
+            'onnx': f'{STYLES_DIR}/{name}/{ONNX_NAME}',
+        }
         log(f'{name}: wrote {evaluate.portable_path(folder / style_report.REPORT_MD)}, its PNGs and {ONNX_NAME}')
     record['wall_time_s'] = round(time.perf_counter() - started, 1)
     (args.out / JSON_NAME).write_text(json.dumps(record, indent=2) + '\n')
@@ -506,4 +662,3 @@ def main(argv: Sequence[str] | None = None) -> NoReturn:
 
 if __name__ == '__main__':
     main()
-

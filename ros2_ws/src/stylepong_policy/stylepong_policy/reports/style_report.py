@@ -21,6 +21,7 @@ A strip needs an OpenGL context (EGL headless); without one the report says why 
 write_report_of writes the same from evaluations in hand into any folder: style_confusion's, which
 evaluated every actor already (all speeds only: no high-speed success then).
 """
+
 from __future__ import annotations
 
 import datetime
@@ -39,7 +40,7 @@ from stylepong_policy.evaluation.strokes import DIRECTIONS, NO_FRAME, Stroke, lo
 
 ACTORS = ('style', 'ppo', 'shipped')
 ACTOR_TITLES = {'style': 'new style actor', 'ppo': 'PPO (no style)', 'shipped': 'shipped style actor'}
-DEMONSTRATIONS = 'demonstrations'   # the key of the demonstrations' row among the actors' (blade_at_contact)
+DEMONSTRATIONS = 'demonstrations'  # the key of the demonstrations' row among the actors' (blade_at_contact)
 EVAL_DIR = 'eval'
 ALL_SPEEDS_JSON = '{actor}_all.json'
 HIGH_SPEEDS_JSON = '{actor}_high.json'
@@ -57,6 +58,7 @@ OVERALL = 'overall'
 @dataclass(frozen=True)
 class EvalFiles:
     """The evaluation files of one actor under RUN/EVAL_DIR."""
+
     all_speeds_json: pathlib.Path
     high_speeds_json: pathlib.Path
     strokes_npz: pathlib.Path
@@ -65,19 +67,22 @@ class EvalFiles:
 def eval_files(run_dir: str | os.PathLike, actor: str) -> EvalFiles:
     """Where the evaluation files of `actor` (one of ACTORS) belong in a run."""
     folder = pathlib.Path(run_dir) / EVAL_DIR
-    return EvalFiles(all_speeds_json=folder / ALL_SPEEDS_JSON.format(actor=actor),
-                     high_speeds_json=folder / HIGH_SPEEDS_JSON.format(actor=actor),
-                     strokes_npz=folder / STROKES_NPZ.format(actor=actor))
+    return EvalFiles(
+        all_speeds_json=folder / ALL_SPEEDS_JSON.format(actor=actor),
+        high_speeds_json=folder / HIGH_SPEEDS_JSON.format(actor=actor),
+        strokes_npz=folder / STROKES_NPZ.format(actor=actor),
+    )
 
 
 @dataclass
 class ActorResults:
     """One actor's evaluation: the all-speeds summary (with DTW), the high-speeds one, its strokes."""
+
     name: str
     all_speeds: dict
     high_speeds: dict | None
     strokes: list[Stroke]
-    rate_hz: float                # the strokes' frame rate
+    rate_hz: float  # the strokes' frame rate
 
 
 def load_actor_results(run_dir: str | os.PathLike, actor: str, *, high_required: bool) -> ActorResults:
@@ -91,8 +96,9 @@ def load_actor_results(run_dir: str | os.PathLike, actor: str, *, high_required:
         raise ValueError(f'{files.all_speeds_json}: no DTW in it (evaluate it with --dtw DATASET)')
     high = json.loads(files.high_speeds_json.read_text()) if files.high_speeds_json.is_file() else None
     stroke_file = load_strokes(files.strokes_npz)
-    return ActorResults(name=actor, all_speeds=all_speeds, high_speeds=high, strokes=stroke_file.strokes,
-                        rate_hz=stroke_file.rate_hz)
+    return ActorResults(
+        name=actor, all_speeds=all_speeds, high_speeds=high, strokes=stroke_file.strokes, rate_hz=stroke_file.rate_hz
+    )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -102,8 +108,11 @@ def load_actor_results(run_dir: str | os.PathLike, actor: str, *, high_required:
 def overall_dtw_rad(dtw: Mapping[str, dict]) -> float | None:
     """Mean DTW over every stroke that had a demonstration of its label (each direction's mean weighted
     by its strokes); None when no direction had one."""
-    weighted = [(entry['mean_rad'], entry['strokes']) for entry in dtw.values()
-                if entry.get('mean_rad') is not None and entry.get('strokes')]
+    weighted = [
+        (entry['mean_rad'], entry['strokes'])
+        for entry in dtw.values()
+        if entry.get('mean_rad') is not None and entry.get('strokes')
+    ]
     total = sum(count for _, count in weighted)
     return sum(mean * count for mean, count in weighted) / total if total else None
 
@@ -121,8 +130,10 @@ def dtw_by_phase(summary: dict) -> dict[str, float | None]:
     where a stroke's distance from the demonstrations lies."""
     entries = [entry for entry in summary['dtw'].values() if entry.get('sum_by_phase_rad')]
     strokes = sum(entry['strokes'] for entry in entries)
-    return {phase: (sum(entry['sum_by_phase_rad'][phase] for entry in entries) / strokes if strokes else None)
-            for phase in style_metrics.PHASES}
+    return {
+        phase: (sum(entry['sum_by_phase_rad'][phase] for entry in entries) / strokes if strokes else None)
+        for phase in style_metrics.PHASES
+    }
 
 
 def ratio(numerator: float | None, denominator: float | None) -> float | None:
@@ -133,8 +144,11 @@ def ratio(numerator: float | None, denominator: float | None) -> float | None:
 def dtw_ratios(distances: Mapping[str, Mapping[str, float | None]]) -> dict[str, dict[str, float | None]]:
     """The new actor's DTW over PPO's and over the shipped actor's, and the shipped over PPO's, per column."""
     columns = (*DIRECTIONS, OVERALL)
-    pairs = {'style / ppo': ('style', 'ppo'), 'style / shipped': ('style', 'shipped'),
-             'shipped / ppo': ('shipped', 'ppo')}
+    pairs = {
+        'style / ppo': ('style', 'ppo'),
+        'style / shipped': ('style', 'shipped'),
+        'shipped / ppo': ('shipped', 'ppo'),
+    }
     return {name: {c: ratio(distances[a][c], distances[b][c]) for c in columns} for name, (a, b) in pairs.items()}
 
 
@@ -150,8 +164,11 @@ def demonstration_smoothness(dataset) -> dict[str, dict | None]:
     table = {}
     for direction in DIRECTIONS:
         clips = dataset.select(labels=[direction], speed_factors=[1])
-        values = [style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
-                  for c in clips if dataset.clip_length[c] >= 4]
+        values = [
+            style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
+            for c in clips
+            if dataset.clip_length[c] >= 4
+        ]
         table[direction] = style_metrics.mean_smoothness(values)
     return table
 
@@ -162,8 +179,10 @@ def demonstration_smoothness(dataset) -> dict[str, dict | None]:
 
 def _pyplot():
     import matplotlib
-    matplotlib.use('Agg')   # headless
+
+    matplotlib.use('Agg')  # headless
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -182,8 +201,7 @@ def _grouped_bars(ax, groups: Sequence[str], series: Mapping[str, Sequence[float
         bars = ax.bar(offsets, [np.nan if v is None else v for v in values], width, label=name)
         for bar, offset, value in zip(bars, offsets, values):
             text = 'n/a' if value is None else f'{value:.{digits}f}'
-            ax.annotate(text, (offset, 0 if value is None else bar.get_height()), ha='center', va='bottom',
-                        fontsize=7)
+            ax.annotate(text, (offset, 0 if value is None else bar.get_height()), ha='center', va='bottom', fontsize=7)
     ax.set_xticks(x, groups)
     ax.legend(fontsize=8)
 
@@ -192,9 +210,13 @@ def success_chart(path: pathlib.Path, results: Mapping[str, ActorResults]) -> pa
     """Success rate (%) of each actor at all speeds and at high speeds."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(7, 4.2))
-    series = {ACTOR_TITLES[name]: [100 * r.all_speeds['success_rate'],
-                                   None if r.high_speeds is None else 100 * r.high_speeds['success_rate']]
-              for name, r in results.items()}
+    series = {
+        ACTOR_TITLES[name]: [
+            100 * r.all_speeds['success_rate'],
+            None if r.high_speeds is None else 100 * r.high_speeds['success_rate'],
+        ]
+        for name, r in results.items()
+    }
     _grouped_bars(ax, ['all speeds', 'high speeds'], series, digits=1)
     ax.set_ylabel('balls returned (%)')
     ax.set_ylim(0, 110)
@@ -203,8 +225,12 @@ def success_chart(path: pathlib.Path, results: Mapping[str, ActorResults]) -> pa
     return _save(figure, path)
 
 
-def dtw_chart(path: pathlib.Path, distances: Mapping[str, Mapping[str, float | None]],
-              ratios: Mapping[str, Mapping[str, float | None]], setting: str) -> pathlib.Path:
+def dtw_chart(
+    path: pathlib.Path,
+    distances: Mapping[str, Mapping[str, float | None]],
+    ratios: Mapping[str, Mapping[str, float | None]],
+    setting: str,
+) -> pathlib.Path:
     """Left: mean DTW per direction of each actor; right: the ratios."""
     plt = _pyplot()
     columns = [*DIRECTIONS, OVERALL]
@@ -221,8 +247,9 @@ def dtw_chart(path: pathlib.Path, distances: Mapping[str, Mapping[str, float | N
     return _save(figure, path)
 
 
-def joints_chart(path: pathlib.Path, stroke: Stroke, clip_q_rad: np.ndarray, rate_hz: float,
-                 title: str) -> pathlib.Path:
+def joints_chart(
+    path: pathlib.Path, stroke: Stroke, clip_q_rad: np.ndarray, rate_hz: float, title: str
+) -> pathlib.Path:
     """Each joint's angle over the stroke and over the demonstration clip, their hits at time 0."""
     from stylepong_description.robot_model import JOINT_NAMES
     from stylepong_policy.training.dataset import hit_frame
@@ -253,8 +280,9 @@ def joints_chart(path: pathlib.Path, stroke: Stroke, clip_q_rad: np.ndarray, rat
 # Strips of frames (Fig. 2 style)
 
 
-def strip_for_direction(run_dir: pathlib.Path, results: Mapping[str, ActorResults], dataset, direction: str,
-                        rate_hz: float, render: bool) -> dict | None:
+def strip_for_direction(
+    run_dir: pathlib.Path, results: Mapping[str, ActorResults], dataset, direction: str, rate_hz: float, render: bool
+) -> dict | None:
     """PPO's and the new actor's strokes on one ball of `direction` and the demonstration nearest the new
     actor's: a strip of frames (when `render`) and a joint-angle chart. None when no ball came from there."""
     from stylepong_policy.reports import stroke_figure as fig
@@ -264,27 +292,43 @@ def strip_for_direction(run_dir: pathlib.Path, results: Mapping[str, ActorResult
         return None
     ppo = next(s for s in results['ppo'].strokes if (s.seed, s.ball) == key)
     ours = next(s for s in results['style'].strokes if (s.seed, s.ball) == key)
-    rows = [fig.policy_row(f'PPO ({ppo.outcome})', ppo, rate_hz),
-            fig.policy_row(f'new style actor ({ours.outcome})', ours, rate_hz),
-            fig.reference_row(f'demonstration, {direction}', dataset, direction, ours)]
+    rows = [
+        fig.policy_row(f'PPO ({ppo.outcome})', ppo, rate_hz),
+        fig.policy_row(f'new style actor ({ours.outcome})', ours, rate_hz),
+        fig.reference_row(f'demonstration, {direction}', dataset, direction, ours),
+    ]
     originals = style_metrics.reference_clips(dataset, direction, speed_factors=[1])
     match = style_metrics.nearest_reference(ours.joint_positions_rad, originals)
-    entry = {'direction': direction, 'seed': key[0], 'ball': key[1],
-             'launch_speed_m_s': round(ours.launch_speed_m_s, 3),
-             'outcomes': {'ppo': ppo.outcome, 'style': ours.outcome}, 'demonstration_clip': match.clip,
-             'demonstration_source': str(dataset.source[match.clip]), 'dtw_to_it_rad': round(match.distance, 2),
-             'strip': None, 'strip_missing': None}
-    title = (f'a {direction} ball (seed {key[0]}, ball {key[1]}, {ours.launch_speed_m_s:.2f} m/s): the new style '
-             f'actor against its nearest original demonstration, clip {match.clip} (DTW {match.distance:.1f} rad)')
-    entry['joints'] = joints_chart(run_dir / JOINTS_PNG.format(direction=direction), ours,
-                                   dataset.clip(match.clip).q, rate_hz, title).name
+    entry = {
+        'direction': direction,
+        'seed': key[0],
+        'ball': key[1],
+        'launch_speed_m_s': round(ours.launch_speed_m_s, 3),
+        'outcomes': {'ppo': ppo.outcome, 'style': ours.outcome},
+        'demonstration_clip': match.clip,
+        'demonstration_source': str(dataset.source[match.clip]),
+        'dtw_to_it_rad': round(match.distance, 2),
+        'strip': None,
+        'strip_missing': None,
+    }
+    title = (
+        f'a {direction} ball (seed {key[0]}, ball {key[1]}, {ours.launch_speed_m_s:.2f} m/s): the new style '
+        f'actor against its nearest original demonstration, clip {match.clip} (DTW {match.distance:.1f} rad)'
+    )
+    entry['joints'] = joints_chart(
+        run_dir / JOINTS_PNG.format(direction=direction), ours, dataset.clip(match.clip).q, rate_hz, title
+    ).name
     if render:
         path = run_dir / STRIP_PNG.format(direction=direction)
         try:
-            fig.save_grid(path, rows, fig.render_rows(rows), f'{title}; policy frames from the paddle\'s contact, '
-                          'clip frames from its start')
+            fig.save_grid(
+                path,
+                rows,
+                fig.render_rows(rows),
+                f"{title}; policy frames from the paddle's contact, clip frames from its start",
+            )
             entry['strip'] = path.name
-        except Exception as error:   # noqa: BLE001  no OpenGL context: the report says so instead of a strip
+        except Exception as error:  # noqa: BLE001  no OpenGL context: the report says so instead of a strip
             entry['strip_missing'] = f'not rendered ({type(error).__name__}: {str(error).splitlines()[0][:160]})'
     else:
         entry['strip_missing'] = 'not rendered (rendering turned off)'
@@ -315,10 +359,15 @@ def success_section(results: Mapping[str, ActorResults]) -> list[str]:
     rows = []
     for name, r in results.items():
         high = r.high_speeds
-        rows.append([ACTOR_TITLES[name], f'`{r.all_speeds["actor"]}`',
-                     _percent(r.all_speeds['success_rate'], r.all_speeds['success_rate_std']),
-                     'not evaluated' if high is None else _percent(high['success_rate'], high['success_rate_std']),
-                     _percent(r.all_speeds['hit_rate'])])
+        rows.append(
+            [
+                ACTOR_TITLES[name],
+                f'`{r.all_speeds["actor"]}`',
+                _percent(r.all_speeds['success_rate'], r.all_speeds['success_rate_std']),
+                'not evaluated' if high is None else _percent(high['success_rate'], high['success_rate_std']),
+                _percent(r.all_speeds['hit_rate']),
+            ]
+        )
     style = results['style']
     lines = ['## Success', '', f'All speeds: {setting_text(style.all_speeds)}.']
     if style.high_speeds is not None:
@@ -327,30 +376,44 @@ def success_section(results: Mapping[str, ActorResults]) -> list[str]:
     return [*lines, '', *markdown.table(header, rows), '', f'![success]({SUCCESS_PNG})', '']
 
 
-def dtw_section(results: Mapping[str, ActorResults], distances, ratios, phases, dataset_name: str,
-                clips: Mapping[str, int]) -> list[str]:
+def dtw_section(
+    results: Mapping[str, ActorResults], distances, ratios, phases, dataset_name: str, clips: Mapping[str, int]
+) -> list[str]:
     """DTW per direction of each actor, the ratios, and where each actor's distance lies by phase."""
     columns = (*DIRECTIONS, OVERALL)
-    rows = [[ACTOR_TITLES[name]] + [_number(distances[name][c]) for c in columns]
-            + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in DIRECTIONS)]
-            for name, r in results.items()]
-    rows += [[f'ratio {name}'] + [_number(values[c], 3) for c in columns] + ['']
-             for name, values in ratios.items()]
+    rows = [
+        [ACTOR_TITLES[name]]
+        + [_number(distances[name][c]) for c in columns]
+        + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in DIRECTIONS)]
+        for name, r in results.items()
+    ]
+    rows += [[f'ratio {name}'] + [_number(values[c], 3) for c in columns] + [''] for name, values in ratios.items()]
     missing = [d for d in DIRECTIONS if not clips.get(d)]
-    lines = ['## DTW to the demonstrations', '',
-             f'Mean over strokes of each stroke\'s DTW distance (rad) to the nearest clip of its own label in '
-             f'`{dataset_name}` (all speed factors), by the direction the ball came from; `{OVERALL}` is the mean '
-             'over every stroke that had clips of its label. Demonstration clips per label (originals): '
-             + ', '.join(f'{d} {clips.get(d, 0)}' for d in DIRECTIONS) + '.', '',
-             *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows), '']
+    lines = [
+        '## DTW to the demonstrations',
+        '',
+        f"Mean over strokes of each stroke's DTW distance (rad) to the nearest clip of its own label in "
+        f'`{dataset_name}` (all speed factors), by the direction the ball came from; `{OVERALL}` is the mean '
+        'over every stroke that had clips of its label. Demonstration clips per label (originals): '
+        + ', '.join(f'{d} {clips.get(d, 0)}' for d in DIRECTIONS)
+        + '.',
+        '',
+        *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows),
+        '',
+    ]
     if missing:
         lines += [f'No demonstration labelled {", ".join(missing)}: those strokes have no DTW here.', '']
-    lines += [f'Where the distance lies: the mean per stroke split by the stroke\'s phase (waiting from the '
-              f'launch to {style_metrics.SWING_S:g} s before the hit, the swing up to it, the follow-through '
-              'after it), rad.', '',
-              *markdown.table(['Actor', *(p.replace('_', '-') for p in style_metrics.PHASES)],
-                              [[ACTOR_TITLES[name]] + [_number(phases[name][p]) for p in style_metrics.PHASES]
-                               for name in results]), '']
+    lines += [
+        f"Where the distance lies: the mean per stroke split by the stroke's phase (waiting from the "
+        f'launch to {style_metrics.SWING_S:g} s before the hit, the swing up to it, the follow-through '
+        'after it), rad.',
+        '',
+        *markdown.table(
+            ['Actor', *(p.replace('_', '-') for p in style_metrics.PHASES)],
+            [[ACTOR_TITLES[name]] + [_number(phases[name][p]) for p in style_metrics.PHASES] for name in results],
+        ),
+        '',
+    ]
     return [*lines, f'![DTW]({DTW_PNG})', '']
 
 
@@ -358,9 +421,16 @@ def contact_section(blades: Mapping[str, Mapping[str, dict | None]]) -> list[str
     """How each actor's blade meets its balls beside how the demonstrations meet theirs."""
     titles = {**ACTOR_TITLES, DEMONSTRATIONS: DEMONSTRATIONS}
     rows = {titles[name]: by_direction for name, by_direction in blades.items()}
-    return ['## The blade at contact', '', 'Where a stroke meets the ball sets much of its distance from the '
-            'demonstrations: every frame around the contact pays for the pose that puts the blade there. '
-            + contacts.TABLE_NOTE, '', *markdown.table(*contacts.contact_table(rows)), '']
+    return [
+        '## The blade at contact',
+        '',
+        'Where a stroke meets the ball sets much of its distance from the '
+        'demonstrations: every frame around the contact pays for the pose that puts the blade there. '
+        + contacts.TABLE_NOTE,
+        '',
+        *markdown.table(*contacts.contact_table(rows)),
+        '',
+    ]
 
 
 def smoothness_section(results: Mapping[str, ActorResults], reference: Mapping[str, dict | None]) -> list[str]:
@@ -374,9 +444,18 @@ def smoothness_section(results: Mapping[str, ActorResults], reference: Mapping[s
     for d in DIRECTIONS:
         values = reference.get(d)
         rows.append(['demonstrations (x1)', d] + [_number(values and values[m], 1) for m in measures])
-    return ['## Smoothness', '', 'Per stroke from the 60 Hz joint positions (style_metrics), mean over strokes.', '',
-            *markdown.table(['Actor', 'Direction', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)',
-                             'Mean |jerk| (rad/s³)'], rows), '', f'![smoothness]({SMOOTHNESS_PNG})', '']
+    return [
+        '## Smoothness',
+        '',
+        'Per stroke from the 60 Hz joint positions (style_metrics), mean over strokes.',
+        '',
+        *markdown.table(
+            ['Actor', 'Direction', 'Peak joint speed (rad/s)', 'Peak joint acc. (rad/s²)', 'Mean |jerk| (rad/s³)'], rows
+        ),
+        '',
+        f'![smoothness]({SMOOTHNESS_PNG})',
+        '',
+    ]
 
 
 def strips_section(strips: Sequence[dict]) -> list[str]:
@@ -385,14 +464,19 @@ def strips_section(strips: Sequence[dict]) -> list[str]:
     if not strips:
         return [*lines, 'No ball came from a demonstrated direction: no strip.', '']
     for entry in strips:
-        lines.append(f'{entry["direction"].capitalize()}: seed {entry["seed"]}, ball {entry["ball"]} '
-                     f'({entry["launch_speed_m_s"]} m/s); PPO {entry["outcomes"]["ppo"]}, new style actor '
-                     f'{entry["outcomes"]["style"]}; the original (x1) demonstration nearest to its stroke: clip '
-                     f'{entry["demonstration_clip"]} '
-                     f'(`{entry["demonstration_source"]}`), DTW {entry["dtw_to_it_rad"]} rad.')
+        lines.append(
+            f'{entry["direction"].capitalize()}: seed {entry["seed"]}, ball {entry["ball"]} '
+            f'({entry["launch_speed_m_s"]} m/s); PPO {entry["outcomes"]["ppo"]}, new style actor '
+            f'{entry["outcomes"]["style"]}; the original (x1) demonstration nearest to its stroke: clip '
+            f'{entry["demonstration_clip"]} '
+            f'(`{entry["demonstration_source"]}`), DTW {entry["dtw_to_it_rad"]} rad.'
+        )
         lines.append('')
-        lines.append(f'![{entry["direction"]} strip]({entry["strip"]})' if entry['strip']
-                     else f'Strip of frames {entry["strip_missing"]}.')
+        lines.append(
+            f'![{entry["direction"]} strip]({entry["strip"]})'
+            if entry['strip']
+            else f'Strip of frames {entry["strip_missing"]}.'
+        )
         lines += ['', f'![{entry["direction"]} joints]({entry["joints"]})', '']
     return lines
 
@@ -402,16 +486,33 @@ def run_section(timings_s: Mapping[str, float], checkpoints) -> list[str]:
     rows = [[stage, f'{seconds:.0f}', f'{seconds / 60:.1f}'] for stage, seconds in timings_s.items()]
     total = sum(timings_s.values())
     rows.append(['**total**', f'{total:.0f}', f'{total / 60:.1f}'])
-    return ['## The run', '', *markdown.table(['Stage', 'Wall time (s)', '(min)'], rows), '', 'Chosen checkpoints:', '',
-            '```', json.dumps(checkpoints, indent=2, default=str), '```', '']
+    return [
+        '## The run',
+        '',
+        *markdown.table(['Stage', 'Wall time (s)', '(min)'], rows),
+        '',
+        'Chosen checkpoints:',
+        '',
+        '```',
+        json.dumps(checkpoints, indent=2, default=str),
+        '```',
+        '',
+    ]
 
 
 # ---------------------------------------------------------------------------------------------------
 
 
-def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike, timings_s: Mapping[str, float],
-                 checkpoints, notes: Sequence[str] = (), render_strips: bool = True,
-                 strip_directions: Sequence[str] | None = None) -> pathlib.Path:
+def write_report(
+    run_dir: str | os.PathLike,
+    *,
+    dataset_path: str | os.PathLike,
+    timings_s: Mapping[str, float],
+    checkpoints,
+    notes: Sequence[str] = (),
+    render_strips: bool = True,
+    strip_directions: Sequence[str] | None = None,
+) -> pathlib.Path:
     """Write RUN/report.md, report.json and the PNGs from RUN/EVAL_DIR's files (module docstring).
 
     timings_s: wall time of each stage, in order; checkpoints: what was chosen (any JSON-able value);
@@ -423,16 +524,33 @@ def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike,
 
     run_dir = pathlib.Path(run_dir)
     results = {name: load_actor_results(run_dir, name, high_required=name == 'style') for name in ACTORS}
-    return write_report_of(run_dir, results, ReferenceDataset.load(dataset_path),
-                           dataset_name=pathlib.Path(dataset_path).name,
-                           source=f'stylepong_policy.reports.style_report from `{EVAL_DIR}/`', timings_s=timings_s,
-                           checkpoints=checkpoints, notes=notes, render_strips=render_strips,
-                           strip_directions=strip_directions)
+    return write_report_of(
+        run_dir,
+        results,
+        ReferenceDataset.load(dataset_path),
+        dataset_name=pathlib.Path(dataset_path).name,
+        source=f'stylepong_policy.reports.style_report from `{EVAL_DIR}/`',
+        timings_s=timings_s,
+        checkpoints=checkpoints,
+        notes=notes,
+        render_strips=render_strips,
+        strip_directions=strip_directions,
+    )
 
 
-def write_report_of(out_dir: str | os.PathLike, results: Mapping[str, ActorResults], dataset, *, dataset_name: str,
-                    source: str, timings_s: Mapping[str, float], checkpoints, notes: Sequence[str] = (),
-                    render_strips: bool = True, strip_directions: Sequence[str] | None = None) -> pathlib.Path:
+def write_report_of(
+    out_dir: str | os.PathLike,
+    results: Mapping[str, ActorResults],
+    dataset,
+    *,
+    dataset_name: str,
+    source: str,
+    timings_s: Mapping[str, float],
+    checkpoints,
+    notes: Sequence[str] = (),
+    render_strips: bool = True,
+    strip_directions: Sequence[str] | None = None,
+) -> pathlib.Path:
     """write_report from evaluations already in hand: `results` for each of ACTORS (an ActorResults whose
     all-speeds summary has DTW against `dataset`; high_speeds may be None for every actor), written to
     OUT/report.md, report.json and the PNGs. dataset_name: how the report names the demonstrations;
@@ -450,18 +568,32 @@ def write_report_of(out_dir: str | os.PathLike, results: Mapping[str, ActorResul
     setting = setting_text(results['style'].all_speeds)
 
     from stylepong_policy.reports import paper_charts
+
     success_chart(out_dir / SUCCESS_PNG, results)
     dtw_chart(out_dir / DTW_PNG, distances, ratios, setting)
-    paper_charts.smoothness_chart(out_dir / SMOOTHNESS_PNG, {ACTOR_TITLES[n]: r.all_speeds['smoothness']
-                                                             for n, r in results.items()}, reference, setting)
+    paper_charts.smoothness_chart(
+        out_dir / SMOOTHNESS_PNG,
+        {ACTOR_TITLES[n]: r.all_speeds['smoothness'] for n, r in results.items()},
+        reference,
+        setting,
+    )
     shown = DIRECTIONS if strip_directions is None else tuple(strip_directions)
-    strips = [entry for d in DIRECTIONS if clips[d] and d in shown
-              for entry in [strip_for_direction(out_dir, results, dataset, d, rate_hz, render_strips)] if entry]
+    strips = [
+        entry
+        for d in DIRECTIONS
+        if clips[d] and d in shown
+        for entry in [strip_for_direction(out_dir, results, dataset, d, rate_hz, render_strips)]
+        if entry
+    ]
 
-    lines = ['# A learned style: report', '',
-             f'Generated {datetime.date.today().isoformat()} by {source}.',
-             'The new style actor beside PPO (no style term) and the shipped style actor, on the same balls'
-             + ('.' if _same_balls(results) else ' (NOT the same balls: the evaluations used different seeds).'), '']
+    lines = [
+        '# A learned style: report',
+        '',
+        f'Generated {datetime.date.today().isoformat()} by {source}.',
+        'The new style actor beside PPO (no style term) and the shipped style actor, on the same balls'
+        + ('.' if _same_balls(results) else ' (NOT the same balls: the evaluations used different seeds).'),
+        '',
+    ]
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])
     lines += success_section(results)
     lines += dtw_section(results, distances, ratios, phases, dataset_name, clips)
@@ -470,18 +602,31 @@ def write_report_of(out_dir: str | os.PathLike, results: Mapping[str, ActorResul
     lines += contact_section(blades)
     lines += smoothness_section(results, reference)
     lines += strips_section(strips)
-    if timings_s or checkpoints is not None:   # a report without a record of its run leaves the section out
+    if timings_s or checkpoints is not None:  # a report without a record of its run leaves the section out
         lines += run_section(timings_s, checkpoints)
     report = out_dir / REPORT_MD
     report.write_text('\n'.join(lines))
-    record = {'setting': setting, 'dataset': dataset_name, 'clips_per_label': clips,
-              'success': {n: {'all': r.all_speeds['success_rate'],
-                              'high': None if r.high_speeds is None else r.high_speeds['success_rate']}
-                          for n, r in results.items()},
-              'dtw_rad': distances, 'dtw_ratios': ratios,
-              'dtw_by_phase_rad': phases, 'blade_at_contact': blades,
-              'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
-              'demonstration_smoothness': reference, 'strips': strips, 'timings_s': dict(timings_s),
-              'checkpoints': checkpoints, 'notes': list(notes)}
+    record = {
+        'setting': setting,
+        'dataset': dataset_name,
+        'clips_per_label': clips,
+        'success': {
+            n: {
+                'all': r.all_speeds['success_rate'],
+                'high': None if r.high_speeds is None else r.high_speeds['success_rate'],
+            }
+            for n, r in results.items()
+        },
+        'dtw_rad': distances,
+        'dtw_ratios': ratios,
+        'dtw_by_phase_rad': phases,
+        'blade_at_contact': blades,
+        'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
+        'demonstration_smoothness': reference,
+        'strips': strips,
+        'timings_s': dict(timings_s),
+        'checkpoints': checkpoints,
+        'notes': list(notes),
+    }
     (out_dir / REPORT_JSON).write_text(json.dumps(record, indent=2, default=str) + '\n')
     return report

@@ -36,6 +36,7 @@ The pieces:
   style_reward      the reward for a discriminator output
   MotionPrior       owns them all, trains D and scores the policy's windows
 """
+
 from __future__ import annotations
 
 import math
@@ -83,9 +84,17 @@ class ReferenceMotion:
     draw is one random index per window and a gather.
     """
 
-    def __init__(self, frames: np.ndarray | torch.Tensor, clip_starts: Sequence[int], clip_lengths: Sequence[int],
-                 length: int, device: torch.device | str = 'cpu', clip_labels: Sequence[int] | None = None,
-                 label_names: Sequence[str] = (), frame_after_hit: np.ndarray | None = None):
+    def __init__(
+        self,
+        frames: np.ndarray | torch.Tensor,
+        clip_starts: Sequence[int],
+        clip_lengths: Sequence[int],
+        length: int,
+        device: torch.device | str = 'cpu',
+        clip_labels: Sequence[int] | None = None,
+        label_names: Sequence[str] = (),
+        frame_after_hit: np.ndarray | None = None,
+    ):
         self.device = torch.device(device)
         self.frames = torch.as_tensor(np.asarray(frames), dtype=torch.float32, device=self.device)
         starts = window_start_indices(clip_starts, clip_lengths, length)
@@ -105,9 +114,16 @@ class ReferenceMotion:
         self.phases = torch.as_tensor(after[starts + length - 1], dtype=torch.long, device=self.device)
 
     @classmethod
-    def from_dataset(cls, dataset, length: int, speed_factors: Sequence[int] | None = None,
-                     device: torch.device | str = 'cpu', features: str = 'q_qdot',
-                     label_names: Sequence[str] = (), phases: bool = False) -> 'ReferenceMotion':
+    def from_dataset(
+        cls,
+        dataset,
+        length: int,
+        speed_factors: Sequence[int] | None = None,
+        device: torch.device | str = 'cpu',
+        features: str = 'q_qdot',
+        label_names: Sequence[str] = (),
+        phases: bool = False,
+    ) -> 'ReferenceMotion':
         """Windows of a stylepong_policy.training.dataset.ReferenceDataset's (q, qdot) frames, or of their `features`,
         of the clips with these speed factors (None: all, originals and speed-ups). With label_names, each
         window also carries the index of its clip's label among them (a clip with another label: an error);
@@ -121,11 +137,21 @@ class ReferenceMotion:
         if label_names:
             unknown = sorted({str(dataset.label[c]) for c in clips} - set(label_names))
             if unknown:
-                raise ValueError(f'the dataset has clips labelled {unknown}, which the env does not ask for '
-                                 f'(it asks for {list(label_names)})')
+                raise ValueError(
+                    f'the dataset has clips labelled {unknown}, which the env does not ask for '
+                    f'(it asks for {list(label_names)})'
+                )
             clip_labels = [list(label_names).index(str(dataset.label[c])) for c in clips]
-        return cls(frames, dataset.clip_start[clips], dataset.clip_length[clips], length, device,
-                   clip_labels, label_names, dataset.after_hit() if phases else None)
+        return cls(
+            frames,
+            dataset.clip_start[clips],
+            dataset.clip_length[clips],
+            length,
+            device,
+            clip_labels,
+            label_names,
+            dataset.after_hit() if phases else None,
+        )
 
     @property
     def num_windows(self) -> int:
@@ -197,8 +223,15 @@ class Discriminator(nn.Module):
     condition's one-hot when there are conditions (num_conditions of them: labels, or labels x phases),
     MLP trunk, linear head."""
 
-    def __init__(self, frame_size: int, length: int, hidden_dims: Sequence[int], activation: str = 'elu',
-                 normalizer_clip: float = 5.0, num_conditions: int = 0):
+    def __init__(
+        self,
+        frame_size: int,
+        length: int,
+        hidden_dims: Sequence[int],
+        activation: str = 'elu',
+        normalizer_clip: float = 5.0,
+        num_conditions: int = 0,
+    ):
         super().__init__()
         self.frame_size, self.length, self.num_conditions = int(frame_size), int(length), int(num_conditions)
         self.normalizer = RunningNormalizer(self.frame_size, clip=normalizer_clip)
@@ -244,18 +277,29 @@ def style_reward(d: torch.Tensor, kind: str = 'lsgan') -> torch.Tensor:
 def _adam_with_decay(disc: Discriminator, cfg: AMPConfig) -> torch.optim.Adam:
     """One optimiser, two weight decays: light on the trunk, heavy on the head (a head with large weights
     is how a least-squares discriminator overfits and saturates)."""
-    return torch.optim.Adam([
-        {'params': list(disc.trunk.parameters()), 'weight_decay': cfg.weight_decay_trunk},
-        {'params': list(disc.head.parameters()), 'weight_decay': cfg.weight_decay_head},
-    ], lr=cfg.learning_rate)
+    return torch.optim.Adam(
+        [
+            {'params': list(disc.trunk.parameters()), 'weight_decay': cfg.weight_decay_trunk},
+            {'params': list(disc.head.parameters()), 'weight_decay': cfg.weight_decay_head},
+        ],
+        lr=cfg.learning_rate,
+    )
 
 
 class MotionPrior:
     """The discriminator, its data and its training, and the style reward for the policy's windows."""
 
-    def __init__(self, cfg: AMPConfig, reference: ReferenceMotion, frame_size: int, num_envs: int,
-                 device: torch.device | str, seed: int = 0, pose_prior: PosePrior | None = None,
-                 stroke_prior: StrokePrior | None = None):
+    def __init__(
+        self,
+        cfg: AMPConfig,
+        reference: ReferenceMotion,
+        frame_size: int,
+        num_envs: int,
+        device: torch.device | str,
+        seed: int = 0,
+        pose_prior: PosePrior | None = None,
+        stroke_prior: StrokePrior | None = None,
+    ):
         """frame_size: the env's style frame; the discriminator sees its cfg.frame_features, as `reference`
         must hold them. pose_prior and stroke_prior: the pose reward weighted by cfg.w_pose (rl.pose_prior)
         and the stroke reward weighted by cfg.w_stroke (rl.stroke_prior), with the labels of the env's
@@ -268,8 +312,10 @@ class MotionPrior:
         self.q_columns = feature_columns('q', frame_size) if pose_prior or stroke_prior else None
         frame_size = self.columns.stop - self.columns.start
         if reference.frames.shape[1] != frame_size:
-            raise ValueError(f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
-                             f'{frame_size} ({cfg.frame_features!r} of {self.columns.stop} values)')
+            raise ValueError(
+                f'reference frames hold {reference.frames.shape[1]} values, the discriminator sees '
+                f'{frame_size} ({cfg.frame_features!r} of {self.columns.stop} values)'
+            )
         if cfg.condition_on_label and not reference.label_names:
             raise ValueError('amp.condition_on_label needs reference windows with labels (label_names)')
         self.reference = reference
@@ -277,8 +323,9 @@ class MotionPrior:
         self.num_phases = PHASES if cfg.condition_on_phase else 1
         conditioned = cfg.condition_on_label or cfg.condition_on_phase
         self.num_conditions = max(self.num_labels, 1) * self.num_phases if conditioned else 0
-        self.discriminator = Discriminator(frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation,
-                                           cfg.normalizer_clip, self.num_conditions).to(self.device)
+        self.discriminator = Discriminator(
+            frame_size, cfg.sequence_length, cfg.hidden_dims, cfg.activation, cfg.normalizer_clip, self.num_conditions
+        ).to(self.device)
         self.optimizer = _adam_with_decay(self.discriminator, cfg)
         self.replay = ReplayBuffer(cfg.replay_size, (cfg.sequence_length, frame_size), self.device)
         self.generator = torch.Generator(device=self.device)
@@ -291,8 +338,9 @@ class MotionPrior:
         self.motion_scale = 1.0
         # A label without demonstrations earns no style reward: D has no example of it, so it could only
         # teach the policy what that stroke is not (item "labels without clips" in docs/DESIGN.md).
-        self.labels_with_windows = (torch.bincount(reference.labels, minlength=self.num_labels) > 0
-                                    if self.num_labels else None)
+        self.labels_with_windows = (
+            torch.bincount(reference.labels, minlength=self.num_labels) > 0 if self.num_labels else None
+        )
         # The normaliser starts from the demonstrations, so the first rewards are not on raw radians.
         self.discriminator.normalizer.update(reference.frames)
 
@@ -313,8 +361,14 @@ class MotionPrior:
         if self.stroke_prior is not None:
             self.stroke_prior.start(first_frames[:, self.q_columns])
 
-    def observe(self, frames: torch.Tensor, dones: torch.Tensor, next_first_frames: torch.Tensor,
-                labels: torch.Tensor | None = None, phases: torch.Tensor | None = None) -> torch.Tensor:
+    def observe(
+        self,
+        frames: torch.Tensor,
+        dones: torch.Tensor,
+        next_first_frames: torch.Tensor,
+        labels: torch.Tensor | None = None,
+        phases: torch.Tensor | None = None,
+    ) -> torch.Tensor:
         """One policy step: frames [N, D] reached by this step (before resets), dones [N], the frames
         every environment is in now (after resets), and, for a conditioned prior, the label index [N] of the
         motion each step should be and its phase [N] (0 before the hit, 1 after; before resets). Stores the
@@ -336,8 +390,9 @@ class MotionPrior:
             self.history.restart(done_ids, next_first_frames[done_ids][:, self.columns])
         return reward
 
-    def pose_reward(self, frames: torch.Tensor, time_s: torch.Tensor | None,
-                    labels: torch.Tensor | None = None) -> torch.Tensor:
+    def pose_reward(
+        self, frames: torch.Tensor, time_s: torch.Tensor | None, labels: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """The pose prior's reward [N] for the arm states frames [N, D] reached by this step, at the env's
         style clock time_s [N] (0 without a pose prior)."""
         if self.pose_prior is None:
@@ -346,19 +401,36 @@ class MotionPrior:
             raise ValueError("amp.w_pose: the env must give each step's 'style_time_s'")
         return self.pose_prior.reward(frames[:, self.q_columns], time_s, labels if self.num_labels else None)
 
-    def stroke_reward(self, frames: torch.Tensor, stroke_end: torch.Tensor | None, dones: torch.Tensor,
-                      next_first_frames: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+    def stroke_reward(
+        self,
+        frames: torch.Tensor,
+        stroke_end: torch.Tensor | None,
+        dones: torch.Tensor,
+        next_first_frames: torch.Tensor,
+        labels: torch.Tensor | None = None,
+    ) -> torch.Tensor:
         """The stroke prior's reward [N] (rl.stroke_prior.StrokePrior.observe; 0 without a stroke prior)."""
         if self.stroke_prior is None:
             return torch.zeros(frames.shape[0], device=frames.device)
         if stroke_end is None:
             raise ValueError("amp.w_stroke: the env must give each step's 'style_stroke_end'")
-        return self.stroke_prior.observe(frames[:, self.q_columns], stroke_end, dones,
-                                         next_first_frames[:, self.q_columns], labels if self.num_labels else None)
+        return self.stroke_prior.observe(
+            frames[:, self.q_columns],
+            stroke_end,
+            dones,
+            next_first_frames[:, self.q_columns],
+            labels if self.num_labels else None,
+        )
 
-    def mix(self, task_reward: torch.Tensor, style: torch.Tensor, style_factor: torch.Tensor | None = None,
-            pose: torch.Tensor | None = None, stroke: torch.Tensor | None = None,
-            after_touch: torch.Tensor | None = None) -> torch.Tensor:
+    def mix(
+        self,
+        task_reward: torch.Tensor,
+        style: torch.Tensor,
+        style_factor: torch.Tensor | None = None,
+        pose: torch.Tensor | None = None,
+        stroke: torch.Tensor | None = None,
+        after_touch: torch.Tensor | None = None,
+    ) -> torch.Tensor:
         """r = w_task r_task + w_style r_style + w_pose r_pose + w_stroke r_stroke [N], the motion terms times
         motion_scale and the env's per-step factor [N] when it gives one.
 
@@ -391,8 +463,9 @@ class MotionPrior:
             drawn_policy = self.replay.draw(cfg.batch_size, self.generator)
             reference = self.reference.windows(drawn_reference)
             policy = self.replay.data[drawn_policy]
-            reference_conditions = self.condition(self.reference.labels[drawn_reference],
-                                                  self.reference.phases[drawn_reference])
+            reference_conditions = self.condition(
+                self.reference.labels[drawn_reference], self.reference.phases[drawn_reference]
+            )
             policy_conditions = self.replay.conditions[drawn_policy] if self.num_conditions else None
             norm_reference = disc.normalize(reference).requires_grad_(True)
             norm_policy = disc.normalize(policy)
@@ -400,7 +473,7 @@ class MotionPrior:
             d_reference = disc(norm_reference, reference_conditions)
             d_policy = disc(norm_policy, policy_conditions)
             lsgan = 0.5 * ((d_reference - 1.0).square().mean() + (d_policy + 1.0).square().mean())
-            gradient, = torch.autograd.grad(d_reference.sum(), norm_reference, create_graph=True)
+            (gradient,) = torch.autograd.grad(d_reference.sum(), norm_reference, create_graph=True)
             penalty = gradient.square().sum(-1).mean()
             loss = lsgan + cfg.grad_penalty * penalty
             self.optimizer.zero_grad(set_to_none=True)
@@ -417,8 +490,11 @@ class MotionPrior:
 
     # --- checkpoints -------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
-        return {'discriminator': self.discriminator.state_dict(), 'optimizer': self.optimizer.state_dict(),
-                'generator': self.generator.get_state()}
+        return {
+            'discriminator': self.discriminator.state_dict(),
+            'optimizer': self.optimizer.state_dict(),
+            'generator': self.generator.get_state(),
+        }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a checkpoint's prior. One saved without phases continues with them: its D is widened
@@ -432,7 +508,7 @@ class MotionPrior:
         else:
             self.discriminator.load_state_dict(saved)
             self.optimizer.load_state_dict(state['optimizer'])
-        self.generator.set_state(state['generator'].cpu())   # generator states are CPU byte tensors
+        self.generator.set_state(state['generator'].cpu())  # generator states are CPU byte tensors
 
 
 def split_phases(state: dict[str, torch.Tensor], num_labels: int, num_phases: int) -> dict[str, torch.Tensor]:
@@ -444,7 +520,7 @@ def split_phases(state: dict[str, torch.Tensor], num_labels: int, num_phases: in
     if window_size <= 0:
         raise ValueError(f'a first layer of {weight.shape[1]} inputs cannot hold {num_labels} labels')
     window_columns, label_columns = weight[:, :window_size], weight[:, window_size:]
-    if not num_labels:        # unconditioned: one label whose one-hot had no weight
+    if not num_labels:  # unconditioned: one label whose one-hot had no weight
         label_columns = torch.zeros_like(weight[:, :1])
     widened = dict(state)
     widened[FIRST_LAYER_WEIGHT] = torch.cat((window_columns, label_columns.repeat_interleave(num_phases, dim=1)), dim=1)

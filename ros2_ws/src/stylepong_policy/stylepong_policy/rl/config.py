@@ -13,6 +13,7 @@ A file may start from another: `extends: base.yaml` (relative to the file) takes
 and lets the file change keys in them, so an experiment states only how it differs from its recipe.
 What a run saves is the resolved configuration, whole.
 """
+
 from __future__ import annotations
 
 import copy
@@ -31,32 +32,34 @@ SCHEDULES = ('adaptive', 'fixed', 'linear')
 @dataclass
 class PolicyConfig:
     """The actor-critic networks: hidden layers, activation, initial and minimum std, normalisation."""
+
     actor_hidden_dims: list[int] = field(default_factory=lambda: [256, 128, 64])
     critic_hidden_dims: list[int] = field(default_factory=lambda: [256, 128, 64])
     activation: str = 'elu'
     init_noise_std: float = positive(0.5)  # initial std of the Gaussian policy, in action units
-    min_std: float = 1e-3                  # floor on the std (keeps log-probs finite)
+    min_std: float = 1e-3  # floor on the std (keeps log-probs finite)
     # From a skill (--from), its std is the ceiling: the entropy bonus otherwise widens the noise once the
     # task is learnt, and training returns fall with it while the deterministic actor's do not.
     keep_skill_std: bool = False
-    normalize_observations: bool = True    # running mean/var normalisation of actor and critic inputs
+    normalize_observations: bool = True  # running mean/var normalisation of actor and critic inputs
 
 
 @dataclass
 class PPOConfig:
     """PPO's hyperparameters: rollout length, epochs, minibatches, losses and learning-rate schedule."""
+
     num_steps_per_env: int = positive(24)  # rollout length T per iteration; batch = T x num_envs samples
     num_learning_epochs: int = positive(5)
     num_mini_batches: int = positive(4)
-    clip_param: float = positive(0.2)      # PPO ratio clip epsilon
+    clip_param: float = positive(0.2)  # PPO ratio clip epsilon
     gamma: float = within(0.99, 0.0, 1.0)  # discount per policy step (60 Hz)
-    lam: float = within(0.95, 0.0, 1.0)    # GAE lambda
+    lam: float = within(0.95, 0.0, 1.0)  # GAE lambda
     value_loss_coef: float = 1.0
     use_clipped_value_loss: bool = True
     entropy_coef: float = 0.002
     learning_rate: float = positive(1e-3)
-    schedule: str = 'adaptive'             # adaptive (from the KL), fixed, or linear decay to min_learning_rate
-    desired_kl: float = positive(0.01)     # target KL for the adaptive schedule
+    schedule: str = 'adaptive'  # adaptive (from the KL), fixed, or linear decay to min_learning_rate
+    desired_kl: float = positive(0.01)  # target KL for the adaptive schedule
     min_learning_rate: float = 1e-5
     max_learning_rate: float = 1e-2
     max_grad_norm: float = positive(1.0)
@@ -66,11 +69,12 @@ class PPOConfig:
 @dataclass
 class RunnerConfig:
     """The run: iterations, seed, device, threads and checkpointing."""
-    iterations: int = non_negative(1300)     # total iterations of the run (a resumed run continues to this)
-    seed: int = non_negative(1)              # below world_spec.FIRST_EVALUATION_SEED
-    device: str = 'cpu'                      # 'cpu' or 'cuda' (or 'cuda:N')
-    num_threads: int = positive(2)           # torch intra-op threads on CPU
-    save_interval: int = positive(50)        # iterations between numbered checkpoints (last.pt is every iteration)
+
+    iterations: int = non_negative(1300)  # total iterations of the run (a resumed run continues to this)
+    seed: int = non_negative(1)  # below world_spec.FIRST_EVALUATION_SEED
+    device: str = 'cpu'  # 'cpu' or 'cuda' (or 'cuda:N')
+    num_threads: int = positive(2)  # torch intra-op threads on CPU
+    save_interval: int = positive(50)  # iterations between numbered checkpoints (last.pt is every iteration)
     keep_checkpoints: int = non_negative(0)  # numbered checkpoints kept besides last.pt (0 keeps all)
     # The run's first iterations step the critic alone: a run started from another run's network (a skill)
     # meets rewards its critic never valued, and its first advantages would be noise that undoes the skill.
@@ -85,10 +89,11 @@ FRAME_FEATURES = ('q_qdot', 'q')
 @dataclass
 class AMPConfig:
     """The adversarial motion prior (stylepong_policy.rl.amp); config/amp.yaml says why each value."""
-    dataset: str = ''                       # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
+
+    dataset: str = ''  # reference-motion .npz of build_dataset ('' : built from ros2_ws/bags)
     speed_factors: list[int] | None = None  # clips used (None: all; [1]: the originals only, "amp-noaug")
-    sequence_length: int = positive(4)      # L arm states per discriminator window, at the policy rate
-    frame_features: str = 'q_qdot'          # of each arm state: 'q_qdot' (positions and velocities) or 'q'
+    sequence_length: int = positive(4)  # L arm states per discriminator window, at the policy rate
+    frame_features: str = 'q_qdot'  # of each arm state: 'q_qdot' (positions and velocities) or 'q'
     hidden_dims: list[int] = field(default_factory=lambda: [512, 256])
     activation: str = 'elu'
     normalizer_clip: float = positive(5.0)
@@ -98,11 +103,11 @@ class AMPConfig:
     # The weight of E_ref |grad D|^2, and the discriminator's minibatch steps per PPO update.
     grad_penalty: float = non_negative(5.0)
     updates_per_iteration: int = non_negative(8)
-    batch_size: int = positive(4096)        # reference and policy windows per discriminator step (each)
-    replay_size: int = positive(200000)     # policy windows kept for the discriminator's negatives
-    style_reward: str = 'lsgan'             # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
-    condition_on_label: bool = False        # D also sees each window's label (the clip's; the env's 'style_label')
-    condition_on_phase: bool = False        # D also sees if a window ends before or after the hit ('style_phase')
+    batch_size: int = positive(4096)  # reference and policy windows per discriminator step (each)
+    replay_size: int = positive(200000)  # policy windows kept for the discriminator's negatives
+    style_reward: str = 'lsgan'  # 'lsgan' (AMP's) or 'log' (the paper's -log, bounded)
+    condition_on_label: bool = False  # D also sees each window's label (the clip's; the env's 'style_label')
+    condition_on_phase: bool = False  # D also sees if a window ends before or after the hit ('style_phase')
     w_task: float = non_negative(1.0)
     w_style: float = non_negative(0.05)
     # The pose prior (rl.pose_prior): w_pose exp(-|q - nearest demonstrated pose of the label| / sigma) per step.
@@ -130,8 +135,13 @@ class AMPConfig:
             raise ValueError(f'amp.frame_features must be one of {FRAME_FEATURES}, got {self.frame_features!r}')
         if self.style_reward not in ('lsgan', 'log'):
             raise ValueError(f"amp.style_reward must be 'lsgan' or 'log', got {self.style_reward!r}")
-        for name in ('condition_on_label', 'condition_on_phase', 'hold_success', 'free_follow_through',
-                     'pose_follows_through'):
+        for name in (
+            'condition_on_label',
+            'condition_on_phase',
+            'hold_success',
+            'free_follow_through',
+            'pose_follows_through',
+        ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f'amp.{name} must be true or false, got {getattr(self, name)!r}')
         if self.speed_factors is not None and (not self.speed_factors or min(self.speed_factors) < 1):
@@ -141,11 +151,12 @@ class AMPConfig:
 @dataclass
 class TrainConfig:
     """A whole training configuration: policy, PPO, runner, task and (for AMP) the motion prior."""
+
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
     runner: RunnerConfig = field(default_factory=RunnerConfig)
     task: dict[str, Any] = field(default_factory=dict)
-    amp: AMPConfig | None = None         # None: PPO on the task reward alone
+    amp: AMPConfig | None = None  # None: PPO on the task reward alone
 
     def validate(self) -> 'TrainConfig':
         if self.ppo.schedule not in SCHEDULES:
@@ -161,7 +172,7 @@ class TrainConfig:
 
 
 METHODS = ('ppo', 'amp', 'amp-noaug')
-ORIGINAL_CLIPS_ONLY = [1]     # amp-noaug's speed factors: the demonstrations as recorded, no speed-ups
+ORIGINAL_CLIPS_ONLY = [1]  # amp-noaug's speed factors: the demonstrations as recorded, no speed-ups
 
 
 def method_of(cfg: 'TrainConfig') -> str:

@@ -43,6 +43,7 @@ style history starts from its own first frame.
 An env whose stroke goes on a fixed time after the event gives it as `style_follow_through_s` (float);
 the pose prior's follow-through (amp.pose_follows_through) needs it.
 """
+
 from __future__ import annotations
 
 from typing import Any, Protocol
@@ -62,6 +63,7 @@ EXTRAS_STYLE_STROKE_END = 'style_stroke_end'
 
 class VecEnv(Protocol):
     """The batched environment the runner trains on."""
+
     num_envs: int
     num_obs: int
     num_critic_obs: int
@@ -69,12 +71,10 @@ class VecEnv(Protocol):
     num_style_features: int
     device: torch.device
 
-    def reset(self) -> tuple[torch.Tensor, torch.Tensor]:
-        ...
+    def reset(self) -> tuple[torch.Tensor, torch.Tensor]: ...
 
-    def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor,
-                                                   dict[str, Any]]:
-        ...
+    def step(
+        self, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]: ...
 
-    def style_state(self) -> torch.Tensor:
-        ...
+    def style_state(self) -> torch.Tensor: ...

@@ -13,6 +13,7 @@ it the wrong numbers.
 The ONNX file of an already exported actor (e.g. the shipped one) is written with
     python3 -m stylepong_policy.rl.export --onnx ros2_ws/src/stylepong_policy/models/ppo_actor.pt
 """
+
 from __future__ import annotations
 
 import argparse
@@ -73,8 +74,9 @@ def _quiet_torchscript():
     warnings are silenced, only here."""
     with warnings.catch_warnings():
         warnings.filterwarnings('ignore', message=r'`torch\.jit\.', category=DeprecationWarning)
-        warnings.filterwarnings('ignore', message=r'.*legacy TorchScript-based ONNX export',
-                                category=DeprecationWarning)
+        warnings.filterwarnings(
+            'ignore', message=r'.*legacy TorchScript-based ONNX export', category=DeprecationWarning
+        )
         warnings.filterwarnings('ignore', message=r'The feature will be removed', category=DeprecationWarning)
         warnings.filterwarnings('ignore', message=r'no signature found for', category=UserWarning)
         yield
@@ -83,6 +85,7 @@ def _quiet_torchscript():
 @dataclass
 class LoadedActor:
     """An exported TorchScript actor with its contract metadata; call it on observations."""
+
     module: torch.jit.ScriptModule
     metadata: dict[str, Any]
     path: pathlib.Path
@@ -101,8 +104,7 @@ class LoadedActor:
 
 def build_deployed_actor(actor_critic: ActorCritic) -> torch.jit.ScriptModule:
     """Script + freeze a CPU copy of the actor and its normaliser (the training model is left untouched)."""
-    normalizer = (copy.deepcopy(actor_critic.obs_normalizer) if actor_critic.normalize_observations
-                  else nn.Identity())
+    normalizer = copy.deepcopy(actor_critic.obs_normalizer) if actor_critic.normalize_observations else nn.Identity()
     module = DeployedActor(normalizer, copy.deepcopy(actor_critic.actor)).cpu().eval()
     # Freezing folds weights and normaliser statistics into constants: the file is self-contained.
     with _quiet_torchscript():
@@ -128,9 +130,16 @@ def export_onnx(module: torch.jit.ScriptModule, path: str | pathlib.Path, metada
     probe = torch.randn(16, num_obs) * 3.0
     with _quiet_torchscript(), torch.no_grad():
         expected = module(probe).numpy()
-        torch.onnx.export(module, (probe[:1],), str(tmp), dynamo=False, opset_version=ONNX_OPSET,
-                          input_names=[ONNX_INPUT], output_names=[ONNX_OUTPUT],
-                          dynamic_axes={ONNX_INPUT: {0: 'batch'}, ONNX_OUTPUT: {0: 'batch'}})
+        torch.onnx.export(
+            module,
+            (probe[:1],),
+            str(tmp),
+            dynamo=False,
+            opset_version=ONNX_OPSET,
+            input_names=[ONNX_INPUT],
+            output_names=[ONNX_OUTPUT],
+            dynamic_axes={ONNX_INPUT: {0: 'batch'}, ONNX_OUTPUT: {0: 'batch'}},
+        )
     model = onnx.load(str(tmp))
     del model.metadata_props[:]
     for key, value in onnx_metadata_props(metadata).items():
@@ -148,8 +157,13 @@ def export_onnx(module: torch.jit.ScriptModule, path: str | pathlib.Path, metada
     return path
 
 
-def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: dict[str, Any],
-                 training: dict[str, Any] | None = None, onnx: bool = True) -> tuple[pathlib.Path, pathlib.Path]:
+def export_actor(
+    actor_critic: ActorCritic,
+    path: str | pathlib.Path,
+    contract: dict[str, Any],
+    training: dict[str, Any] | None = None,
+    onnx: bool = True,
+) -> tuple[pathlib.Path, pathlib.Path]:
     """Write the TorchScript actor at `path`, its sidecar JSON beside it and (onnx) `<name>.onnx`;
     returns (actor path, sidecar path)."""
     path = pathlib.Path(path)
@@ -160,7 +174,8 @@ def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: 
     if (contract['num_obs'], contract['num_actions']) != (actor_critic.num_obs, actor_critic.num_actions):
         raise ActorMismatchError(
             f'the network has {actor_critic.num_obs} inputs and {actor_critic.num_actions} outputs, the spec says '
-            f'{contract["num_obs"]} and {contract["num_actions"]}')
+            f'{contract["num_obs"]} and {contract["num_actions"]}'
+        )
     deployed = build_deployed_actor(actor_critic)
     # The scripted copy must compute exactly what the training model's deterministic action is.
     probe = torch.randn(8, actor_critic.num_obs)
@@ -174,13 +189,21 @@ def export_actor(actor_critic: ActorCritic, path: str | pathlib.Path, contract: 
     with _quiet_torchscript():
         torch.jit.save(deployed, str(tmp))
     os.replace(tmp, path)
-    sidecar = {'format': SIDECAR_FORMAT, 'format_version': SIDECAR_VERSION, **contract,
-               'actor_file': path.name, 'actor_sha256': file_sha256(path),
-               'network': {'hidden_dims': actor_critic.actor_hidden_dims, 'activation': actor_critic.activation,
-                           'normalizer_inside': actor_critic.normalize_observations,
-                           'input': 'raw observation vector in obs_layout order',
-                           'output': 'mean action (raw policy output, decoded by the spec module)'},
-               'training': jsonable(training or {})}
+    sidecar = {
+        'format': SIDECAR_FORMAT,
+        'format_version': SIDECAR_VERSION,
+        **contract,
+        'actor_file': path.name,
+        'actor_sha256': file_sha256(path),
+        'network': {
+            'hidden_dims': actor_critic.actor_hidden_dims,
+            'activation': actor_critic.activation,
+            'normalizer_inside': actor_critic.normalize_observations,
+            'input': 'raw observation vector in obs_layout order',
+            'output': 'mean action (raw policy output, decoded by the spec module)',
+        },
+        'training': jsonable(training or {}),
+    }
     json_path = sidecar_path(path)
     json_path.write_text(json.dumps(sidecar, indent=2) + '\n')
     if onnx:
@@ -199,8 +222,9 @@ def load_actor(path: str | pathlib.Path, expected: dict[str, Any] | None = None)
     with torch.no_grad():
         out = module(torch.zeros(1, int(metadata['num_obs'])))
     if tuple(out.shape) != (1, int(metadata['num_actions'])):
-        raise ActorMismatchError(f'actor {path} outputs shape {tuple(out.shape)}, '
-                                 f'its sidecar promises (1, {metadata["num_actions"]})')
+        raise ActorMismatchError(
+            f'actor {path} outputs shape {tuple(out.shape)}, its sidecar promises (1, {metadata["num_actions"]})'
+        )
     return LoadedActor(module=module, metadata=metadata, path=path)
 
 
@@ -218,10 +242,17 @@ def write_onnx_of(actor: LoadedActor, path: str | pathlib.Path) -> pathlib.Path:
 
 def main(argv: list[str] | None = None) -> int:
     """Write the ONNX file beside each exported actor given."""
-    parser = argparse.ArgumentParser(prog='python3 -m stylepong_policy.rl.export',
-                                     description='Write the ONNX file of exported TorchScript actors.')
-    parser.add_argument('--onnx', nargs='+', type=pathlib.Path, required=True, metavar='ACTOR.pt',
-                        help='exported actors (with their sidecar .json); writes <name>.onnx beside each')
+    parser = argparse.ArgumentParser(
+        prog='python3 -m stylepong_policy.rl.export', description='Write the ONNX file of exported TorchScript actors.'
+    )
+    parser.add_argument(
+        '--onnx',
+        nargs='+',
+        type=pathlib.Path,
+        required=True,
+        metavar='ACTOR.pt',
+        help='exported actors (with their sidecar .json); writes <name>.onnx beside each',
+    )
     args = parser.parse_args(argv)
     for actor_path in args.onnx:
         try:

@@ -3,6 +3,7 @@
 The CSV is the durable record (it survives a resume: rows past the resumed iteration are dropped so
 the file never holds two histories); TensorBoard is for watching a run live.
 """
+
 from __future__ import annotations
 
 import csv
@@ -19,6 +20,7 @@ TENSORBOARD_DIR = 'tensorboard'
 
 class TrainingLog:
     """The training log of a run: a CSV row per iteration and, optionally, TensorBoard events."""
+
     def __init__(self, run_dir: str | pathlib.Path, start_iteration: int, tensorboard: bool = True):
         self.run_dir = pathlib.Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -28,9 +30,11 @@ class TrainingLog:
         self.writer = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter
+
             # purge_step drops events a previous session logged past the checkpoint we resume from.
-            self.writer = SummaryWriter(log_dir=str(self.run_dir / TENSORBOARD_DIR),
-                                        purge_step=start_iteration if start_iteration > 0 else None)
+            self.writer = SummaryWriter(
+                log_dir=str(self.run_dir / TENSORBOARD_DIR), purge_step=start_iteration if start_iteration > 0 else None
+            )
 
     def _truncate_csv(self, start_iteration: int) -> None:
         if not self.csv_path.exists():
@@ -86,11 +90,23 @@ def _csv_value(value: Any) -> Any:
 def _tensorboard_tag(key: str) -> str:
     if '/' in key:
         return key
-    group = ('perf' if key in ('samples_per_s', 'iteration_time_s', 'world_s', 'policy_s', 'learn_s', 'world_share',
-                               'wall_time_s', 'env_steps')
-             else 'loss' if key in ('value_loss', 'surrogate_loss', 'entropy', 'kl', 'clip_fraction',
-                                    'learning_rate', 'action_std')
-             else 'train')
+    group = (
+        'perf'
+        if key
+        in (
+            'samples_per_s',
+            'iteration_time_s',
+            'world_s',
+            'policy_s',
+            'learn_s',
+            'world_share',
+            'wall_time_s',
+            'env_steps',
+        )
+        else 'loss'
+        if key in ('value_loss', 'surrogate_loss', 'entropy', 'kl', 'clip_fraction', 'learning_rate', 'action_std')
+        else 'train'
+    )
     return f'{group}/{key}'
 
 
@@ -112,14 +128,18 @@ def read_progress(csv_path: str | pathlib.Path) -> dict[str, list[float]]:
 
 
 RATE_COLUMNS = (('success_rate', 'success rate'), ('hit_rate', 'hit rate'))
-STYLE_COLUMNS = (('step_reward/style', 'style reward per step'), ('disc/d_reference', 'D on reference'),
-                 ('disc/d_policy', 'D on policy'))
+STYLE_COLUMNS = (
+    ('step_reward/style', 'style reward per step'),
+    ('disc/d_reference', 'D on reference'),
+    ('disc/d_policy', 'D on policy'),
+)
 
 
 def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Path, title: str = '') -> None:
     """Success and hit rates (where the env logs them), mean episode return and, for a run with a motion
     prior, the style reward and the discriminator's outputs, against samples, with wall time on top."""
     import matplotlib
+
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
@@ -150,7 +170,8 @@ def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Pa
     axes[-1].set_xlabel('samples (millions)')
     hours = [t / 3600.0 for t in data['wall_time_s']]
     top = ax_rate.secondary_xaxis(
-        'top', functions=(lambda x: _interp(x, samples_m, hours), lambda h: _interp(h, hours, samples_m)))
+        'top', functions=(lambda x: _interp(x, samples_m, hours), lambda h: _interp(h, hours, samples_m))
+    )
     top.set_xlabel('training wall time (h)')
     if title:
         fig.suptitle(title)
@@ -161,6 +182,7 @@ def plot_learning_curve(csv_path: str | pathlib.Path, png_path: str | pathlib.Pa
 
 def _interp(x, xs: list[float], ys: list[float]):
     import numpy as np
+
     if len(xs) < 2:
         return np.asarray(x, dtype=float) * 0.0 + (ys[0] if ys else 0.0)
     return np.interp(x, xs, ys)

@@ -6,6 +6,7 @@ its own running observation normaliser, kept inside the module so checkpoints an
 The critic may estimate several value streams, one per part of the reward (rl.storage says how they are
 used); `fit_value_streams` carries a critic over from a network with another number of them.
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -19,8 +20,9 @@ from .normalizer import RunningNormalizer
 ACTIVATIONS = {'elu': nn.ELU, 'relu': nn.ReLU, 'tanh': nn.Tanh, 'selu': nn.SELU, 'leaky_relu': nn.LeakyReLU}
 
 
-def make_mlp(in_size: int, hidden_sizes: Sequence[int], out_size: int, activation: str = 'elu',
-             output_gain: float = 1.0) -> nn.Sequential:
+def make_mlp(
+    in_size: int, hidden_sizes: Sequence[int], out_size: int, activation: str = 'elu', output_gain: float = 1.0
+) -> nn.Sequential:
     """Linear -> activation for each hidden size, then a linear output layer.
 
     Orthogonal initialisation (sqrt(2) gain on hidden layers) as in CleanRL; a small gain on the output
@@ -32,7 +34,7 @@ def make_mlp(in_size: int, hidden_sizes: Sequence[int], out_size: int, activatio
     size = in_size
     for hidden in hidden_sizes:
         linear = nn.Linear(size, int(hidden))
-        nn.init.orthogonal_(linear.weight, gain=2.0 ** 0.5)
+        nn.init.orthogonal_(linear.weight, gain=2.0**0.5)
         nn.init.zeros_(linear.bias)
         layers += [linear, ACTIVATIONS[activation]()]
         size = int(hidden)
@@ -46,10 +48,19 @@ def make_mlp(in_size: int, hidden_sizes: Sequence[int], out_size: int, activatio
 class ActorCritic(nn.Module):
     """Gaussian policy pi(a|o) = N(actor(norm(o)), diag(std^2)) and value V(norm_c(o_critic))."""
 
-    def __init__(self, num_obs: int, num_critic_obs: int, num_actions: int,
-                 actor_hidden_dims: Sequence[int], critic_hidden_dims: Sequence[int],   # rl.config.PolicyConfig
-                 activation: str = 'elu', init_noise_std: float = 1.0, min_std: float = 1e-3,
-                 normalize_observations: bool = True, value_streams: int = 1):
+    def __init__(
+        self,
+        num_obs: int,
+        num_critic_obs: int,
+        num_actions: int,
+        actor_hidden_dims: Sequence[int],
+        critic_hidden_dims: Sequence[int],  # rl.config.PolicyConfig
+        activation: str = 'elu',
+        init_noise_std: float = 1.0,
+        min_std: float = 1e-3,
+        normalize_observations: bool = True,
+        value_streams: int = 1,
+    ):
         super().__init__()
         if init_noise_std <= 0.0:
             raise ValueError(f'init_noise_std must be positive, got {init_noise_std}')
@@ -103,9 +114,16 @@ class ActorCritic(nn.Module):
         """Everything needed to rebuild this module (stored in checkpoints and the export sidecar); the value
         streams only where there are several, so that the networks saved before streams existed still fit."""
         streams = {'value_streams': self.value_streams} if self.value_streams > 1 else {}
-        return {'num_obs': self.num_obs, 'num_critic_obs': self.num_critic_obs, 'num_actions': self.num_actions,
-                'actor_hidden_dims': self.actor_hidden_dims, 'critic_hidden_dims': self.critic_hidden_dims,
-                'activation': self.activation, 'normalize_observations': self.normalize_observations, **streams}
+        return {
+            'num_obs': self.num_obs,
+            'num_critic_obs': self.num_critic_obs,
+            'num_actions': self.num_actions,
+            'actor_hidden_dims': self.actor_hidden_dims,
+            'critic_hidden_dims': self.critic_hidden_dims,
+            'activation': self.activation,
+            'normalize_observations': self.normalize_observations,
+            **streams,
+        }
 
 
 def network_sizes(architecture: dict) -> dict:
@@ -114,8 +132,9 @@ def network_sizes(architecture: dict) -> dict:
     return {key: value for key, value in architecture.items() if key != 'value_streams'}
 
 
-def fit_value_streams(state: dict[str, torch.Tensor], architecture: dict,
-                      value_streams: int) -> dict[str, torch.Tensor]:
+def fit_value_streams(
+    state: dict[str, torch.Tensor], architecture: dict, value_streams: int
+) -> dict[str, torch.Tensor]:
     """An ActorCritic state of `architecture` with its critic's output layer made value_streams wide, keeping
     the summed value (what the policy follows): a wider critic gives its first stream the old value and the
     new streams 0; a narrower one sums the streams it drops into its last."""
@@ -130,5 +149,5 @@ def fit_value_streams(state: dict[str, torch.Tensor], architecture: dict,
         if value_streams > old:
             fitted[key] = torch.cat((rows, torch.zeros((value_streams - old, *rows.shape[1:]), dtype=rows.dtype)))
         else:
-            fitted[key] = torch.cat((rows[:value_streams - 1], rows[value_streams - 1:].sum(0, keepdim=True)))
+            fitted[key] = torch.cat((rows[: value_streams - 1], rows[value_streams - 1 :].sum(0, keepdim=True)))
     return fitted

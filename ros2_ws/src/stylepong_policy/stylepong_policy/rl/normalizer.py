@@ -1,4 +1,5 @@
 """Running mean/variance observation normalisation (a torch module, so it is saved and exported with the actor)."""
+
 from __future__ import annotations
 
 import torch
@@ -37,8 +38,7 @@ class RunningNormalizer(nn.Module):
         total = self.count + batch_count
         new_weight = (batch_count / total).to(self.mean.dtype)
         delta = batch_mean - self.mean
-        m2 = (self.var * (1.0 - new_weight) + batch_var * new_weight
-              + delta.square() * new_weight * (1.0 - new_weight))
+        m2 = self.var * (1.0 - new_weight) + batch_var * new_weight + delta.square() * new_weight * (1.0 - new_weight)
         self.mean.add_(delta * new_weight)
         self.var.copy_(m2)
         self.count.copy_(total)

@@ -36,6 +36,7 @@ A label with no clips has nothing to track: its steps earn no pose reward (0), s
 balls get is left to the task and to the skill the policy started from.
 Nothing here knows the task: the runner hands over the env's style frames, labels and clock (rl.env).
 """
+
 from __future__ import annotations
 
 import math
@@ -49,6 +50,7 @@ import torch
 @dataclass(frozen=True)
 class LabelClips:
     """The clips of one label, padded to one length: positions [C, F, J], lengths [C], hit frames [C]."""
+
     q_rad: torch.Tensor
     lengths: torch.Tensor
     hit_frames: torch.Tensor
@@ -65,16 +67,24 @@ def pack_clips(clips: Sequence[tuple[np.ndarray, int]], joints: int, device: tor
         return LabelClips(torch.zeros(0, 1, joints, device=device), empty, empty)
     longest = max(len(q) for q, _ in clips)
     padded = np.stack([np.concatenate([q, np.repeat(q[-1:], longest - len(q), axis=0)]) for q, _ in clips])
-    return LabelClips(torch.as_tensor(padded, dtype=torch.float32, device=device),
-                      torch.tensor([len(q) for q, _ in clips], dtype=torch.long, device=device),
-                      torch.tensor([int(h) for _, h in clips], dtype=torch.long, device=device))
+    return LabelClips(
+        torch.as_tensor(padded, dtype=torch.float32, device=device),
+        torch.tensor([len(q) for q, _ in clips], dtype=torch.long, device=device),
+        torch.tensor([int(h) for _, h in clips], dtype=torch.long, device=device),
+    )
 
 
 class PosePrior:
     """Demonstrated clips per label, and the pose reward of arm states against them on the env's clock."""
 
-    def __init__(self, clips_by_label: Sequence[Sequence[tuple[np.ndarray, int]]], sigma_rad: float,
-                 rate_hz: float, device: torch.device | str = 'cpu', follow_through_s: float | None = None):
+    def __init__(
+        self,
+        clips_by_label: Sequence[Sequence[tuple[np.ndarray, int]]],
+        sigma_rad: float,
+        rate_hz: float,
+        device: torch.device | str = 'cpu',
+        follow_through_s: float | None = None,
+    ):
         """clips_by_label: for each label index, its clips as (joint positions [F, J], hit frame) (may be none).
         follow_through_s: the stroke's length after the key event (None: the clips' own clock after it too)."""
         if not sigma_rad > 0.0 or not rate_hz > 0.0:
@@ -92,12 +102,20 @@ class PosePrior:
         self.rate_hz = float(rate_hz)
         self.follow_through_s = None if follow_through_s is None else float(follow_through_s)
         width = joints.pop()
-        self.labels = [pack_clips([(np.asarray(q, dtype=np.float32), h) for q, h in label], width, self.device)
-                       for label in clips_by_label]
+        self.labels = [
+            pack_clips([(np.asarray(q, dtype=np.float32), h) for q, h in label], width, self.device)
+            for label in clips_by_label
+        ]
 
     @classmethod
-    def from_dataset(cls, dataset, label_names: Sequence[str], sigma_rad: float,
-                     device: torch.device | str = 'cpu', follow_through_s: float | None = None) -> 'PosePrior':
+    def from_dataset(
+        cls,
+        dataset,
+        label_names: Sequence[str],
+        sigma_rad: float,
+        device: torch.device | str = 'cpu',
+        follow_through_s: float | None = None,
+    ) -> 'PosePrior':
         """The clips of a stylepong_policy.training.dataset.ReferenceDataset (every speed factor), grouped by the
         labels of label_names; () : one group of every clip."""
         from stylepong_policy.training.dataset import hit_frame
@@ -114,8 +132,9 @@ class PosePrior:
         """[K] bool: the labels that have demonstrated clips."""
         return torch.tensor([clips.count > 0 for clips in self.labels], device=self.device)
 
-    def reference_distance_rad(self, q_rad: torch.Tensor, time_s: torch.Tensor,
-                               labels: torch.Tensor | None = None) -> torch.Tensor:
+    def reference_distance_rad(
+        self, q_rad: torch.Tensor, time_s: torch.Tensor, labels: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """[N] distance of each arm pose q_rad [N, J] to the nearest of its label's clips at the same time
         from the key event time_s [N] (labels [N] label indices; None: label 0); inf for a label without."""
         n = q_rad.shape[0]
@@ -125,8 +144,8 @@ class PosePrior:
             rows = torch.nonzero(labels == label).squeeze(1)
             if not rows.numel() or not clips.count:
                 continue
-            frames = self._reference_frames(clips, time_s[rows])                            # [n, C]
-            reference = clips.q_rad[torch.arange(clips.count, device=self.device)[None, :], frames]   # [n, C, J]
+            frames = self._reference_frames(clips, time_s[rows])  # [n, C]
+            reference = clips.q_rad[torch.arange(clips.count, device=self.device)[None, :], frames]  # [n, C, J]
             distance[rows] = torch.linalg.vector_norm(reference - q_rad[rows, None, :], dim=2).amin(dim=1)
         return distance
 

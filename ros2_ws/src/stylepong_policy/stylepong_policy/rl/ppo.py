@@ -3,6 +3,7 @@
 Follows rsl_rl's PPO: Gaussian policy with learnable std, entropy bonus, gradient-norm clipping, and
 a learning rate adapted per minibatch from the KL between the rollout policy and the current one.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -18,6 +19,7 @@ from .storage import RolloutStorage
 @dataclass
 class PolicyStep:
     """What one policy query during a rollout produces (all detached)."""
+
     actions: torch.Tensor
     log_probs: torch.Tensor
     values: torch.Tensor
@@ -27,11 +29,15 @@ class PolicyStep:
     norm_critic_obs: torch.Tensor
 
 
-def gaussian_kl(mean_old: torch.Tensor, std_old: torch.Tensor, mean_new: torch.Tensor,
-                std_new: torch.Tensor) -> torch.Tensor:
+def gaussian_kl(
+    mean_old: torch.Tensor, std_old: torch.Tensor, mean_new: torch.Tensor, std_new: torch.Tensor
+) -> torch.Tensor:
     """KL(N_old || N_new) of diagonal Gaussians, summed over action dimensions: shape [B]."""
-    return (torch.log(std_new / std_old)
-            + (std_old.square() + (mean_old - mean_new).square()) / (2.0 * std_new.square()) - 0.5).sum(-1)
+    return (
+        torch.log(std_new / std_old)
+        + (std_old.square() + (mean_old - mean_new).square()) / (2.0 * std_new.square())
+        - 0.5
+    ).sum(-1)
 
 
 def make_adam(params, lr: float) -> torch.optim.Adam:
@@ -45,6 +51,7 @@ def make_adam(params, lr: float) -> torch.optim.Adam:
 
 class PPO:
     """Proximal policy optimisation of an actor-critic: acting in rollouts and the clipped update."""
+
     def __init__(self, actor_critic: ActorCritic, cfg: PPOConfig):
         self.actor_critic = actor_critic
         self.cfg = cfg
@@ -58,8 +65,15 @@ class PPO:
         norm_obs, norm_critic_obs = ac.normalize(obs, critic_obs, update=True)
         dist = ac.distribution(norm_obs)
         actions = dist.sample()
-        return PolicyStep(actions=actions, log_probs=dist.log_prob(actions).sum(-1), values=ac.value(norm_critic_obs),
-                          mean=dist.mean, std=dist.stddev, norm_obs=norm_obs, norm_critic_obs=norm_critic_obs)
+        return PolicyStep(
+            actions=actions,
+            log_probs=dist.log_prob(actions).sum(-1),
+            values=ac.value(norm_critic_obs),
+            mean=dist.mean,
+            std=dist.stddev,
+            norm_obs=norm_obs,
+            norm_critic_obs=norm_critic_obs,
+        )
 
     def value(self, critic_obs: torch.Tensor) -> torch.Tensor:
         """V of raw critic observations without touching the normaliser statistics."""
@@ -76,13 +90,15 @@ class PPO:
         """Per-iteration learning-rate schedules (the adaptive one acts per minibatch in update())."""
         if self.cfg.schedule == 'linear' and total_iterations > 0:
             frac = min(iteration / total_iterations, 1.0)
-            self._set_learning_rate(self.cfg.learning_rate
-                                    + frac * (self.cfg.min_learning_rate - self.cfg.learning_rate))
+            self._set_learning_rate(
+                self.cfg.learning_rate + frac * (self.cfg.min_learning_rate - self.cfg.learning_rate)
+            )
         elif self.cfg.schedule == 'fixed':
             self._set_learning_rate(self.cfg.learning_rate)
 
-    def update(self, storage: RolloutStorage, generator: torch.Generator | None = None,
-               update_actor: bool = True) -> dict[str, float]:
+    def update(
+        self, storage: RolloutStorage, generator: torch.Generator | None = None, update_actor: bool = True
+    ) -> dict[str, float]:
         """Several epochs of minibatch gradient steps on a filled storage; returns mean losses and diagnostics.
         update_actor False steps the critic alone (the policy and the learning rate stay as they are)."""
         cfg, ac = self.cfg, self.actor_critic

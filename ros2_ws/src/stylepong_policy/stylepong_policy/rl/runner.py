@@ -5,6 +5,7 @@ The env follows the batched-env contract of stylepong_policy.rl.env; nothing els
 so any env with that interface trains here (the tests use a small toy task). What the env counts about
 its episodes reaches the logs through the contract's 'log'.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,17 +38,25 @@ LAST_CHECKPOINT = 'last.pt'
 def seed_everything(seed: int) -> None:
     """Seed Python's, numpy's and torch's random generators."""
     random.seed(seed)
-    np.random.seed(seed % 2 ** 32)
+    np.random.seed(seed % 2**32)
     torch.manual_seed(seed)
 
 
 def capture_rng_state(shuffle: torch.Generator) -> dict[str, Any]:
     """Every random generator's state (for a checkpoint), loadable with weights_only=True."""
     np_state = np.random.get_state()
-    state = {'torch': torch.get_rng_state(), 'python': random.getstate(), 'shuffle': shuffle.get_state(),
-             # numpy's MT19937 state as tensors and ints, so checkpoints load with weights_only=True.
-             'numpy': {'keys': torch.from_numpy(np_state[1].astype(np.int64)), 'pos': int(np_state[2]),
-                       'has_gauss': int(np_state[3]), 'cached_gaussian': float(np_state[4])}}
+    state = {
+        'torch': torch.get_rng_state(),
+        'python': random.getstate(),
+        'shuffle': shuffle.get_state(),
+        # numpy's MT19937 state as tensors and ints, so checkpoints load with weights_only=True.
+        'numpy': {
+            'keys': torch.from_numpy(np_state[1].astype(np.int64)),
+            'pos': int(np_state[2]),
+            'has_gauss': int(np_state[3]),
+            'cached_gaussian': float(np_state[4]),
+        },
+    }
     if torch.cuda.is_available():
         state['cuda'] = torch.cuda.get_rng_state_all()
     return state
@@ -59,8 +68,9 @@ def restore_rng_state(state: dict[str, Any], shuffle: torch.Generator) -> None:
     random.setstate(_as_python_random_state(state['python']))
     shuffle.set_state(state['shuffle'].cpu())
     n = state['numpy']
-    np.random.set_state(('MT19937', n['keys'].numpy().astype(np.uint32), n['pos'], n['has_gauss'],
-                         n['cached_gaussian']))
+    np.random.set_state(
+        ('MT19937', n['keys'].numpy().astype(np.uint32), n['pos'], n['has_gauss'], n['cached_gaussian'])
+    )
     if 'cuda' in state and torch.cuda.is_available() and len(state['cuda']) == torch.cuda.device_count():
         torch.cuda.set_rng_state_all([s.cpu() for s in state['cuda']])
 
@@ -92,8 +102,9 @@ def find_checkpoint(path: str | pathlib.Path) -> pathlib.Path:
         for candidate in (path / CHECKPOINT_DIR / LAST_CHECKPOINT, path / LAST_CHECKPOINT):
             if candidate.is_file():
                 return candidate
-        raise FileNotFoundError(f'no checkpoint in run directory {path} '
-                                f'(looked for {CHECKPOINT_DIR}/{LAST_CHECKPOINT})')
+        raise FileNotFoundError(
+            f'no checkpoint in run directory {path} (looked for {CHECKPOINT_DIR}/{LAST_CHECKPOINT})'
+        )
     if not path.is_file():
         raise FileNotFoundError(f'checkpoint {path} does not exist')
     return path
@@ -131,8 +142,13 @@ class EpisodeStatistics:
         self.reward_sums: dict[str, torch.Tensor | float] = {}
         self.steps = 0
 
-    def record(self, rewards: torch.Tensor, dones: torch.Tensor, extras: dict[str, Any],
-               reward_parts: dict[str, torch.Tensor] | None = None) -> None:
+    def record(
+        self,
+        rewards: torch.Tensor,
+        dones: torch.Tensor,
+        extras: dict[str, Any],
+        reward_parts: dict[str, torch.Tensor] | None = None,
+    ) -> None:
         self.current_return += rewards
         self.current_length += 1
         self.steps += 1
@@ -154,9 +170,11 @@ class EpisodeStatistics:
             self.reward_sums[key] = self.reward_sums.get(key, 0.0) + value.mean(dtype=torch.float64)
 
     def summary(self) -> dict[str, float]:
-        out = {'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
-               'mean_episode_length': float(np.mean(self.lengths)) if self.lengths else math.nan,
-               'episodes': self.episodes}
+        out = {
+            'mean_return': float(np.mean(self.returns)) if self.returns else math.nan,
+            'mean_episode_length': float(np.mean(self.lengths)) if self.lengths else math.nan,
+            'episodes': self.episodes,
+        }
         for key, total in self.log_sums.items():
             out[key] = total / self.log_weights[key]
         for key, total in self.reward_sums.items():
@@ -166,8 +184,15 @@ class EpisodeStatistics:
 
 class OnPolicyRunner:
     """Runs PPO (and the motion prior, for AMP) on a batched env: rollouts, updates, logs, checkpoints."""
-    def __init__(self, env: env_contract.VecEnv, cfg: TrainConfig, run_dir: str | pathlib.Path,
-                 tensorboard: bool = True, motion_prior: MotionPrior | None = None):
+
+    def __init__(
+        self,
+        env: env_contract.VecEnv,
+        cfg: TrainConfig,
+        run_dir: str | pathlib.Path,
+        tensorboard: bool = True,
+        motion_prior: MotionPrior | None = None,
+    ):
         self.env = env
         self.cfg = cfg
         self.run_dir = pathlib.Path(run_dir)
@@ -179,27 +204,48 @@ class OnPolicyRunner:
         # amp.free_follow_through: a second value stream for the motion terms after the touch (MotionPrior.mix).
         self.free_follow_through = motion_prior is not None and amp is not None and amp.free_follow_through
         streams = 2 if self.free_follow_through else 1
-        self.actor_critic = ActorCritic(env.num_obs, env.num_critic_obs, env.num_actions,
-                                        actor_hidden_dims=p.actor_hidden_dims, critic_hidden_dims=p.critic_hidden_dims,
-                                        activation=p.activation, init_noise_std=p.init_noise_std, min_std=p.min_std,
-                                        normalize_observations=p.normalize_observations,
-                                        value_streams=streams).to(self.device)
+        self.actor_critic = ActorCritic(
+            env.num_obs,
+            env.num_critic_obs,
+            env.num_actions,
+            actor_hidden_dims=p.actor_hidden_dims,
+            critic_hidden_dims=p.critic_hidden_dims,
+            activation=p.activation,
+            init_noise_std=p.init_noise_std,
+            min_std=p.min_std,
+            normalize_observations=p.normalize_observations,
+            value_streams=streams,
+        ).to(self.device)
         self.alg = PPO(self.actor_critic, cfg.ppo)
-        self.storage = RolloutStorage(cfg.ppo.num_steps_per_env, env.num_envs, env.num_obs, env.num_critic_obs,
-                                      env.num_actions, self.device, value_streams=streams)
+        self.storage = RolloutStorage(
+            cfg.ppo.num_steps_per_env,
+            env.num_envs,
+            env.num_obs,
+            env.num_critic_obs,
+            env.num_actions,
+            self.device,
+            value_streams=streams,
+        )
         # Whether each environment's ball has touched the paddle before the coming step (free follow-through).
         self.touched = torch.zeros(env.num_envs, dtype=torch.bool, device=self.device)
         self.shuffle = torch.Generator()
         self.shuffle.manual_seed(cfg.runner.seed)
         self.iteration = 0
         self.env_steps = 0
-        self.wall_time_s = 0.0      # summed over every session of this run
-        self.sessions: list[dict[str, Any]] = []   # one entry per learn() call, over all sessions
+        self.wall_time_s = 0.0  # summed over every session of this run
+        self.sessions: list[dict[str, Any]] = []  # one entry per learn() call, over all sessions
         self.last_stats: dict[str, Any] = {}
         self.interrupted = False
-        self.success_hold = (SuccessHold(cfg.runner.critic_warmup_iterations, amp.hold_success_margin,
-                                         amp.hold_success_gain, amp.hold_success_smoothing)
-                             if motion_prior is not None and amp is not None and amp.hold_success else None)
+        self.success_hold = (
+            SuccessHold(
+                cfg.runner.critic_warmup_iterations,
+                amp.hold_success_margin,
+                amp.hold_success_gain,
+                amp.hold_success_smoothing,
+            )
+            if motion_prior is not None and amp is not None and amp.hold_success
+            else None
+        )
 
     # --- checkpoints -------------------------------------------------------------------------------
     @property
@@ -207,16 +253,24 @@ class OnPolicyRunner:
         return self.run_dir / CHECKPOINT_DIR
 
     def state_dict(self) -> dict[str, Any]:
-        return {'format': CHECKPOINT_FORMAT, 'version': CHECKPOINT_VERSION, 'iteration': self.iteration,
-                'env_steps': self.env_steps, 'wall_time_s': self.wall_time_s,
-                'architecture': self.actor_critic.architecture(), 'model': self.actor_critic.state_dict(),
-                'optimizer': self.alg.optimizer.state_dict(), 'learning_rate': self.alg.learning_rate,
-                'config': config_to_dict(self.cfg), 'rng': capture_rng_state(self.shuffle),
-                'sessions': [dict(s) for s in self.sessions],
-                'motion_prior': self.motion_prior.state_dict() if self.motion_prior is not None else None,
-                'success_hold': self.success_hold.state_dict() if self.success_hold is not None else None,
-                'max_std': None if self.actor_critic.max_std is None else self.actor_critic.max_std.tolist(),
-                'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))}}
+        return {
+            'format': CHECKPOINT_FORMAT,
+            'version': CHECKPOINT_VERSION,
+            'iteration': self.iteration,
+            'env_steps': self.env_steps,
+            'wall_time_s': self.wall_time_s,
+            'architecture': self.actor_critic.architecture(),
+            'model': self.actor_critic.state_dict(),
+            'optimizer': self.alg.optimizer.state_dict(),
+            'learning_rate': self.alg.learning_rate,
+            'config': config_to_dict(self.cfg),
+            'rng': capture_rng_state(self.shuffle),
+            'sessions': [dict(s) for s in self.sessions],
+            'motion_prior': self.motion_prior.state_dict() if self.motion_prior is not None else None,
+            'success_hold': self.success_hold.state_dict() if self.success_hold is not None else None,
+            'max_std': None if self.actor_critic.max_std is None else self.actor_critic.max_std.tolist(),
+            'last_stats': {k: v for k, v in self.last_stats.items() if isinstance(v, (int, float))},
+        }
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
         """Write atomically: a run killed mid-save keeps its previous checkpoint intact."""
@@ -300,23 +354,29 @@ class OnPolicyRunner:
                 self._sync()
                 t2 = time.perf_counter()
                 rewards = rewards.to(torch.float32)
-                if not (torch.isfinite(obs).all() and torch.isfinite(critic_obs).all()
-                        and torch.isfinite(rewards).all()):
-                    raise FloatingPointError('the env returned non-finite observations or rewards; '
-                                             'stopping before they poison the normalisers')
+                if not (
+                    torch.isfinite(obs).all() and torch.isfinite(critic_obs).all() and torch.isfinite(rewards).all()
+                ):
+                    raise FloatingPointError(
+                        'the env returned non-finite observations or rewards; '
+                        'stopping before they poison the normalisers'
+                    )
                 parts = None
                 if self.motion_prior is not None:
                     frames = extras[env_contract.EXTRAS_STYLE_STATE]
                     labels = extras.get(env_contract.EXTRAS_STYLE_LABEL)
-                    style = self.motion_prior.observe(frames, dones, self.env.style_state(), labels,
-                                                      extras.get(env_contract.EXTRAS_STYLE_PHASE))
+                    style = self.motion_prior.observe(
+                        frames, dones, self.env.style_state(), labels, extras.get(env_contract.EXTRAS_STYLE_PHASE)
+                    )
                     pose = self.motion_prior.pose_reward(frames, extras.get(env_contract.EXTRAS_STYLE_TIME), labels)
-                    stroke = self.motion_prior.stroke_reward(frames, extras.get(env_contract.EXTRAS_STYLE_STROKE_END),
-                                                             dones, self.env.style_state(), labels)
+                    stroke = self.motion_prior.stroke_reward(
+                        frames, extras.get(env_contract.EXTRAS_STYLE_STROKE_END), dones, self.env.style_state(), labels
+                    )
                     parts = {'task': rewards, 'style': style, 'pose': pose, 'stroke': stroke}
                     after_touch, stream_dones = self._follow_through(extras, dones)
-                    rewards = self.motion_prior.mix(rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose,
-                                                    stroke, after_touch)
+                    rewards = self.motion_prior.mix(
+                        rewards, style, extras.get(env_contract.EXTRAS_STYLE_WEIGHT), pose, stroke, after_touch
+                    )
                     self._sync()
                     style_s += time.perf_counter() - t2
                 else:
@@ -327,8 +387,17 @@ class OnPolicyRunner:
                 if time_outs is not None:
                     time_outs = time_outs.to(torch.float32)
                     rewards = rewards + gamma * step.values * (time_outs if rewards.dim() == 1 else time_outs[:, None])
-                self.storage.add(step.norm_obs, step.norm_critic_obs, step.actions, rewards,
-                                 stream_dones.to(torch.float32), step.values, step.log_probs, step.mean, step.std)
+                self.storage.add(
+                    step.norm_obs,
+                    step.norm_critic_obs,
+                    step.actions,
+                    rewards,
+                    stream_dones.to(torch.float32),
+                    step.values,
+                    step.log_probs,
+                    step.mean,
+                    step.std,
+                )
                 world_s += t2 - t1
                 policy_s += t1 - t0
             last_values = self.alg.value(critic_obs)
@@ -350,13 +419,19 @@ class OnPolicyRunner:
         self.touched = touched_now & ~dones
         return after_touch, torch.stack((dones, dones | touches), dim=-1)
 
-    def learn(self, until_iteration: int, progress_bar: bool | None = None,
-              session_info: dict[str, Any] | None = None, until_wall_time_s: float | None = None,
-              on_iteration: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    def learn(
+        self,
+        until_iteration: int,
+        progress_bar: bool | None = None,
+        session_info: dict[str, Any] | None = None,
+        until_wall_time_s: float | None = None,
+        on_iteration: Callable[[dict[str, Any]], None] | None = None,
+    ) -> dict[str, Any]:
         """Train until the run has `until_iteration` iterations, or (until_wall_time_s) until its training
         time summed over all its sessions reaches that budget; Ctrl-C stops after saving a checkpoint.
         session_info (e.g. the command line) is kept with this session's record in checkpoints;
         on_iteration is called with each iteration's statistics once its checkpoint is saved."""
+
         def budget_left() -> bool:
             return until_wall_time_s is None or self.wall_time_s < until_wall_time_s
 
@@ -367,13 +442,26 @@ class OnPolicyRunner:
         bar = None
         if progress_bar and until_iteration > start:
             from tqdm import tqdm
+
             tty = sys.stderr.isatty()
-            bar = tqdm(total=until_iteration, initial=start, unit='it', dynamic_ncols=True,
-                       mininterval=0.5 if tty else 30.0, desc='PPO' if self.motion_prior is None else 'AMP')
+            bar = tqdm(
+                total=until_iteration,
+                initial=start,
+                unit='it',
+                dynamic_ncols=True,
+                mininterval=0.5 if tty else 30.0,
+                desc='PPO' if self.motion_prior is None else 'AMP',
+            )
         self.actor_critic.train()
         batch = self.storage.num_steps * self.env.num_envs
-        session = {'start_iteration': start, 'end_iteration': start, 'wall_time_s': 0.0,
-                   'num_envs': self.env.num_envs, 'device': describe_device(self.device), **(session_info or {})}
+        session = {
+            'start_iteration': start,
+            'end_iteration': start,
+            'wall_time_s': 0.0,
+            'num_envs': self.env.num_envs,
+            'device': describe_device(self.device),
+            **(session_info or {}),
+        }
         self.sessions.append(session)
         try:
             with torch.inference_mode():
@@ -387,8 +475,9 @@ class OnPolicyRunner:
                 stats.reset_iteration()
                 obs, critic_obs, world_s, policy_s, style_s = self._collect(obs, critic_obs, stats)
                 t_learn = time.perf_counter()
-                losses = self.alg.update(self.storage, self.shuffle,
-                                         update_actor=self.iteration >= self.cfg.runner.critic_warmup_iterations)
+                losses = self.alg.update(
+                    self.storage, self.shuffle, update_actor=self.iteration >= self.cfg.runner.critic_warmup_iterations
+                )
                 self._sync()
                 t_disc = time.perf_counter()
                 if self.motion_prior is not None:
@@ -403,15 +492,25 @@ class OnPolicyRunner:
                 self.wall_time_s += iteration_s
                 session['end_iteration'] = self.iteration
                 session['wall_time_s'] += iteration_s
-                self.last_stats = {'iteration': self.iteration, 'env_steps': self.env_steps,
-                                   'wall_time_s': self.wall_time_s, 'iteration_time_s': iteration_s,
-                                   'samples_per_s': batch / iteration_s, 'world_s': world_s, 'policy_s': policy_s,
-                                   'learn_s': t_disc - t_learn, 'style_s': style_s,
-                                   'world_share': world_s / iteration_s, 'style_share': style_s / iteration_s,
-                                   **stats.summary(), **losses}
+                self.last_stats = {
+                    'iteration': self.iteration,
+                    'env_steps': self.env_steps,
+                    'wall_time_s': self.wall_time_s,
+                    'iteration_time_s': iteration_s,
+                    'samples_per_s': batch / iteration_s,
+                    'world_s': world_s,
+                    'policy_s': policy_s,
+                    'learn_s': t_disc - t_learn,
+                    'style_s': style_s,
+                    'world_share': world_s / iteration_s,
+                    'style_share': style_s / iteration_s,
+                    **stats.summary(),
+                    **losses,
+                }
                 if self.success_hold is not None:
-                    self.motion_prior.motion_scale = self.success_hold.observe(self.last_stats.get('success_rate'),
-                                                                                self.last_stats.get('episodes'))
+                    self.motion_prior.motion_scale = self.success_hold.observe(
+                        self.last_stats.get('success_rate'), self.last_stats.get('episodes')
+                    )
                     self.last_stats['motion_scale'] = self.motion_prior.motion_scale
                 log.write(self.last_stats)
                 self._save_checkpoints()
@@ -419,9 +518,12 @@ class OnPolicyRunner:
                     on_iteration(self.last_stats)
                 if bar is not None:
                     bar.update(1)
-                    bar.set_postfix(success=_fmt(self.last_stats.get('success_rate', math.nan)),
-                                    ret=_fmt(self.last_stats['mean_return']),
-                                    sps=f'{self.last_stats["samples_per_s"]:.0f}', refresh=False)
+                    bar.set_postfix(
+                        success=_fmt(self.last_stats.get('success_rate', math.nan)),
+                        ret=_fmt(self.last_stats['mean_return']),
+                        sps=f'{self.last_stats["samples_per_s"]:.0f}',
+                        refresh=False,
+                    )
         except KeyboardInterrupt:
             # The checkpoint of the last completed iteration is already on disk; keep it and stop.
             self.interrupted = True

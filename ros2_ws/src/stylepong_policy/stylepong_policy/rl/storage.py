@@ -5,6 +5,7 @@ hold one column per stream: each stream's advantage is estimated on its own, wit
 (a stream may end where the episode goes on, so that what it earns later does not flow back to earlier
 steps), and the policy follows their sum.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,22 +17,31 @@ import torch
 @dataclass
 class Minibatch:
     """One minibatch of rollout samples for a PPO update."""
-    obs: torch.Tensor            # normalised actor observations [B, num_obs]
-    critic_obs: torch.Tensor     # normalised critic observations [B, num_critic_obs]
-    actions: torch.Tensor        # [B, num_actions]
+
+    obs: torch.Tensor  # normalised actor observations [B, num_obs]
+    critic_obs: torch.Tensor  # normalised critic observations [B, num_critic_obs]
+    actions: torch.Tensor  # [B, num_actions]
     old_log_probs: torch.Tensor  # [B]
-    old_values: torch.Tensor     # [B] (one value stream) or [B, K]
-    returns: torch.Tensor        # [B] or [B, K], as old_values
-    advantages: torch.Tensor     # [B]
-    old_mean: torch.Tensor       # [B, num_actions] (for the KL of the adaptive learning rate)
-    old_std: torch.Tensor        # [B, num_actions]
+    old_values: torch.Tensor  # [B] (one value stream) or [B, K]
+    returns: torch.Tensor  # [B] or [B, K], as old_values
+    advantages: torch.Tensor  # [B]
+    old_mean: torch.Tensor  # [B, num_actions] (for the KL of the adaptive learning rate)
+    old_std: torch.Tensor  # [B, num_actions]
 
 
 class RolloutStorage:
     """Fixed-size buffers filled step by step during a rollout, then consumed by the PPO update."""
 
-    def __init__(self, num_steps: int, num_envs: int, num_obs: int, num_critic_obs: int, num_actions: int,
-                 device: torch.device | str, value_streams: int = 1):
+    def __init__(
+        self,
+        num_steps: int,
+        num_envs: int,
+        num_obs: int,
+        num_critic_obs: int,
+        num_actions: int,
+        device: torch.device | str,
+        value_streams: int = 1,
+    ):
         if value_streams < 1:
             raise ValueError(f'value_streams must be at least 1, got {value_streams}')
         self.num_steps, self.num_envs = int(num_steps), int(num_envs)
@@ -52,7 +62,7 @@ class RolloutStorage:
         self.mean = buffer(num_actions)
         self.std = buffer(num_actions)
         self.returns = buffer(*stream)
-        self.advantages = buffer()          # summed over the streams
+        self.advantages = buffer()  # summed over the streams
         self.step = 0
 
     def add(self, obs, critic_obs, actions, rewards, dones, values, log_probs, mean, std) -> None:
@@ -75,8 +85,9 @@ class RolloutStorage:
     def clear(self) -> None:
         self.step = 0
 
-    def compute_returns(self, last_values: torch.Tensor, gamma: float, lam: float,
-                        normalize_advantages: bool = True) -> None:
+    def compute_returns(
+        self, last_values: torch.Tensor, gamma: float, lam: float, normalize_advantages: bool = True
+    ) -> None:
         """Generalised advantage estimation (Schulman et al. 2016).
 
         delta_t = r_t + gamma (1 - d_t) V_{t+1} - V_t,  A_t = delta_t + gamma lam (1 - d_t) A_{t+1},
@@ -98,21 +109,30 @@ class RolloutStorage:
         if normalize_advantages:
             self.advantages.copy_((self.advantages - self.advantages.mean()) / (self.advantages.std() + 1e-8))
 
-    def minibatches(self, num_minibatches: int, num_epochs: int,
-                    generator: torch.Generator | None = None) -> Iterator[Minibatch]:
+    def minibatches(
+        self, num_minibatches: int, num_epochs: int, generator: torch.Generator | None = None
+    ) -> Iterator[Minibatch]:
         """num_epochs passes over the rollout, each split into num_minibatches shuffled minibatches."""
         batch_size = self.num_steps * self.num_envs
         if not 1 <= num_minibatches <= batch_size:
             raise ValueError(f'num_minibatches must be in [1, {batch_size}], got {num_minibatches}')
-        flat = {name: getattr(self, name).flatten(0, 1) for name in
-                ('obs', 'critic_obs', 'actions', 'log_probs', 'values', 'returns', 'advantages', 'mean', 'std')}
+        flat = {
+            name: getattr(self, name).flatten(0, 1)
+            for name in ('obs', 'critic_obs', 'actions', 'log_probs', 'values', 'returns', 'advantages', 'mean', 'std')
+        }
         size = batch_size // num_minibatches
         for _ in range(num_epochs):
             order = torch.randperm(batch_size, generator=generator, device='cpu').to(self.device)
             for start in range(0, size * num_minibatches, size):
-                idx = order[start:start + size]
-                yield Minibatch(obs=flat['obs'][idx], critic_obs=flat['critic_obs'][idx],
-                                actions=flat['actions'][idx], old_log_probs=flat['log_probs'][idx],
-                                old_values=flat['values'][idx], returns=flat['returns'][idx],
-                                advantages=flat['advantages'][idx], old_mean=flat['mean'][idx],
-                                old_std=flat['std'][idx])
+                idx = order[start : start + size]
+                yield Minibatch(
+                    obs=flat['obs'][idx],
+                    critic_obs=flat['critic_obs'][idx],
+                    actions=flat['actions'][idx],
+                    old_log_probs=flat['log_probs'][idx],
+                    old_values=flat['values'][idx],
+                    returns=flat['returns'][idx],
+                    advantages=flat['advantages'][idx],
+                    old_mean=flat['mean'][idx],
+                    old_std=flat['std'][idx],
+                )

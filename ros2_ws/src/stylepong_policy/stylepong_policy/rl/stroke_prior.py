@@ -15,6 +15,7 @@ success), but exact, where the per-step terms are only correlated with it. A lab
 distance: its strokes earn nothing.
 Nothing here knows the task: the runner hands over the env's style frames, labels and stroke ends.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -31,8 +32,7 @@ MAX_FRAMES = 300
 class StrokePrior:
     """Each environment's stroke so far, and its reward against the demonstrations when it ends."""
 
-    def __init__(self, clips_by_label: Sequence[Sequence[np.ndarray]], sigma_rad: float, num_envs: int,
-                 joints: int):
+    def __init__(self, clips_by_label: Sequence[Sequence[np.ndarray]], sigma_rad: float, num_envs: int, joints: int):
         """clips_by_label: for each label index, its clips' joint positions [F, J] (may be none)."""
         if not sigma_rad > 0.0:
             raise ValueError(f'the stroke prior needs a positive sigma, got {sigma_rad}')
@@ -49,8 +49,9 @@ class StrokePrior:
         """The clips of a stylepong_policy.training.dataset.ReferenceDataset (every speed factor) grouped by the labels
         of label_names; () : one group of every clip."""
         groups = [dataset.select(labels=[name]) for name in label_names] or [np.arange(dataset.num_clips)]
-        return cls([[dataset.clip(int(c)).q for c in chosen] for chosen in groups], sigma_rad, num_envs,
-                   dataset.q.shape[1])
+        return cls(
+            [[dataset.clip(int(c)).q for c in chosen] for chosen in groups], sigma_rad, num_envs, dataset.q.shape[1]
+        )
 
     @property
     def labels_with_clips(self) -> list[bool]:
@@ -70,8 +71,14 @@ class StrokePrior:
         stroke = np.ascontiguousarray(stroke_rad, dtype=np.float64)
         return min(style_metrics.dtw_distance_rad(stroke, clip) for clip in clips)
 
-    def observe(self, q_rad: torch.Tensor, stroke_end: torch.Tensor, dones: torch.Tensor,
-                next_first_q_rad: torch.Tensor, labels: torch.Tensor | None = None) -> torch.Tensor:
+    def observe(
+        self,
+        q_rad: torch.Tensor,
+        stroke_end: torch.Tensor,
+        dones: torch.Tensor,
+        next_first_q_rad: torch.Tensor,
+        labels: torch.Tensor | None = None,
+    ) -> torch.Tensor:
         """One policy step: the joint positions reached [N, J] (before resets), which strokes end with it,
         which episodes ended, the new episodes' first positions [N, J] (after resets) and the steps' labels
         [N]. Returns the reward [N]: the stroke reward where a stroke ended now, 0 elsewhere."""
@@ -85,7 +92,7 @@ class StrokePrior:
         reward = np.zeros(len(q), dtype=np.float32)
         label_of = np.zeros(len(q), dtype=np.int64) if labels is None else labels.detach().cpu().numpy()
         for env in ending:
-            stroke = self.frames[env, :self.lengths[env]]
+            stroke = self.frames[env, : self.lengths[env]]
             distance = self.distance_rad(stroke, int(label_of[env]))
             if distance is not None:
                 reward[env] = np.exp(-distance / (self.sigma_rad * len(stroke)))

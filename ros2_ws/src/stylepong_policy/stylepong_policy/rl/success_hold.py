@@ -26,6 +26,7 @@ with that delay in its loop swings whenever the gain is large: at 0.5 the scale 
 period of some 250 iterations, success with it, and which phase a checkpoint caught decided much of the
 choice. At 0.15 the loop settles within a few hundred iterations for delays up to 40 (test_success_hold).
 """
+
 from __future__ import annotations
 
 import math
@@ -43,7 +44,7 @@ class SuccessHold:
         self.scale = 1.0
         self.floor: float | None = None
         self._iterations = 0
-        self._successes = 0.0     # the warm-up's sums, then their smoothed values (S and E above)
+        self._successes = 0.0  # the warm-up's sums, then their smoothed values (S and E above)
         self._episodes = 0.0
 
     @property
@@ -73,8 +74,13 @@ class SuccessHold:
         return self.scale
 
     def state_dict(self) -> dict[str, Any]:
-        return {'scale': self.scale, 'floor': self.floor, 'iterations': self._iterations,
-                'successes': self._successes, 'episodes': self._episodes}
+        return {
+            'scale': self.scale,
+            'floor': self.floor,
+            'iterations': self._iterations,
+            'successes': self._successes,
+            'episodes': self._episodes,
+        }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Continue a resumed run where it was (its floor and scale, not a new warm-up)."""

@@ -4,6 +4,7 @@ What benchmarks/31_ppo_training.py and 32_amp_training.py report: a few iteratio
 allocations, lazy imports), then the mean over the measured ones of the runner's own timings
 (OnPolicyRunner.learn's statistics: world_s, policy_s, learn_s, style_s and iteration_time_s).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -14,8 +15,9 @@ from stylepong_policy.rl.runner import OnPolicyRunner
 PARTS = ('world_s', 'policy_s', 'learn_s', 'style_s')
 
 
-def measure_throughput(runner: OnPolicyRunner, warmup_iterations: int, measured_iterations: int,
-                       parts: Sequence[str] = PARTS) -> dict[str, float]:
+def measure_throughput(
+    runner: OnPolicyRunner, warmup_iterations: int, measured_iterations: int, parts: Sequence[str] = PARTS
+) -> dict[str, float]:
     """Train warmup_iterations, then measured_iterations more one at a time; samples_per_s (environment
     steps per second of training), iteration_s (mean wall time of an iteration) and, for each part
     'name_s', 'name_share' (its share of the wall time)."""
@@ -28,5 +30,8 @@ def measure_throughput(runner: OnPolicyRunner, warmup_iterations: int, measured_
             totals[key] += stats[key]
     wall_s = totals['iteration_time_s']
     shares = {part.removesuffix('_s') + '_share': totals[part] / wall_s for part in parts}
-    return {'samples_per_s': (runner.env_steps - first_step) / wall_s,
-            'iteration_s': wall_s / measured_iterations, **shares}
+    return {
+        'samples_per_s': (runner.env_steps - first_step) / wall_s,
+        'iteration_s': wall_s / measured_iterations,
+        **shares,
+    }

@@ -13,6 +13,7 @@ evaluation protocol's seeds (EVALUATIONS: `evaluate`'s run_evaluation, nominal b
 <name>_eval_all.json and <name>_eval_high.json (`--no-evaluate` skips this). Nothing is typed by hand;
 run it again after either tool and the shipped files follow.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,13 @@ from stylepong_policy.paths import MODELS, REPOSITORY
 
 # The run's file -> the shipped one's name after <name>_: the training log is the largest file shipped
 # (over 1 MB plain), so it is kept compressed: xz keeps a third of it (gzip two fifths).
-COPIED = {'config.yaml': 'config.yaml', 'progress.csv': 'progress.csv.xz', 'learning_curve.png': 'learning_curve.png',
-          'validation.csv': 'validation.csv', 'validation_curve.png': 'validation_curve.png'}
+COPIED = {
+    'config.yaml': 'config.yaml',
+    'progress.csv': 'progress.csv.xz',
+    'learning_curve.png': 'learning_curve.png',
+    'validation.csv': 'validation.csv',
+    'validation_curve.png': 'validation_curve.png',
+}
 ACTOR_SUFFIXES = ('.pt', '.json', '.onnx')
 # The evaluation protocol of the shipped actors (docs/DESIGN.md, "Evaluation protocol"): file suffix ->
 # run_evaluation's arguments. Evaluation seeds are 1000 and up; a run is only shipped once its recipe is final.
@@ -51,9 +57,15 @@ def ship(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathlib.Pat
         written.append(pathlib.Path(shutil.copyfile(actor.with_suffix(suffix), models / f'{name}_actor{suffix}')))
     for source, target in COPIED.items():
         written.append(ship_file(run / source, models / f'{name}_{target}'))
-    summary.update(actor=f'{name}_actor.pt', config=f'{name}_config.yaml', progress=f'{name}_progress.csv.xz',
-                   learning_curve=f'{name}_learning_curve.png', validation=f'{name}_validation.csv',
-                   validation_curve=f'{name}_validation_curve.png', selection=selection)
+    summary.update(
+        actor=f'{name}_actor.pt',
+        config=f'{name}_config.yaml',
+        progress=f'{name}_progress.csv.xz',
+        learning_curve=f'{name}_learning_curve.png',
+        validation=f'{name}_validation.csv',
+        validation_curve=f'{name}_validation_curve.png',
+        selection=selection,
+    )
     path = models / f'{name}_summary.json'
     path.write_text(json.dumps(summary, indent=2) + '\n')
     written.append(path)
@@ -91,14 +103,14 @@ def evaluate_shipped(name: str, models: pathlib.Path) -> list[pathlib.Path]:
     """Evaluate the shipped actor for every entry of EVALUATIONS (evaluate's run_evaluation, in this
     process); returns the JSON files written, each with the `evaluate` command that repeats it."""
     from stylepong_policy.evaluation import evaluate  # torch and the batched world: only when evaluating
+
     actor = models / f'{name}_actor.pt'
     written = []
     for suffix, arguments in EVALUATIONS.items():
         path = models / f'{name}_{suffix}.json'
         summary = evaluate.run_evaluation(actor, **arguments)
         summary['actor'] = in_repository(actor)
-        summary['command'] = evaluate.command_line(evaluation_command(summary['actor'], in_repository(path),
-                                                                      arguments))
+        summary['command'] = evaluate.command_line(evaluation_command(summary['actor'], in_repository(path), arguments))
         write_json(summary, path)
         written.append(path)
     return written
@@ -121,9 +133,13 @@ def main(argv: list[str] | None = None) -> int:
     """Command line of ship_run."""
     parser = argparse.ArgumentParser(prog='ship_run', description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path)
-    parser.add_argument('--name', required=True, help='amp, amp_noaug, ppo: the shipped files\' prefix')
-    parser.add_argument('--models-dir', type=pathlib.Path, default=MODELS,
-                        help='the models folder of the checkout (default: %(default)s)')
+    parser.add_argument('--name', required=True, help="amp, amp_noaug, ppo: the shipped files' prefix")
+    parser.add_argument(
+        '--models-dir',
+        type=pathlib.Path,
+        default=MODELS,
+        help='the models folder of the checkout (default: %(default)s)',
+    )
     parser.add_argument('--no-evaluate', action='store_true', help='copy only; skip the evaluations')
     args = parser.parse_args(argv)
     try:

@@ -10,6 +10,7 @@ dataset and the runs its starts came from), and <name>.json, its record: the lin
 it started from, its train/choose/evaluate facts (learn_style.json), and every value of the run's config
 that differs from config/amp.yaml. Needs the workspace built (make setup). Nothing is typed by hand.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,22 +38,30 @@ def recipe_differences(run_config: pathlib.Path, recipe: pathlib.Path) -> dict:
     """{key: [the run's value, the recipe's]} for every config value the run did not share with the recipe
     (both read as training reads them, defaults filled in)."""
     from stylepong_policy.rl.config import config_to_dict, load_config
+
     ran, written = (flat(config_to_dict(load_config(path))) for path in (run_config, recipe))
-    return {key: [ran.get(key), written.get(key)] for key in sorted(set(ran) | set(written))
-            if key not in RUN_OWN_KEYS and ran.get(key) != written.get(key)}
+    return {
+        key: [ran.get(key), written.get(key)]
+        for key in sorted(set(ran) | set(written))
+        if key not in RUN_OWN_KEYS and ran.get(key) != written.get(key)
+    }
 
 
 def run_lineage(run: pathlib.Path) -> list[str]:
     """The demonstrations behind a learn_style run's network: as it records them, else its own and, through
     the run directories its starts came from, its starts' (runs from before learn_style recorded them)."""
     from stylepong_policy.training import learn_style, skills
+
     paths = learn_style.paths_of(run)
     recorded = skills.lineage_of(torch.load(paths.actor_checkpoint, map_location='cpu', weights_only=False))
     if recorded:
         return list(recorded)
     start = pathlib.Path(learn_style.read_state(paths)['skill'])
-    before = (run_lineage(start.parent) if (start.parent / learn_style.STATE_NAME).is_file()
-              else list(skills.lineage_of(torch.load(start, map_location='cpu', weights_only=False))))
+    before = (
+        run_lineage(start.parent)
+        if (start.parent / learn_style.STATE_NAME).is_file()
+        else list(skills.lineage_of(torch.load(start, map_location='cpu', weights_only=False)))
+    )
     return skills.lineage_after({skills.LINEAGE_KEY: before}, learn_style.fingerprint_of(paths))
 
 
@@ -61,6 +70,7 @@ def ship_skill(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathl
     from stylepong_policy.evaluation.evaluate import portable_path
     from stylepong_policy.training import learn_style, skills
     from stylepong_policy.training.train import default_config_path
+
     paths = learn_style.paths_of(run)
     state = learn_style.read_state(paths)
     if 'export' not in state.get('stages', {}):
@@ -72,11 +82,15 @@ def ship_skill(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathl
     network = library / f'{name}.pt'
     torch.save(checkpoint, network)
     stages = state['stages']
-    record = {'name': name, skills.LINEAGE_KEY: list(skills.lineage_of(checkpoint)),
-              'demonstrations': portable_path(state['source']), 'command': state['command'],
-              'started_from': portable_path(state['skill']),
-              **{stage: stages[stage] for stage in ('skill', 'train', 'choose', 'evaluate') if stage in stages},
-              'recipe_differences': recipe_differences(paths.train / 'config.yaml', default_config_path('amp'))}
+    record = {
+        'name': name,
+        skills.LINEAGE_KEY: list(skills.lineage_of(checkpoint)),
+        'demonstrations': portable_path(state['source']),
+        'command': state['command'],
+        'started_from': portable_path(state['skill']),
+        **{stage: stages[stage] for stage in ('skill', 'train', 'choose', 'evaluate') if stage in stages},
+        'recipe_differences': recipe_differences(paths.train / 'config.yaml', default_config_path('amp')),
+    }
     path = library / f'{name}.json'
     path.write_text(json.dumps(record, indent=2) + '\n')
     return [network, path]
@@ -86,9 +100,13 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: ship the run's network; exit code 2 with one line when the run is not a finished one."""
     parser = argparse.ArgumentParser(prog='ship_skill', description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path, help='a finished learn_style run directory')
-    parser.add_argument('--name', required=True, help='the skill\'s name in the library (a file stem)')
-    parser.add_argument('--models-dir', type=pathlib.Path, default=MODELS,
-                        help='the models folder of the checkout (default: %(default)s)')
+    parser.add_argument('--name', required=True, help="the skill's name in the library (a file stem)")
+    parser.add_argument(
+        '--models-dir',
+        type=pathlib.Path,
+        default=MODELS,
+        help='the models folder of the checkout (default: %(default)s)',
+    )
     args = parser.parse_args(argv)
     try:
         for path in ship_skill(args.run, args.name, args.models_dir):

@@ -22,6 +22,7 @@ AVERAGED_RUN_DIR is written as a run of its own, so that select_checkpoint valid
   summary.json              the run's summary with `averaged_from` (the run and the iterations)
   config.yaml, progress.csv, learning_curve.png   copied from the run
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,8 +47,10 @@ def checkpoints_between(run_dir: pathlib.Path, first: int, last: int | None) -> 
     """(iteration, path) of the run's numbered checkpoints with first <= iteration <= last (None: no end)."""
     chosen = numbered_checkpoints(run_dir, first, last)
     if not chosen:
-        raise ValueError(f'{run_dir / CHECKPOINT_DIR} has no numbered checkpoint between iterations {first} '
-                         f'and {"its end" if last is None else last}')
+        raise ValueError(
+            f'{run_dir / CHECKPOINT_DIR} has no numbered checkpoint between iterations {first} '
+            f'and {"its end" if last is None else last}'
+        )
     return chosen
 
 
@@ -64,12 +67,18 @@ def average_checkpoints(checkpoints: list[dict]) -> dict:
     for network in networks:
         averaged.update_parameters(network)
     last = checkpoints[-1]
-    return {**last, 'model': averaged.module.state_dict(), 'optimizer': None, 'motion_prior': None,
-            AVERAGED_KEY: [int(c['iteration']) for c in checkpoints]}
+    return {
+        **last,
+        'model': averaged.module.state_dict(),
+        'optimizer': None,
+        'motion_prior': None,
+        AVERAGED_KEY: [int(c['iteration']) for c in checkpoints],
+    }
 
 
-def write_averaged_run(run_dir: pathlib.Path, first: int, last: int | None,
-                       out: pathlib.Path) -> tuple[pathlib.Path, list[int]]:
+def write_averaged_run(
+    run_dir: pathlib.Path, first: int, last: int | None, out: pathlib.Path
+) -> tuple[pathlib.Path, list[int]]:
     """Average the run's checkpoints from `first` to `last` into the run directory `out`; returns the
     averaged checkpoint's path and the iterations averaged."""
     if (out / CHECKPOINT_DIR).is_dir() and any((out / CHECKPOINT_DIR).iterdir()):
@@ -94,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--run', required=True, type=pathlib.Path, help='the training run directory')
     parser.add_argument('--from-iteration', required=True, type=int, help='the first checkpoint averaged')
-    parser.add_argument('--to-iteration', type=int, default=None, help='the last one (default: the run\'s last)')
+    parser.add_argument('--to-iteration', type=int, default=None, help="the last one (default: the run's last)")
     parser.add_argument('--out', required=True, type=pathlib.Path, help='the averaged run directory to write')
     args = parser.parse_args(argv)
     try:
@@ -102,8 +111,11 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as err:
         print(f'average_checkpoints: {err}', file=sys.stderr)
         return 2
-    print(f'average_checkpoints: {len(iterations)} checkpoints (iterations {iterations[0]}-{iterations[-1]}) '
-          f'averaged into {path}', flush=True)
+    print(
+        f'average_checkpoints: {len(iterations)} checkpoints (iterations {iterations[0]}-{iterations[-1]}) '
+        f'averaged into {path}',
+        flush=True,
+    )
     return 0
 
 

@@ -8,6 +8,7 @@ and velocities in URDF order, plus the paper's x2/x3/x5 sped-up copies. Prints o
 Exit status: 0 when at least one clip was written, 1 when none was (or, with --strict, when anything
 went wrong), 2 for invalid arguments.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -47,6 +48,7 @@ _NAME_WORDS = re.compile(r'[^a-z]+')
 def default_joint_names() -> tuple[str, ...]:
     """The UR5's joint names in URDF order."""
     from stylepong_description.robot_model import JOINT_NAMES
+
     return tuple(JOINT_NAMES)
 
 
@@ -67,8 +69,9 @@ def direction_in_name(name: str) -> str | None:
 @dataclass
 class BagReport:
     """What became of one bag: its clips and label, or why it was skipped."""
+
     path: pathlib.Path
-    reason: str | None = None            # why the bag gave no clip; None when used
+    reason: str | None = None  # why the bag gave no clip; None when used
     topic: str = ''
     label: str = ''
     label_origin: str = ''
@@ -105,14 +108,15 @@ def choose_label(bag: pathlib.Path, from_metadata: str | None, fallback: str | N
 @dataclass(frozen=True)
 class BuildSettings:
     """What becomes of the bags: the command line's options, for callers in Python."""
-    topic: str | None = None                     # None: the bag's one JointState topic
-    joints: tuple[str, ...] = ()                 # (): the URDF's joints
-    assume_order: bool = False                   # names missing: take the positions in `joints` order
+
+    topic: str | None = None  # None: the bag's one JointState topic
+    joints: tuple[str, ...] = ()  # (): the URDF's joints
+    assume_order: bool = False  # names missing: take the positions in `joints` order
     speedups: tuple[int, ...] = DEFAULT_SPEEDUPS
-    label: str | None = None                     # for bags that carry none
-    strict: bool = False                         # any problem: write nothing, exit status 1
+    label: str | None = None  # for bags that carry none
+    strict: bool = False  # any problem: write nothing, exit status 1
     clip_options: ClipOptions = field(default_factory=ClipOptions)
-    plot: pathlib.Path | None = None             # also a figure of the clips
+    plot: pathlib.Path | None = None  # also a figure of the clips
 
     def arm_joints(self) -> tuple[str, ...]:
         return tuple(self.joints) or default_joint_names()
@@ -123,26 +127,34 @@ def process_bag(bag: pathlib.Path, settings: BuildSettings) -> BagReport:
     report = BagReport(path=bag)
     options = settings.clip_options
     try:
-        recording = read_joint_states(bag, topic=settings.topic, joints=settings.arm_joints(),
-                                      assume_order=settings.assume_order)
+        recording = read_joint_states(
+            bag, topic=settings.topic, joints=settings.arm_joints(), assume_order=settings.assume_order
+        )
     except BagError as error:
         report.reason = str(error)
         return report
-    except Exception as error:   # noqa: BLE001  a bag must never stop the tool
+    except Exception as error:  # noqa: BLE001  a bag must never stop the tool
         report.reason = f'unreadable: {one_line(error)}'
         return report
     report.topic = recording.topic
     report.problems.extend(recording.problems)
     report.notes.extend(recording.notes)
     report.label, report.label_origin = choose_label(bag, recording.label, settings.label)
-    rate = median_rate_hz(recording.header_stamp_ns if (recording.header_stamp_ns > 0).all()
-                          else recording.receive_time_ns)
-    report.summary = (f'{recording.topic}: {recording.message_count} msgs, {rate:.0f} Hz'
-                      + (f', {recording.storage}' if recording.storage else ''))
+    rate = median_rate_hz(
+        recording.header_stamp_ns if (recording.header_stamp_ns > 0).all() else recording.receive_time_ns
+    )
+    report.summary = f'{recording.topic}: {recording.message_count} msgs, {rate:.0f} Hz' + (
+        f', {recording.storage}' if recording.storage else ''
+    )
     try:
-        result = make_clips(recording.header_stamp_ns, recording.receive_time_ns, recording.position_rad,
-                            recording.velocity_rad_s, options)
-    except Exception as error:   # noqa: BLE001
+        result = make_clips(
+            recording.header_stamp_ns,
+            recording.receive_time_ns,
+            recording.position_rad,
+            recording.velocity_rad_s,
+            options,
+        )
+    except Exception as error:  # noqa: BLE001
         report.reason = f'{recording.topic}: could not make clips: {one_line(error)}'
         return report
     report.notes.extend(result.notes)
@@ -161,7 +173,8 @@ def format_report(report: BagReport, speedups: Sequence[int], rate_hz: float) ->
             + (' (' + ', '.join(f'x{k} {-(-len(c) // k)}' for k in speedups) + ')' if speedups else '')
             + f', velocity from {"the bag" if c.velocity_source == "bag" else "positions"}'
             + ('' if c.time_source == 'header' else ', timed by receive time')
-            for c in report.clips)
+            for c in report.clips
+        )
         lines.append(f'[used]    {report.path}  {report.summary}; label {report.label!r} ({report.label_origin})')
         lines.append(f'          {len(report.clips)} clip(s): {clip_text}')
     else:
@@ -191,47 +204,79 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line parser of build_dataset."""
     defaults = ClipOptions()
     parser = argparse.ArgumentParser(
-        prog='build_dataset', description=__doc__.split('\n\n')[1], epilog=__doc__.split('\n\n')[2])
-    parser.add_argument('bags', nargs='+', metavar='BAG_OR_DIR',
-                        help='bag directories (or .mcap/.db3 files), or directories searched for bags')
+        prog='build_dataset', description=__doc__.split('\n\n')[1], epilog=__doc__.split('\n\n')[2]
+    )
+    parser.add_argument(
+        'bags',
+        nargs='+',
+        metavar='BAG_OR_DIR',
+        help='bag directories (or .mcap/.db3 files), or directories searched for bags',
+    )
     parser.add_argument('-o', '--output', required=True, type=pathlib.Path, help='dataset file to write (.npz)')
-    parser.add_argument('--topic', default=None,
-                        help="JointState topic (default: the bag's only JointState topic)")
-    parser.add_argument('--joints', type=_comma_list, default=None,
-                        help='comma-separated joint names in output order (default: the UR5 joints in URDF order)')
-    parser.add_argument('--assume-order', action='store_true',
-                        help='messages with an empty name[] list positions in --joints order')
+    parser.add_argument('--topic', default=None, help="JointState topic (default: the bag's only JointState topic)")
+    parser.add_argument(
+        '--joints',
+        type=_comma_list,
+        default=None,
+        help='comma-separated joint names in output order (default: the UR5 joints in URDF order)',
+    )
+    parser.add_argument(
+        '--assume-order', action='store_true', help='messages with an empty name[] list positions in --joints order'
+    )
     parser.add_argument('--rate-hz', type=float, default=DEFAULT_RATE_HZ, help='clip frame rate (default %(default)s)')
-    parser.add_argument('--speedups', type=_speedups, default=DEFAULT_SPEEDUPS,
-                        help="comma-separated speed-up factors for augmentation, default 2,3,5 "
-                             "('none': originals only)")
-    parser.add_argument('--idle-speed-rad-s', type=float, default=defaults.idle_speed_rad_s,
-                        help='lead-in/lead-out frames whose fastest joint is slower are trimmed '
-                             '(default %(default)s; 0: no trim)')
-    parser.add_argument('--max-gap-s', type=float, default=defaults.max_gap_s,
-                        help='a longer silence in a recording (or 5 message periods) splits it into clips '
-                             '(default %(default)s)')
-    parser.add_argument('--label', default=None,
-                        help='label for bags with none in metadata custom_data or the directory name')
-    parser.add_argument('--plot', type=pathlib.Path, default=None, metavar='PNG',
-                        help="write a figure of every clip's joint trajectories")
-    parser.add_argument('--strict', action='store_true',
-                        help='any problem (a skipped bag, lost messages) is fatal: nothing is written')
+    parser.add_argument(
+        '--speedups',
+        type=_speedups,
+        default=DEFAULT_SPEEDUPS,
+        help="comma-separated speed-up factors for augmentation, default 2,3,5 ('none': originals only)",
+    )
+    parser.add_argument(
+        '--idle-speed-rad-s',
+        type=float,
+        default=defaults.idle_speed_rad_s,
+        help='lead-in/lead-out frames whose fastest joint is slower are trimmed (default %(default)s; 0: no trim)',
+    )
+    parser.add_argument(
+        '--max-gap-s',
+        type=float,
+        default=defaults.max_gap_s,
+        help='a longer silence in a recording (or 5 message periods) splits it into clips (default %(default)s)',
+    )
+    parser.add_argument(
+        '--label', default=None, help='label for bags with none in metadata custom_data or the directory name'
+    )
+    parser.add_argument(
+        '--plot',
+        type=pathlib.Path,
+        default=None,
+        metavar='PNG',
+        help="write a figure of every clip's joint trajectories",
+    )
+    parser.add_argument(
+        '--strict', action='store_true', help='any problem (a skipped bag, lost messages) is fatal: nothing is written'
+    )
     return parser
 
 
 def _ros_free_argv(argv: Sequence[str]) -> list[str]:
     """Drop a trailing --ros-args section (added by launch files); this tool takes no ROS arguments."""
     argv = list(argv)
-    return argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
+    return argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
 
 
 def settings_from_args(args: argparse.Namespace) -> BuildSettings:
     """The command line's options as BuildSettings."""
     options = ClipOptions(rate_hz=args.rate_hz, idle_speed_rad_s=args.idle_speed_rad_s, max_gap_s=args.max_gap_s)
-    return BuildSettings(topic=args.topic, joints=tuple(args.joints or ()), assume_order=args.assume_order,
-                         speedups=tuple(args.speedups), label=args.label, strict=args.strict, clip_options=options,
-                         plot=args.plot)
+    return BuildSettings(
+        topic=args.topic,
+        joints=tuple(args.joints or ()),
+        assume_order=args.assume_order,
+        speedups=tuple(args.speedups),
+        label=args.label,
+        strict=args.strict,
+        clip_options=options,
+        plot=args.plot,
+    )
 
 
 def run(argv: Sequence[str] | None = None) -> int:
@@ -244,8 +289,7 @@ def run(argv: Sequence[str] | None = None) -> int:
         parser.error(str(error))
 
 
-def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
-          settings: BuildSettings = BuildSettings()) -> int:
+def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path, settings: BuildSettings = BuildSettings()) -> int:
     """Build a dataset from `bags` (bags or folders holding them) into `output`, printing one report entry
     per bag; returns the exit status (0: written; 1: no clip, or a problem under `strict`). ValueError for
     settings that make no sense."""
@@ -268,8 +312,10 @@ def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
 
     originals = [SourceClip(clip, r.label, f'{r.path}:{r.topic}') for r in reports if r.used for clip in r.clips]
     used = sum(r.used for r in reports)
-    tally = (f'{used} of {len(search.bags)} bag(s) used, {len(search.bags) - used + len(search.rejected)} skipped, '
-             f'{problems} problem(s)')
+    tally = (
+        f'{used} of {len(search.bags)} bag(s) used, {len(search.bags) - used + len(search.rejected)} skipped, '
+        f'{problems} problem(s)'
+    )
     if settings.strict and problems:
         print(f'build_dataset: --strict and {problems} problem(s): nothing written ({tally})', file=sys.stderr)
         return 1
@@ -282,16 +328,19 @@ def build(bags: Sequence[str | pathlib.Path], output: pathlib.Path,
     except OSError as error:
         print(f'build_dataset: cannot write {output}: {one_line(error)}', file=sys.stderr)
         return 1
-    print(f'wrote {output}: {dataset.num_clips} clips ({len(originals)} original + '
-          f'{dataset.num_clips - len(originals)} sped up '
-          f'{"x" + "/x".join(map(str, settings.speedups)) if settings.speedups else ""}'
-          f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}')
+    print(
+        f'wrote {output}: {dataset.num_clips} clips ({len(originals)} original + '
+        f'{dataset.num_clips - len(originals)} sped up '
+        f'{"x" + "/x".join(map(str, settings.speedups)) if settings.speedups else ""}'
+        f'), {len(dataset.t)} frames at {options.rate_hz:g} Hz; {tally}'
+    )
     if settings.plot is not None:
         try:
             from stylepong_policy.reports.dataset_plot import plot_dataset
+
             plot_dataset(dataset, settings.plot)
             print(f'wrote {settings.plot}')
-        except Exception as error:   # noqa: BLE001  the dataset is written; a failed figure is only reported
+        except Exception as error:  # noqa: BLE001  the dataset is written; a failed figure is only reported
             print(f'build_dataset: could not write the figure {settings.plot}: {one_line(error)}', file=sys.stderr)
             return 0 if not settings.strict else 1
     return 0

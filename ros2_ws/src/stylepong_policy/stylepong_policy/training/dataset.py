@@ -18,6 +18,7 @@ The .npz layout (C clips, N frames in all; clip c is frames clip_start[c] .. cli
   rate_hz      ()     float64  frame rate every clip is meant to be played at
   joint_names  (J,)   str
 """
+
 from __future__ import annotations
 
 import math
@@ -32,7 +33,7 @@ import numpy as np
 from stylepong_common.settings import at_least, check_ranges, non_negative, positive
 from stylepong_sim.world_spec import POLICY_RATE_HZ
 
-DEFAULT_RATE_HZ = POLICY_RATE_HZ   # clips are played at the rate the policy acts
+DEFAULT_RATE_HZ = POLICY_RATE_HZ  # clips are played at the rate the policy acts
 DEFAULT_SPEEDUPS = (2, 3, 5)
 NS_PER_S = 1_000_000_000
 
@@ -40,6 +41,7 @@ NS_PER_S = 1_000_000_000
 @dataclass(frozen=True)
 class ClipOptions:
     """How a recording becomes clips."""
+
     rate_hz: float = positive(DEFAULT_RATE_HZ)
     # Frames at the start and end whose fastest joint moves slower than this are idle (0: keep all).
     idle_speed_rad_s: float = non_negative(0.05)
@@ -58,6 +60,7 @@ class ClipOptions:
 @dataclass
 class Clip:
     """Frames on a fixed grid: t (s, recording clock), q (rad), qd (rad/s)."""
+
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
@@ -72,6 +75,7 @@ class Clip:
 @dataclass
 class ClipResult:
     """The clips cut from one recording and notes on how."""
+
     clips: list[Clip] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
@@ -135,11 +139,12 @@ def velocity_mismatch_rad_s(qd_bag: np.ndarray, qd_positions: np.ndarray) -> np.
     return np.sqrt(np.mean((qd_bag - qd_positions) ** 2, axis=0))
 
 
-def bag_velocity_is_consistent(qd_bag: np.ndarray, qd_positions: np.ndarray,
-                               options: ClipOptions) -> tuple[bool, float]:
+def bag_velocity_is_consistent(
+    qd_bag: np.ndarray, qd_positions: np.ndarray, options: ClipOptions
+) -> tuple[bool, float]:
     """Whether the bag's velocities match the position derivative within the tolerances, and the worst mismatch."""
     mismatch = velocity_mismatch_rad_s(qd_bag, qd_positions)
-    scale = np.sqrt(np.mean(qd_positions ** 2, axis=0))
+    scale = np.sqrt(np.mean(qd_positions**2, axis=0))
     allowed = options.velocity_abs_tolerance_rad_s + options.velocity_rel_tolerance * scale
     return bool(np.all(mismatch <= allowed)), float(mismatch.max())
 
@@ -178,15 +183,20 @@ def hit_frame(qd_rad_s: np.ndarray) -> int:
     moving = np.flatnonzero(speed > SWING_MOVING_SHARE * top)
     if not len(moving):
         return int(np.argmax(speed))
-    paused = np.flatnonzero(speed[moving[0]:] < SWING_PAUSE_SHARE * top)
+    paused = np.flatnonzero(speed[moving[0] :] < SWING_PAUSE_SHARE * top)
     pause = int(moving[0] + paused[0]) if len(paused) else len(speed)
-    if not (speed[pause:] > SWING_MOVING_SHARE * top).any():    # the slow end of a single swing
+    if not (speed[pause:] > SWING_MOVING_SHARE * top).any():  # the slow end of a single swing
         return int(np.argmax(speed))
     return pause + int(np.argmax(speed[pause:]))
 
 
-def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, position_rad: np.ndarray,
-               velocity_rad_s: np.ndarray, options: ClipOptions = ClipOptions()) -> ClipResult:
+def make_clips(
+    header_stamp_ns: np.ndarray,
+    receive_time_ns: np.ndarray,
+    position_rad: np.ndarray,
+    velocity_rad_s: np.ndarray,
+    options: ClipOptions = ClipOptions(),
+) -> ClipResult:
     """Clips from one recording's samples (rows in recording order; velocity NaN where absent)."""
     options.validate()
     result = ClipResult()
@@ -196,8 +206,9 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
     velocity = np.asarray(velocity_rad_s, dtype=float)
     # A message published or recorded twice is not a clock problem: drop exact repeats first.
     repeats = np.zeros(len(header_stamp_ns), dtype=bool)
-    repeats[1:] = ((np.diff(header_stamp_ns) == 0) & (header_stamp_ns[1:] > 0)
-                   & np.all(position[1:] == position[:-1], axis=1))
+    repeats[1:] = (
+        (np.diff(header_stamp_ns) == 0) & (header_stamp_ns[1:] > 0) & np.all(position[1:] == position[:-1], axis=1)
+    )
     if repeats.any():
         result.notes.append(f'{int(repeats.sum())} repeated messages (same stamp and positions) dropped')
         unique = ~repeats
@@ -235,19 +246,24 @@ def make_clips(header_stamp_ns: np.ndarray, receive_time_ns: np.ndarray, positio
             if consistent:
                 qd, velocity_source = qd_bag, 'bag'
             else:
-                result.notes.append(f'{where}velocities in the bag disagree with the positions (worst joint '
-                                    f'rms {mismatch:.3g} rad/s): derived from the positions')
+                result.notes.append(
+                    f'{where}velocities in the bag disagree with the positions (worst joint '
+                    f'rms {mismatch:.3g} rad/s): derived from the positions'
+                )
         elif np.isnan(seg_velocity).all():
             result.notes.append(f'{where}no velocities in the bag: derived from the positions')
         else:
             missing = int(np.isnan(seg_velocity).any(axis=1).sum())
-            result.notes.append(f'{where}{missing} of {len(seg_velocity)} messages lack velocities: '
-                                'all derived from the positions')
+            result.notes.append(
+                f'{where}{missing} of {len(seg_velocity)} messages lack velocities: all derived from the positions'
+            )
         frames = idle_trim(qd, options.idle_speed_rad_s)
         if frames is None:
             peak = float(np.abs(qd).max()) if qd.size else 0.0
-            result.notes.append(f'{where}idle throughout (fastest joint {peak:.3g} rad/s < '
-                                f'{options.idle_speed_rad_s:g} rad/s; --idle-speed-rad-s 0 keeps it)')
+            result.notes.append(
+                f'{where}idle throughout (fastest joint {peak:.3g} rad/s < '
+                f'{options.idle_speed_rad_s:g} rad/s; --idle-speed-rad-s 0 keeps it)'
+            )
             continue
         trimmed_s = (frames.start / options.rate_hz, (len(q) - frames.stop) / options.rate_hz)
         if frames.start or frames.stop < len(q):
@@ -275,8 +291,14 @@ def speed_up(clip: Clip, k: int) -> Clip:
     if k < 1:
         raise ValueError(f'speed-up factor must be >= 1, got {k}')
     t = clip.t[0] + (clip.t[::k] - clip.t[0]) / k
-    return Clip(t=t, q=clip.q[::k].copy(), qd=k * clip.qd[::k], time_source=clip.time_source,
-                velocity_source=clip.velocity_source, speed_factor=clip.speed_factor * k)
+    return Clip(
+        t=t,
+        q=clip.q[::k].copy(),
+        qd=k * clip.qd[::k],
+        time_source=clip.time_source,
+        velocity_source=clip.velocity_source,
+        speed_factor=clip.speed_factor * k,
+    )
 
 
 def parse_speedups(text: str) -> tuple[int, ...]:
@@ -303,33 +325,45 @@ def parse_speedups(text: str) -> tuple[int, ...]:
 # The dataset
 
 
-def window_start_indices(clip_start: Sequence[int] | np.ndarray, clip_length: Sequence[int] | np.ndarray,
-                         length: int) -> np.ndarray:
+def window_start_indices(
+    clip_start: Sequence[int] | np.ndarray, clip_length: Sequence[int] | np.ndarray, length: int
+) -> np.ndarray:
     """First frame index of every window of `length` consecutive frames lying inside one clip, for clips
     that start at clip_start and hold clip_length frames (a shorter clip has none)."""
     if length < 1:
         raise ValueError(f'window length must be >= 1, got {length}')
-    starts = [np.arange(start, start + count - length + 1)
-              for start, count in zip(clip_start, clip_length) if count >= length]
+    starts = [
+        np.arange(start, start + count - length + 1) for start, count in zip(clip_start, clip_length) if count >= length
+    ]
     return np.concatenate(starts).astype(np.int64) if starts else np.zeros(0, dtype=np.int64)
 
 
 @dataclass
 class SourceClip:
     """An original clip with where it came from."""
+
     clip: Clip
     label: str
     source: str
 
 
 # ReferenceDataset's arrays with one entry per clip (the others are per frame or whole-dataset).
-PER_CLIP_FIELDS = ('clip_start', 'clip_length', 'label', 'speed_factor', 'source', 'original', 'time_source',
-                   'velocity_source')
+PER_CLIP_FIELDS = (
+    'clip_start',
+    'clip_length',
+    'label',
+    'speed_factor',
+    'source',
+    'original',
+    'time_source',
+    'velocity_source',
+)
 
 
 @dataclass
 class ReferenceDataset:
     """All clips, concatenated (see the module docstring for the layout)."""
+
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
@@ -350,8 +384,14 @@ class ReferenceDataset:
 
     def clip(self, index: int) -> Clip:
         frames = slice(int(self.clip_start[index]), int(self.clip_start[index] + self.clip_length[index]))
-        return Clip(t=self.t[frames], q=self.q[frames], qd=self.qd[frames], time_source=str(self.time_source[index]),
-                    velocity_source=str(self.velocity_source[index]), speed_factor=int(self.speed_factor[index]))
+        return Clip(
+            t=self.t[frames],
+            q=self.q[frames],
+            qd=self.qd[frames],
+            time_source=str(self.time_source[index]),
+            velocity_source=str(self.velocity_source[index]),
+            speed_factor=int(self.speed_factor[index]),
+        )
 
     def states(self) -> np.ndarray:
         """(N, 2J) arm states [q, qd] per frame, the discriminator's per-frame input."""
@@ -362,7 +402,7 @@ class ReferenceDataset:
         after = np.zeros(len(self.q), dtype=bool)
         for start, length in zip(self.clip_start, self.clip_length):
             start, length = int(start), int(length)
-            after[start + hit_frame(self.qd[start:start + length]):start + length] = True
+            after[start + hit_frame(self.qd[start : start + length]) : start + length] = True
         return after
 
     def select(self, labels: Sequence[str] | None = None, speed_factors: Sequence[int] | None = None) -> np.ndarray:
@@ -383,8 +423,9 @@ class ReferenceDataset:
         clips = np.arange(self.num_clips) if clips is None else np.asarray(clips)
         return window_start_indices(self.clip_start[clips], self.clip_length[clips], length)
 
-    def windows(self, length: int, *, labels: Sequence[str] | None = None,
-                speed_factors: Sequence[int] | None = None) -> np.ndarray:
+    def windows(
+        self, length: int, *, labels: Sequence[str] | None = None, speed_factors: Sequence[int] | None = None
+    ) -> np.ndarray:
         """All windows of `length` consecutive states: (W, length, 2J) float64, states [q, qd]."""
         starts = self.window_starts(length, self.select(labels, speed_factors))
         states = self.states()
@@ -397,19 +438,25 @@ class ReferenceDataset:
         path = pathlib.Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {
-            't': self.t.astype(np.float64), 'q': self.q.astype(np.float64), 'qd': self.qd.astype(np.float64),
-            'clip_start': self.clip_start.astype(np.int64), 'clip_length': self.clip_length.astype(np.int64),
-            'label': np.asarray(self.label, dtype=str), 'speed_factor': self.speed_factor.astype(np.int64),
-            'source': np.asarray(self.source, dtype=str), 'original': self.original.astype(np.int64),
+            't': self.t.astype(np.float64),
+            'q': self.q.astype(np.float64),
+            'qd': self.qd.astype(np.float64),
+            'clip_start': self.clip_start.astype(np.int64),
+            'clip_length': self.clip_length.astype(np.int64),
+            'label': np.asarray(self.label, dtype=str),
+            'speed_factor': self.speed_factor.astype(np.int64),
+            'source': np.asarray(self.source, dtype=str),
+            'original': self.original.astype(np.int64),
             'time_source': np.asarray(self.time_source, dtype=str),
             'velocity_source': np.asarray(self.velocity_source, dtype=str),
-            'rate_hz': np.float64(self.rate_hz), 'joint_names': np.asarray(self.joint_names, dtype=str),
+            'rate_hz': np.float64(self.rate_hz),
+            'joint_names': np.asarray(self.joint_names, dtype=str),
         }
         handle, temporary = tempfile.mkstemp(prefix=path.name + '.', suffix='.part', dir=path.parent)
         try:
             with os.fdopen(handle, 'wb') as stream:
                 np.savez(stream, **arrays)
-            os.chmod(temporary, 0o644)   # mkstemp makes it private; a dataset is meant to be shared
+            os.chmod(temporary, 0o644)  # mkstemp makes it private; a dataset is meant to be shared
             os.replace(temporary, path)
         except BaseException:
             pathlib.Path(temporary).unlink(missing_ok=True)
@@ -423,15 +470,27 @@ class ReferenceDataset:
 
             def optional(key: str, default) -> np.ndarray:
                 return data[key] if key in data.files else np.asarray([default] * count)
-            return cls(t=data['t'], q=data['q'], qd=data['qd'], clip_start=data['clip_start'],
-                       clip_length=data['clip_length'], label=data['label'], speed_factor=data['speed_factor'],
-                       source=data['source'], original=optional('original', -1),
-                       time_source=optional('time_source', ''), velocity_source=optional('velocity_source', ''),
-                       rate_hz=float(data['rate_hz']), joint_names=tuple(str(n) for n in data['joint_names']))
+
+            return cls(
+                t=data['t'],
+                q=data['q'],
+                qd=data['qd'],
+                clip_start=data['clip_start'],
+                clip_length=data['clip_length'],
+                label=data['label'],
+                speed_factor=data['speed_factor'],
+                source=data['source'],
+                original=optional('original', -1),
+                time_source=optional('time_source', ''),
+                velocity_source=optional('velocity_source', ''),
+                rate_hz=float(data['rate_hz']),
+                joint_names=tuple(str(n) for n in data['joint_names']),
+            )
 
 
-def assemble_dataset(originals: Sequence[SourceClip], speedups: Sequence[int], joint_names: Sequence[str],
-                     rate_hz: float) -> ReferenceDataset:
+def assemble_dataset(
+    originals: Sequence[SourceClip], speedups: Sequence[int], joint_names: Sequence[str], rate_hz: float
+) -> ReferenceDataset:
     """Each original followed by its sped-up versions, concatenated."""
     clips, labels, sources, originals_index = [], [], [], []
     for item in originals:
@@ -450,21 +509,34 @@ def assemble_dataset(originals: Sequence[SourceClip], speedups: Sequence[int], j
         if parts:
             return np.concatenate(parts)
         return np.zeros((0, width)) if width else np.zeros(0)
+
     return ReferenceDataset(
-        t=stack('t', None), q=stack('q', n_joints), qd=stack('qd', n_joints), clip_start=starts, clip_length=lengths,
-        label=np.asarray(labels, dtype=str), speed_factor=np.array([c.speed_factor for c in clips], dtype=np.int64),
-        source=np.asarray(sources, dtype=str), original=np.array(originals_index, dtype=np.int64),
+        t=stack('t', None),
+        q=stack('q', n_joints),
+        qd=stack('qd', n_joints),
+        clip_start=starts,
+        clip_length=lengths,
+        label=np.asarray(labels, dtype=str),
+        speed_factor=np.array([c.speed_factor for c in clips], dtype=np.int64),
+        source=np.asarray(sources, dtype=str),
+        original=np.array(originals_index, dtype=np.int64),
         time_source=np.asarray([c.time_source for c in clips], dtype=str),
         velocity_source=np.asarray([c.velocity_source for c in clips], dtype=str),
-        rate_hz=float(rate_hz), joint_names=tuple(joint_names))
+        rate_hz=float(rate_hz),
+        joint_names=tuple(joint_names),
+    )
 
 
-def discriminator_windows(dataset: ReferenceDataset | str | os.PathLike, length: int, *,
-                          labels: Sequence[str] | None = None,
-                          speed_factors: Sequence[int] | None = None) -> Iterator[np.ndarray]:
+def discriminator_windows(
+    dataset: ReferenceDataset | str | os.PathLike,
+    length: int,
+    *,
+    labels: Sequence[str] | None = None,
+    speed_factors: Sequence[int] | None = None,
+) -> Iterator[np.ndarray]:
     """Yield every window of `length` consecutive arm states [q, qd] ((length, 2J) arrays), clip by clip."""
     if not isinstance(dataset, ReferenceDataset):
         dataset = ReferenceDataset.load(dataset)
     states = dataset.states()
     for start in dataset.window_starts(length, dataset.select(labels, speed_factors)):
-        yield states[start:start + length]
+        yield states[start : start + length]

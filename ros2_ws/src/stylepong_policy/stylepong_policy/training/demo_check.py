@@ -24,6 +24,7 @@ the bag each clip came from (the dataset's `source`).
 
 Only bag reading, numpy and the robot model are imported, so a refusal comes in about a second.
 """
+
 from __future__ import annotations
 
 import math
@@ -73,17 +74,19 @@ class DemonstrationError(ValueError):
 @dataclass
 class CheckedBag:
     """One bag that passed: its label, joint-state rate and the clips cut from it."""
+
     bag: pathlib.Path
     label: str
     rate_hz: float
     clips: list[Clip]
-    source: str                        # '<bag>:<topic>', the dataset's `source` of its clips
-    notes: list[str] = field(default_factory=list)   # what bag reading recovered from (lost messages)
+    source: str  # '<bag>:<topic>', the dataset's `source` of its clips
+    notes: list[str] = field(default_factory=list)  # what bag reading recovered from (lost messages)
 
 
 @dataclass
 class DemonstrationSet:
     """Demonstrations that passed the checks: bags (`bags`) or a built dataset (`dataset`)."""
+
     path: pathlib.Path
     window_frames: int
     speedups: tuple[int, ...]
@@ -141,8 +144,10 @@ def limit_violation(q_rad: np.ndarray, rate_hz: float) -> str | None:
     if not outside.any():
         return None
     frame, joint = (int(i) for i in np.argwhere(outside)[0])
-    return (f'{JOINT_NAMES[joint]} at {q_rad[frame, joint]:.3f} rad, {frame / rate_hz:.2f} s into a clip, is outside '
-            f"the UR5's limits [{limits.lower_rad[joint]:.3f}, {limits.upper_rad[joint]:.3f}] rad")
+    return (
+        f'{JOINT_NAMES[joint]} at {q_rad[frame, joint]:.3f} rad, {frame / rate_hz:.2f} s into a clip, is outside '
+        f"the UR5's limits [{limits.lower_rad[joint]:.3f}, {limits.upper_rad[joint]:.3f}] rad"
+    )
 
 
 def frames_after_speedup(frames: int, factor: int) -> int:
@@ -157,9 +162,11 @@ def shortness(frames: int, speedups: Sequence[int], window_frames: int, rate_hz:
     if remaining >= window_frames:
         return None
     needed_s = ((window_frames - 1) * fastest + 1) / rate_hz
-    return (f'a clip of {frames / rate_hz:.2f} s ({frames} frames at {rate_hz:g} Hz) is too short: sped up x{fastest} '
-            f"it has {remaining} frames, fewer than the discriminator's window of {window_frames}; "
-            f'record at least {needed_s:.2f} s of motion')
+    return (
+        f'a clip of {frames / rate_hz:.2f} s ({frames} frames at {rate_hz:g} Hz) is too short: sped up x{fastest} '
+        f"it has {remaining} frames, fewer than the discriminator's window of {window_frames}; "
+        f'record at least {needed_s:.2f} s of motion'
+    )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -177,40 +184,54 @@ def _read_reason(error: BaseException) -> str:
     return f'cannot be read: {one_line(error)}'
 
 
-def check_bag(bag: pathlib.Path, *, window_frames: int, speedups: Sequence[int],
-              topic: str | None = None) -> CheckedBag:
+def check_bag(
+    bag: pathlib.Path, *, window_frames: int, speedups: Sequence[int], topic: str | None = None
+) -> CheckedBag:
     """One bag's clips, or BagError whose message is the bag's one line (naming it)."""
     try:
         recording = read_joint_states(bag, topic=topic, joints=default_joint_names())
-    except Exception as error:   # noqa: BLE001  every way a bag fails is a refusal naming it
+    except Exception as error:  # noqa: BLE001  every way a bag fails is a refusal naming it
         raise BagError(f'{bag}: {_read_reason(error)}') from None
     label, origin = choose_label(bag, recording.label, None)
     if label == UNLABELLED:
-        raise BagError(f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory name or its '
-                       f'folder\'s name); label it {", ".join(KNOWN_LABELS)}')
+        raise BagError(
+            f'{bag}: unlabelled (no label in metadata.yaml custom_data, its directory name or its '
+            f"folder's name); label it {', '.join(KNOWN_LABELS)}"
+        )
     if label not in KNOWN_LABELS:
         raise BagError(f'{bag}: unknown label {label!r} (from its {origin}); the labels are {", ".join(KNOWN_LABELS)}')
     stamps = recording.header_stamp_ns if (recording.header_stamp_ns > 0).all() else recording.receive_time_ns
     rate_hz = median_rate_hz(stamps)
     if not (math.isfinite(rate_hz) and rate_hz >= MIN_RATE_HZ):
-        raise BagError(f'{bag}: {recording.topic} at {rate_hz:.1f} Hz, too slow to resample to '
-                       f'{DEFAULT_RATE_HZ:g} Hz (needs {MIN_RATE_HZ:.0f} Hz or more)')
+        raise BagError(
+            f'{bag}: {recording.topic} at {rate_hz:.1f} Hz, too slow to resample to '
+            f'{DEFAULT_RATE_HZ:g} Hz (needs {MIN_RATE_HZ:.0f} Hz or more)'
+        )
     options = ClipOptions()
-    result = make_clips(recording.header_stamp_ns, recording.receive_time_ns, recording.position_rad,
-                        recording.velocity_rad_s, options)
+    result = make_clips(
+        recording.header_stamp_ns, recording.receive_time_ns, recording.position_rad, recording.velocity_rad_s, options
+    )
     if not result.clips:
         raise BagError(f'{bag}: no clip of motion in {recording.topic} ({"; ".join(result.notes) or "no motion"})')
     for clip in result.clips:
-        reason = limit_violation(clip.q, options.rate_hz) or shortness(len(clip), speedups, window_frames,
-                                                                        options.rate_hz)
+        reason = limit_violation(clip.q, options.rate_hz) or shortness(
+            len(clip), speedups, window_frames, options.rate_hz
+        )
         if reason:
             raise BagError(f'{bag}: {reason}')
-    return CheckedBag(bag=bag, label=label, rate_hz=rate_hz, clips=result.clips, source=f'{bag}:{recording.topic}',
-                      notes=list(recording.problems))
+    return CheckedBag(
+        bag=bag,
+        label=label,
+        rate_hz=rate_hz,
+        clips=result.clips,
+        source=f'{bag}:{recording.topic}',
+        notes=list(recording.problems),
+    )
 
 
-def _check_bags(path: pathlib.Path, window_frames: int, speedups: tuple[int, ...],
-                topic: str | None) -> DemonstrationSet:
+def _check_bags(
+    path: pathlib.Path, window_frames: int, speedups: tuple[int, ...], topic: str | None
+) -> DemonstrationSet:
     search = find_bags([path])
     if not search.bags:
         reason = search.rejected[0][1] if search.rejected else 'no rosbag2 bag found'
@@ -239,18 +260,23 @@ def _bag_of_source(source: str) -> str:
 def _check_dataset(path: pathlib.Path, window_frames: int) -> DemonstrationSet:
     try:
         dataset = ReferenceDataset.load(path)
-    except Exception as error:   # noqa: BLE001  any unreadable file is the same refusal
+    except Exception as error:  # noqa: BLE001  any unreadable file is the same refusal
         raise DemonstrationError([f'{path}: not a dataset written by build_dataset ({one_line(error)})']) from None
     ur5 = default_joint_names()
     if tuple(dataset.joint_names) != ur5:
-        raise DemonstrationError([f"{path}: joints {', '.join(dataset.joint_names)} are not the UR5's "
-                                  f"({', '.join(ur5)})"])
+        raise DemonstrationError(
+            [f"{path}: joints {', '.join(dataset.joint_names)} are not the UR5's ({', '.join(ur5)})"]
+        )
     if not math.isclose(dataset.rate_hz, DEFAULT_RATE_HZ):
-        raise DemonstrationError([f'{path}: clips at {dataset.rate_hz:g} Hz, not the policy\'s {DEFAULT_RATE_HZ:g} Hz; '
-                                  'build it again with build_dataset'])
+        raise DemonstrationError(
+            [
+                f"{path}: clips at {dataset.rate_hz:g} Hz, not the policy's {DEFAULT_RATE_HZ:g} Hz; "
+                'build it again with build_dataset'
+            ]
+        )
     if dataset.num_clips == 0:
         raise DemonstrationError([f'{path}: the dataset holds no clip'])
-    problems: dict[str, str] = {}     # bag -> its first problem
+    problems: dict[str, str] = {}  # bag -> its first problem
     for index in range(dataset.num_clips):
         bag = _bag_of_source(dataset.source[index])
         if bag in problems:
@@ -265,8 +291,10 @@ def _check_dataset(path: pathlib.Path, window_frames: int) -> DemonstrationSet:
         else:
             reason = limit_violation(clip.q, dataset.rate_hz)
             if reason is None and len(clip) < window_frames:
-                reason = (f'clip {index} (x{factor}) has {len(clip)} frames, fewer than the discriminator\'s window '
-                          f'of {window_frames}')
+                reason = (
+                    f"clip {index} (x{factor}) has {len(clip)} frames, fewer than the discriminator's window "
+                    f'of {window_frames}'
+                )
         if reason:
             problems[bag] = f'{path}: clips of {bag}: {reason}'
     if problems:
@@ -278,8 +306,9 @@ def _check_dataset(path: pathlib.Path, window_frames: int) -> DemonstrationSet:
 # ---------------------------------------------------------------------------------------------------
 
 
-def check_demonstrations(path: str | os.PathLike, *, window_frames: int,
-                         speedups: Sequence[int] = DEFAULT_SPEEDUPS, topic: str | None = None) -> DemonstrationSet:
+def check_demonstrations(
+    path: str | os.PathLike, *, window_frames: int, speedups: Sequence[int] = DEFAULT_SPEEDUPS, topic: str | None = None
+) -> DemonstrationSet:
     """Check a folder of bags, one bag, or a dataset .npz (module docstring); raise DemonstrationError.
 
     window_frames: the discriminator's window (frames at 60 Hz); speedups: the factors the dataset

@@ -27,6 +27,7 @@ it ends, so that `--resume` (after Ctrl-C, SIGKILL or a power cut) continues fro
 A label with no clips is not an error: its balls earn no style term, and the skill returns them with the
 stroke it started with (docs/DESIGN.md, "Learning a style").
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,8 +51,8 @@ MIN_TRAIN_S = 60.0
 # Candidates (candidates_of): weight averages of the checkpoints in each of the last WINDOWS of SPLIT spans
 # of the run and of its last third, and the last checkpoint: 7 validations of about 20 s each here.
 SPLIT, WINDOWS = 6, 5
-MIN_SUCCESS = 0.92                  # validation success a candidate must reach to be chosen for its style
-VALIDATION = dict(seeds=4, first_seed=900, balls=200)       # below world_spec.FIRST_EVALUATION_SEED
+MIN_SUCCESS = 0.92  # validation success a candidate must reach to be chosen for its style
+VALIDATION = dict(seeds=4, first_seed=900, balls=200)  # below world_spec.FIRST_EVALUATION_SEED
 EVALUATION = dict(seeds=10, first_seed=1000, balls=200)
 EVALUATION_HIGH = dict(seeds=5, first_seed=2000, balls=200)
 DATASET_NAME = 'dataset.npz'
@@ -68,6 +69,7 @@ class StyleError(Exception):
 @dataclass(frozen=True)
 class Paths:
     """Where a run keeps each of its files (`paths_of`)."""
+
     run: pathlib.Path
     state: pathlib.Path
     dataset: pathlib.Path
@@ -81,26 +83,39 @@ class Paths:
 
 def paths_of(run: pathlib.Path) -> Paths:
     """The files of the run in `run`."""
-    return Paths(run, run / STATE_NAME, run / DATASET_NAME, run / ACTOR_NAME, run / ACTOR_CHECKPOINT_NAME,
-                 run / SKILL_DIR, run / TRAIN_DIR, run / CHOOSE_DIR, run / EVAL_DIR)
+    return Paths(
+        run,
+        run / STATE_NAME,
+        run / DATASET_NAME,
+        run / ACTOR_NAME,
+        run / ACTOR_CHECKPOINT_NAME,
+        run / SKILL_DIR,
+        run / TRAIN_DIR,
+        run / CHOOSE_DIR,
+        run / EVAL_DIR,
+    )
 
 
 def models_dir() -> pathlib.Path:
     """The shipped models (installed share directory, else beside the sources)."""
     from stylepong_policy.training.train import default_config_path
+
     return default_config_path('amp').parent.parent / 'models'
 
 
 def skill_checkpoint(given: pathlib.Path) -> pathlib.Path:
     """The training checkpoint --from names: a checkpoint, a learn_style RUN, or an exported actor with its
     <name>_checkpoint.pt beside it."""
-    candidates = [given / ACTOR_CHECKPOINT_NAME] if given.is_dir() else [
-        given.with_name(given.stem + '_checkpoint.pt'), given]
+    candidates = (
+        [given / ACTOR_CHECKPOINT_NAME] if given.is_dir() else [given.with_name(given.stem + '_checkpoint.pt'), given]
+    )
     for candidate in candidates:
         if candidate.is_file() and is_training_checkpoint(candidate):
             return candidate
-    raise StyleError(f'--from {given}: not a training checkpoint, and no {candidates[0].name} beside it '
-                     f'(an exported actor holds no critic to continue from)')
+    raise StyleError(
+        f'--from {given}: not a training checkpoint, and no {candidates[0].name} beside it '
+        f'(an exported actor holds no critic to continue from)'
+    )
 
 
 def is_training_checkpoint(path: pathlib.Path) -> bool:
@@ -109,6 +124,7 @@ def is_training_checkpoint(path: pathlib.Path) -> bool:
     import zipfile
 
     import torch
+
     try:
         with zipfile.ZipFile(path) as archive:
             if any('/code/' in name for name in archive.namelist()):
@@ -147,6 +163,7 @@ def say(text: str) -> None:
 def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
     """The one recipe (config/amp.yaml) and its path, on `device` (None: the config's)."""
     from stylepong_policy.training.train import default_config_path
+
     path = default_config_path('amp')
     cfg = load_config(path)
     if device is not None:
@@ -158,6 +175,7 @@ def recipe(device: str | None) -> tuple[TrainConfig, pathlib.Path]:
 def require_device(device: str) -> None:
     """StyleError, before anything is written, for a device this machine cannot train on (cuda without CUDA)."""
     from stylepong_policy.training.train import resolve_device
+
     try:
         resolve_device(device)
     except ValueError as err:
@@ -167,6 +185,7 @@ def require_device(device: str) -> None:
 def check_stage(source: pathlib.Path, cfg: TrainConfig):
     """The checked demonstrations (demo_check.DemonstrationSet); StyleError with one line per bad bag."""
     from stylepong_policy.training import demo_check
+
     try:
         return demo_check.check_demonstrations(source, window_frames=cfg.amp.sequence_length)
     except demo_check.DemonstrationError as err:
@@ -184,6 +203,7 @@ def fingerprint_of(paths: Paths) -> str:
     """The fingerprint of the run's demonstrations (skills.demonstrations_fingerprint of RUN/dataset.npz)."""
     from stylepong_policy.training.dataset import ReferenceDataset
     from stylepong_policy.training.skills import demonstrations_fingerprint
+
     return demonstrations_fingerprint(ReferenceDataset.load(paths.dataset))
 
 
@@ -202,6 +222,7 @@ def skill_stage(paths: Paths, state: dict, device: str, min_success: float) -> d
     from stylepong_policy.training import skills
     from stylepong_policy.training.learn_style_progress import StageBar
     from stylepong_policy.training.select_checkpoint import export_checkpoint
+
     if state.get('skill'):
         return {'chosen': state['skill'], 'given': True}
     fingerprint = fingerprint_of(paths)
@@ -215,20 +236,35 @@ def skill_stage(paths: Paths, state: dict, device: str, min_success: float) -> d
             rows.append({'candidate': skill.name, 'path': str(skill.path.resolve()), **validate(actor, paths, device)})
             bar.advance(1)
     chosen = choose_candidate(rows, min_success)
-    (paths.skill / SKILLS_JSON).write_text(json.dumps({'validation': VALIDATION, 'min_success': min_success,
-                                                         'fingerprint': fingerprint, 'skills': rows,
-                                                         'chosen': chosen['candidate']}, indent=2) + '\n')
+    (paths.skill / SKILLS_JSON).write_text(
+        json.dumps(
+            {
+                'validation': VALIDATION,
+                'min_success': min_success,
+                'fingerprint': fingerprint,
+                'skills': rows,
+                'chosen': chosen['candidate'],
+            },
+            indent=2,
+        )
+        + '\n'
+    )
     state['skill'] = chosen['path']
     say(f'starting from the skill {chosen["candidate"]}: {describe_skills(rows)}')
-    return {'chosen': chosen['candidate'], 'given': False,
-            'validation_mean_dtw_rad': {r['candidate']: r['mean_dtw_rad'] for r in rows},
-            'validation_success': {r['candidate']: r['success_rate'] for r in rows}}
+    return {
+        'chosen': chosen['candidate'],
+        'given': False,
+        'validation_mean_dtw_rad': {r['candidate']: r['mean_dtw_rad'] for r in rows},
+        'validation_success': {r['candidate']: r['success_rate'] for r in rows},
+    }
 
 
 def describe_skills(rows: list[dict]) -> str:
     """One line of the skills validated: each one's mean DTW and success."""
+
     def dtw(row: dict) -> str:
         return 'no DTW' if row['mean_dtw_rad'] is None else f'{row["mean_dtw_rad"]:.2f} rad'
+
     return ', '.join(f'{r["candidate"]} {dtw(r)} at {r["success_rate"]:.3f}' for r in rows)
 
 
@@ -236,28 +272,34 @@ def validate(actor: pathlib.Path, paths: Paths, device: str) -> dict:
     """An exported actor on the validation seeds: its success and DTW to the run's demonstrations (the mean
     over the labels with strokes, and per label)."""
     from stylepong_policy.training.select_checkpoint import run_evaluation
+
     result = run_evaluation(actor, speed='all', device=device, dtw_dataset=str(paths.dataset), **VALIDATION)
     distances = [d['mean_rad'] for d in result['dtw'].values() if d['mean_rad'] is not None]
-    return {'success_rate': result['success_rate'],
-            'mean_dtw_rad': sum(distances) / len(distances) if distances else None,
-            'dtw_rad': {k: v['mean_rad'] for k, v in result['dtw'].items()}}
+    return {
+        'success_rate': result['success_rate'],
+        'mean_dtw_rad': sum(distances) / len(distances) if distances else None,
+        'dtw_rad': {k: v['mean_rad'] for k, v in result['dtw'].items()},
+    }
 
 
 def trained_s(train_dir: pathlib.Path) -> float:
     """The training time a stopped run has behind it (its progress log's last wall time; 0 without one)."""
     from stylepong_policy.rl.logger import CSV_NAME, read_progress
+
     csv_path = train_dir / CSV_NAME
     wall_times = read_progress(csv_path).get('wall_time_s', []) if csv_path.is_file() else []
     return wall_times[-1] if wall_times else 0.0
 
 
-def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill: pathlib.Path,
-                budget_s: float, command: str) -> dict:
+def train_stage(
+    cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill: pathlib.Path, budget_s: float, command: str
+) -> dict:
     """Learn the style from the skill until the run's training time reaches budget_s (resumes a run, with the
     recipe it began with: a run started before the recipe changed still fits its checkpoints)."""
     from stylepong_policy.rl.runner import read_checkpoint
     from stylepong_policy.training import train
     from stylepong_policy.training.learn_style_progress import StageBar
+
     resume = '' if (paths.train / 'checkpoints' / 'last.pt').is_file() else None
     if resume is not None:
         device = cfg.runner.device
@@ -265,9 +307,18 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
         cfg.runner.device = device
     cfg.amp.dataset = str(paths.dataset)
     with StageBar('train', budget_s, initial=trained_s(paths.train) if resume is not None else 0.0) as bar:
-        result = train.train_run(cfg, paths.train, 'amp', config_source=str(config_path), resume=resume,
-                                 start_from=None if resume is not None else skill, tensorboard=False,
-                                 until_wall_time_s=budget_s, on_iteration=bar.iteration, command=command)
+        result = train.train_run(
+            cfg,
+            paths.train,
+            'amp',
+            config_source=str(config_path),
+            resume=resume,
+            start_from=None if resume is not None else skill,
+            tensorboard=False,
+            until_wall_time_s=budget_s,
+            on_iteration=bar.iteration,
+            command=command,
+        )
     runner = result.runner
     if runner.interrupted:
         raise KeyboardInterrupt
@@ -278,9 +329,12 @@ def train_stage(cfg: TrainConfig, config_path: pathlib.Path, paths: Paths, skill
     last = runner.checkpoint_dir / f'model_{runner.iteration:06d}.pt'
     if not last.is_file():
         runner.save(last)
-    return {'iterations': runner.iteration, 'samples': runner.env_steps,
-            'training_time_s': round(runner.wall_time_s, 1),
-            'samples_per_s': round(runner.env_steps / max(runner.wall_time_s, 1e-9), 1)}
+    return {
+        'iterations': runner.iteration,
+        'samples': runner.env_steps,
+        'training_time_s': round(runner.wall_time_s, 1),
+        'samples_per_s': round(runner.env_steps / max(runner.wall_time_s, 1e-9), 1),
+    }
 
 
 def candidates_of(run_dir: pathlib.Path) -> list[tuple[str, list[int]]]:
@@ -289,12 +343,15 @@ def candidates_of(run_dir: pathlib.Path) -> list[tuple[str, list[int]]]:
     its last checkpoint alone. Along a run the style comes closer and returns may fall; the choice among
     these is where the run stands on both (choose_candidate)."""
     from stylepong_policy.training.select_checkpoint import numbered_checkpoints
+
     iterations = [i for i, _ in numbered_checkpoints(run_dir)]
     if not iterations:
         raise StyleError(f'{run_dir} has no numbered checkpoint to choose from; give more --minutes')
-    spans = [iterations[round(k * len(iterations) / SPLIT):round((k + 1) * len(iterations) / SPLIT)]
-             for k in range(SPLIT - WINDOWS, SPLIT)]
-    spans.append(iterations[-max(2, round(len(iterations) / 3)):])
+    spans = [
+        iterations[round(k * len(iterations) / SPLIT) : round((k + 1) * len(iterations) / SPLIT)]
+        for k in range(SPLIT - WINDOWS, SPLIT)
+    ]
+    spans.append(iterations[-max(2, round(len(iterations) / 3)) :])
     chosen: dict[str, list[int]] = {}
     for span in spans:
         if len(span) > 1:
@@ -311,6 +368,7 @@ def choose_stage(paths: Paths, device: str) -> dict:
     from stylepong_policy.training.average_checkpoints import average_checkpoints
     from stylepong_policy.training.learn_style_progress import StageBar
     from stylepong_policy.training.select_checkpoint import export_checkpoint, numbered_checkpoints
+
     paths.choose.mkdir(parents=True, exist_ok=True)
     by_iteration = dict(numbered_checkpoints(paths.train))
     rows = []
@@ -323,11 +381,18 @@ def choose_stage(paths: Paths, device: str) -> dict:
             rows.append({'candidate': name, 'iterations': iterations, **validate(actor, paths, device)})
             bar.advance(1)
     chosen = choose_candidate(rows)
-    (paths.choose / 'candidates.json').write_text(json.dumps({'validation': VALIDATION, 'min_success': MIN_SUCCESS,
-                                                              'candidates': rows, 'chosen': chosen['candidate']},
-                                                             indent=2) + '\n')
-    return {'chosen': chosen['candidate'], 'validation_success': chosen['success_rate'],
-            'validation_mean_dtw_rad': chosen['mean_dtw_rad']}
+    (paths.choose / 'candidates.json').write_text(
+        json.dumps(
+            {'validation': VALIDATION, 'min_success': MIN_SUCCESS, 'candidates': rows, 'chosen': chosen['candidate']},
+            indent=2,
+        )
+        + '\n'
+    )
+    return {
+        'chosen': chosen['candidate'],
+        'validation_success': chosen['success_rate'],
+        'validation_mean_dtw_rad': chosen['mean_dtw_rad'],
+    }
 
 
 def choose_candidate(rows: list[dict], min_success: float = MIN_SUCCESS) -> dict:
@@ -346,6 +411,7 @@ def export_stage(paths: Paths, state: dict) -> None:
 
     from stylepong_policy.training import skills
     from stylepong_policy.training.select_checkpoint import export_checkpoint
+
     chosen = state['stages']['choose']['chosen']
     checkpoint = torch.load(paths.choose / f'{chosen}.pt', map_location='cpu', weights_only=False)
     export_checkpoint(checkpoint, paths.actor, onnx=True, extra={'learn_style': {'candidate': chosen}})
@@ -359,6 +425,7 @@ def evaluate_stage(paths: Paths, device: str) -> dict:
     """The new actor, PPO's and the shipped style actor on the evaluation seeds, against the demonstrations."""
     from stylepong_policy.reports import style_report
     from stylepong_policy.training.learn_style_progress import StageBar
+
     paths.eval.mkdir(parents=True, exist_ok=True)
     actors = {'style': paths.actor, 'ppo': models_dir() / 'ppo_actor.pt', 'shipped': models_dir() / 'amp_actor.pt'}
     jobs = [(name, actor, 'all', EVALUATION) for name, actor in actors.items()]
@@ -367,20 +434,30 @@ def evaluate_stage(paths: Paths, device: str) -> dict:
         for name, actor, speed, setting in jobs:
             files = style_report.eval_files(paths.run, name)
             out = files.all_speeds_json if speed == 'all' else files.high_speeds_json
-            result = evaluate_with_strokes(actor, speed, setting, device, paths.dataset,
-                                           files.strokes_npz if speed == 'all' else None)
+            result = evaluate_with_strokes(
+                actor, speed, setting, device, paths.dataset, files.strokes_npz if speed == 'all' else None
+            )
             out.write_text(json.dumps(result, indent=2) + '\n')
             bar.advance(1)
     style = json.loads(style_report.eval_files(paths.run, 'style').all_speeds_json.read_text())
-    return {'success_rate': style['success_rate'],
-            'dtw_rad': {k: v['mean_rad'] for k, v in style.get('dtw', {}).items()}}
+    return {
+        'success_rate': style['success_rate'],
+        'dtw_rad': {k: v['mean_rad'] for k, v in style.get('dtw', {}).items()},
+    }
 
 
-def evaluate_with_strokes(actor: pathlib.Path, speed: str, setting: dict, device: str, dataset: pathlib.Path,
-                          strokes_path: pathlib.Path | None) -> dict:
+def evaluate_with_strokes(
+    actor: pathlib.Path,
+    speed: str,
+    setting: dict,
+    device: str,
+    dataset: pathlib.Path,
+    strokes_path: pathlib.Path | None,
+) -> dict:
     """evaluate's summary of an actor with DTW against `dataset`, its strokes saved when a path is given."""
     from stylepong_policy.evaluation import evaluate
     from stylepong_policy.rl.export import load_actor
+
     loaded = load_actor(actor)
     evaluation = evaluate.evaluate_actor(loaded, speed=speed, device=device, **setting)
     summary = evaluate.summarise(evaluation, dataset=evaluate.load_reference(dataset), dataset_path=dataset)
@@ -393,38 +470,62 @@ def report_stage(paths: Paths, state: dict) -> pathlib.Path:
     """RUN/report.md and its figures."""
     from stylepong_policy.evaluation.evaluate import portable_path
     from stylepong_policy.reports import style_report
+
     stages = state.get('stages', {})
     missing = [label for label, count in stages.get('dataset', {}).get('clips_per_label', {}).items() if not count]
-    notes = [f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',
-             f'Recipe: {portable_path(state.get("config", "?"))}, from the skill '
-             f'{portable_path(state.get("skill", "?"))}; command: `{state.get("command")}`.']
+    notes = [
+        f'Demonstrations: {stages.get("check", {}).get("summary", "")}.',
+        f'Recipe: {portable_path(state.get("config", "?"))}, from the skill '
+        f'{portable_path(state.get("skill", "?"))}; command: `{state.get("command")}`.',
+    ]
     if (paths.skill / SKILLS_JSON).is_file():
         chosen = json.loads((paths.skill / SKILLS_JSON).read_text())
-        notes.append(f'The skill was chosen from the library on the validation seeds (mean DTW to these '
-                     f'demonstrations and success): {describe_skills(chosen["skills"])}.')
+        notes.append(
+            f'The skill was chosen from the library on the validation seeds (mean DTW to these '
+            f'demonstrations and success): {describe_skills(chosen["skills"])}.'
+        )
     if missing:
-        notes.append(f'No clip labelled {", ".join(missing)}: those balls earned no style term in training and are '
-                     'returned with the stroke of the skill the run started from; no DTW is measured for them.')
-    return style_report.write_report(paths.run, dataset_path=paths.dataset,
-                                     timings_s={k: v['wall_time_s'] for k, v in stages.items()},
-                                     checkpoints={'train': stages.get('train'), 'choose': stages.get('choose')},
-                                     notes=notes)
+        notes.append(
+            f'No clip labelled {", ".join(missing)}: those balls earned no style term in training and are '
+            'returned with the stroke of the skill the run started from; no DTW is measured for them.'
+        )
+    return style_report.write_report(
+        paths.run,
+        dataset_path=paths.dataset,
+        timings_s={k: v['wall_time_s'] for k, v in stages.items()},
+        checkpoints={'train': stages.get('train'), 'choose': stages.get('choose')},
+        notes=notes,
+    )
 
 
 # --- the command ----------------------------------------------------------------------------------
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command line of learn_style."""
-    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split('\n\n')[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('source', type=pathlib.Path, metavar='BAGS_DIR_OR_DATASET',
-                        help='a folder of labelled demonstration bags, or a build_dataset .npz')
+    parser = argparse.ArgumentParser(
+        prog=PROG, description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        'source',
+        type=pathlib.Path,
+        metavar='BAGS_DIR_OR_DATASET',
+        help='a folder of labelled demonstration bags, or a build_dataset .npz',
+    )
     parser.add_argument('--out', required=True, type=pathlib.Path, help='run directory')
-    parser.add_argument('--minutes', type=float, default=DEFAULT_MINUTES,
-                        help=f'wall-time budget of the whole command (default {DEFAULT_MINUTES:g})')
+    parser.add_argument(
+        '--minutes',
+        type=float,
+        default=DEFAULT_MINUTES,
+        help=f'wall-time budget of the whole command (default {DEFAULT_MINUTES:g})',
+    )
     parser.add_argument('--device', choices=('cpu', 'cuda'), default=None, help='torch device (default: cpu)')
-    parser.add_argument('--from', dest='start_from', type=pathlib.Path, metavar='ACTOR',
-                        help='the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
-                             '(default: the nearest skill of the library, validated against the demonstrations)')
+    parser.add_argument(
+        '--from',
+        dest='start_from',
+        type=pathlib.Path,
+        metavar='ACTOR',
+        help='the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
+        '(default: the nearest skill of the library, validated against the demonstrations)',
+    )
     parser.add_argument('--resume', action='store_true', help='continue the run in --out from its last stage')
     return parser.parse_args(argv)
 
@@ -441,14 +542,15 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
     paths = paths_of(args.out)
     state = read_state(paths)
     if state and not args.resume:
-        raise StyleError(f'{args.out} already holds a learn_style run; pass --resume to continue it or choose '
-                         'another --out')
+        raise StyleError(
+            f'{args.out} already holds a learn_style run; pass --resume to continue it or choose another --out'
+        )
     if args.resume and not state:
         say(f'nothing to resume in {args.out}; starting a new run')
     if args.minutes <= 0:
         raise StyleError(f'--minutes must be positive, got {args.minutes}')
     skill = None
-    if state:   # a resumed run keeps what it was started with
+    if state:  # a resumed run keeps what it was started with
         source, minutes = pathlib.Path(state['source']), float(state['minutes'])
         device = state['device']
     else:
@@ -459,12 +561,17 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
     require_device(device)
     cfg, config_path = recipe(device)
     started = time.perf_counter()
-    found = check_stage(source, cfg)   # again on resume: it is quick, and the bags may have changed
+    found = check_stage(source, cfg)  # again on resume: it is quick, and the bags may have changed
     if 'check' not in state.get('stages', {}):
         args.out.mkdir(parents=True, exist_ok=True)
-        state.update(source=str(source.resolve()), minutes=minutes, device=device,
-                     skill=str(skill.resolve()) if skill is not None else None,
-                     command=command, config=str(config_path))
+        state.update(
+            source=str(source.resolve()),
+            minutes=minutes,
+            device=device,
+            skill=str(skill.resolve()) if skill is not None else None,
+            command=command,
+            config=str(config_path),
+        )
         stage_done(paths, state, 'check', time.perf_counter() - started, summary=found.describe())
     say(f'demonstrations: {found.describe()}')
     for stage in STAGES[1:]:
@@ -477,8 +584,16 @@ def run(args: argparse.Namespace, command: str) -> pathlib.Path:
     return paths.run / 'report.md'
 
 
-def run_stage(stage: str, paths: Paths, state: dict, found, cfg: TrainConfig, config_path: pathlib.Path,
-              minutes: float, device: str) -> dict | None:
+def run_stage(
+    stage: str,
+    paths: Paths,
+    state: dict,
+    found,
+    cfg: TrainConfig,
+    config_path: pathlib.Path,
+    minutes: float,
+    device: str,
+) -> dict | None:
     """Run one stage after the check; returns the facts its record keeps."""
     if stage == 'dataset':
         return dataset_stage(found, paths)
@@ -486,8 +601,9 @@ def run_stage(stage: str, paths: Paths, state: dict, found, cfg: TrainConfig, co
         return skill_stage(paths, state, device, skill_bar(cfg))
     if stage == 'train':
         spent_s = state['stages']['skill']['wall_time_s']
-        return train_stage(cfg, config_path, paths, pathlib.Path(state['skill']), training_budget_s(minutes, spent_s),
-                           state['command'])
+        return train_stage(
+            cfg, config_path, paths, pathlib.Path(state['skill']), training_budget_s(minutes, spent_s), state['command']
+        )
     if stage == 'choose':
         return choose_stage(paths, device)
     if stage == 'export':
@@ -509,8 +625,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f'{PROG}: {err}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f'{PROG}: interrupted; the last checkpoint is kept. Continue with: '
-              f'{PROG} {shlex.quote(str(args.source))} --out {shlex.quote(str(args.out))} --resume', file=sys.stderr)
+        print(
+            f'{PROG}: interrupted; the last checkpoint is kept. Continue with: '
+            f'{PROG} {shlex.quote(str(args.source))} --out {shlex.quote(str(args.out))} --resume',
+            file=sys.stderr,
+        )
         return 130
     say(f'done: {args.out / ACTOR_NAME} (+ .json, .onnx); report {report}')
     say(f'play it: ros2 run stylepong_policy player --ros-args -p actor:={args.out / "actor.onnx"}')

@@ -5,6 +5,7 @@ The training stage is budgeted in time, so its bar counts the run's seconds of t
 count their evaluations. On a terminal the bar redraws in place; in a log file (nohup) it writes a line
 every LOG_INTERVAL_S.
 """
+
 from __future__ import annotations
 
 import sys
@@ -28,8 +29,15 @@ class StageBar:
     def __enter__(self) -> 'StageBar':
         tty = sys.stderr.isatty()
         fmt = '{desc} {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} ' + self.unit + ' [{elapsed}<{remaining}{postfix}]'
-        self.bar = tqdm(total=self.total, initial=self.initial, desc=f'[learn_style] {self.stage}', bar_format=fmt,
-                        dynamic_ncols=True, mininterval=0.5 if tty else LOG_INTERVAL_S, file=sys.stderr)
+        self.bar = tqdm(
+            total=self.total,
+            initial=self.initial,
+            desc=f'[learn_style] {self.stage}',
+            bar_format=fmt,
+            dynamic_ncols=True,
+            mininterval=0.5 if tty else LOG_INTERVAL_S,
+            file=sys.stderr,
+        )
         return self
 
     def __exit__(self, *exc) -> None:
@@ -48,7 +56,10 @@ class StageBar:
                 self.advance(float(stats['wall_time_s']) - self.bar.n)
             success = stats.get('success_rate')
             scale = stats.get('motion_scale')
-            self.bar.set_postfix_str(f'it {stats.get("iteration")}'
-                                     + (f', success {success:.3f}' if isinstance(success, float) else '')
-                                     + f', pose {stats.get("step_reward/pose", float("nan")):.3f}'
-                                     + (f', style scale {scale:.2f}' if scale is not None else ''), refresh=False)
+            self.bar.set_postfix_str(
+                f'it {stats.get("iteration")}'
+                + (f', success {success:.3f}' if isinstance(success, float) else '')
+                + f', pose {stats.get("step_reward/pose", float("nan")):.3f}'
+                + (f', style scale {scale:.2f}' if scale is not None else ''),
+                refresh=False,
+            )

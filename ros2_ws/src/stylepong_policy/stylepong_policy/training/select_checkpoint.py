@@ -38,6 +38,7 @@ direction rule (WORST_RATIO_RULE): the checkpoint whose largest ratio of a direc
 baseline's is the lowest, the form of the style target (each direction within a fraction of PPO's).
 `--from-iteration N` validates and chooses among the checkpoints of iteration N and later only.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -65,30 +66,50 @@ from stylepong_sim.world_spec import FIRST_EVALUATION_SEED
 CSV_NAME = 'validation.csv'
 CURVE_NAME = 'validation_curve.png'
 SELECTION_NAME = 'selection.json'
-CONFIG_NAME = 'config.yaml'            # train writes the run's configuration under this name
+CONFIG_NAME = 'config.yaml'  # train writes the run's configuration under this name
 CHECKPOINT_PATTERN = re.compile(r'^model_(\d+)\.pt$')
 # An averaged checkpoint's (average_checkpoints) record of the iterations its network is the mean of.
 AVERAGED_KEY = 'averaged_iterations'
-COLUMNS = ('iteration', 'samples', 'val_success_all', 'val_success_high', 'val_hit_rate_all', 'val_hit_rate_high',
-           'speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'checkpoint', 'wall_time_s')
+COLUMNS = (
+    'iteration',
+    'samples',
+    'val_success_all',
+    'val_success_high',
+    'val_hit_rate_all',
+    'val_hit_rate_high',
+    'speed',
+    'seeds',
+    'balls',
+    'high_seeds',
+    'high_balls',
+    'checkpoint',
+    'wall_time_s',
+)
 # With --dtw: the mean DTW distance (rad) of each direction's strokes and the reference dataset. Files
 # written before these columns existed keep their header and can still be extended without --dtw.
 DTW_COLUMN = {d: f'val_dtw_{d}' for d in DIRECTIONS}
 DTW_COLUMNS = tuple(DTW_COLUMN.values()) + ('dtw_dataset',)
 # The columns that say how a row was validated: a checkpoint counts as validated only for its setting.
 SETTING_COLUMNS = ('speed', 'seeds', 'balls', 'high_seeds', 'high_balls', 'dtw_dataset')
-RULE = ('highest mean success rate over the validation seeds at the validation speed (val_success_all); '
-        'ties: higher val_success_high when validated, then the earlier iteration')
-STYLE_RULE = ('lowest mean DTW distance to the demonstrations over the three directions (val_dtw_*) among '
-              'the checkpoints with val_success_all >= {min_success}; when there is none, ' + RULE)
-WORST_RATIO_RULE = ('lowest largest ratio, over the three directions, of the DTW distance to the demonstrations '
-                    '(val_dtw_*) to that of {baseline} on the same validation balls, among the checkpoints with '
-                    'val_success_all >= {min_success}; when there is none, ' + RULE)
+RULE = (
+    'highest mean success rate over the validation seeds at the validation speed (val_success_all); '
+    'ties: higher val_success_high when validated, then the earlier iteration'
+)
+STYLE_RULE = (
+    'lowest mean DTW distance to the demonstrations over the three directions (val_dtw_*) among '
+    'the checkpoints with val_success_all >= {min_success}; when there is none, ' + RULE
+)
+WORST_RATIO_RULE = (
+    'lowest largest ratio, over the three directions, of the DTW distance to the demonstrations '
+    '(val_dtw_*) to that of {baseline} on the same validation balls, among the checkpoints with '
+    'val_success_all >= {min_success}; when there is none, ' + RULE
+)
 
 
 @dataclass(frozen=True)
 class Setting:
     """The validation setting: speed band, seeds and balls (and optionally a high-speed set)."""
+
     speed: str
     first_seed: int
     seeds: int
@@ -96,16 +117,20 @@ class Setting:
     high_first_seed: int | None
     high_seeds: int
     high_balls: int
-    dtw_dataset: str = ''          # the reference dataset of the DTW columns, as given ('' : no DTW)
+    dtw_dataset: str = ''  # the reference dataset of the DTW columns, as given ('' : no DTW)
 
     def row(self) -> dict[str, str]:
         """The setting as it appears in validation.csv (a row validated with DTW also serves a setting
         without it: its success figures are the same measurement)."""
         high = self.high_first_seed is not None
-        return {'speed': self.speed, 'seeds': seed_range(self.first_seed, self.seeds), 'balls': str(self.balls),
-                'high_seeds': seed_range(self.high_first_seed, self.high_seeds) if high else '',
-                'high_balls': str(self.high_balls) if high else '',
-                **({'dtw_dataset': self.dtw_dataset} if self.dtw_dataset else {})}
+        return {
+            'speed': self.speed,
+            'seeds': seed_range(self.first_seed, self.seeds),
+            'balls': str(self.balls),
+            'high_seeds': seed_range(self.high_first_seed, self.high_seeds) if high else '',
+            'high_balls': str(self.high_balls) if high else '',
+            **({'dtw_dataset': self.dtw_dataset} if self.dtw_dataset else {}),
+        }
 
 
 def seed_range(first: int, count: int) -> str:
@@ -113,8 +138,9 @@ def seed_range(first: int, count: int) -> str:
     return f'{first}-{first + count - 1}'
 
 
-def numbered_checkpoints(run_dir: pathlib.Path, first: int = 0, last: int | None = None
-                         ) -> list[tuple[int, pathlib.Path]]:
+def numbered_checkpoints(
+    run_dir: pathlib.Path, first: int = 0, last: int | None = None
+) -> list[tuple[int, pathlib.Path]]:
     """(iteration, path) of every checkpoints/model_<iteration>.pt with first <= iteration <= last (None: no
     end), in iteration order."""
     found = []
@@ -135,27 +161,46 @@ def actor_critic_of(checkpoint: dict) -> ActorCritic:
 def training_info(checkpoint: dict) -> dict:
     """What train writes into an actor's sidecar about its training, from the checkpoint."""
     config = checkpoint.get('config') or {}
-    return {'method': method_of(config_from_dict(config)), 'iterations': int(checkpoint['iteration']),
-            'samples': int(checkpoint['env_steps']), 'seed': (config.get('runner') or {}).get('seed'),
-            'wall_time_s': round(float(checkpoint['wall_time_s']), 1),
-            'devices': sorted({s.get('device') for s in checkpoint.get('sessions') or [] if s.get('device')}),
-            'task': config.get('task') or {},
-            **({AVERAGED_KEY: checkpoint[AVERAGED_KEY]} if checkpoint.get(AVERAGED_KEY) else {})}
+    return {
+        'method': method_of(config_from_dict(config)),
+        'iterations': int(checkpoint['iteration']),
+        'samples': int(checkpoint['env_steps']),
+        'seed': (config.get('runner') or {}).get('seed'),
+        'wall_time_s': round(float(checkpoint['wall_time_s']), 1),
+        'devices': sorted({s.get('device') for s in checkpoint.get('sessions') or [] if s.get('device')}),
+        'task': config.get('task') or {},
+        **({AVERAGED_KEY: checkpoint[AVERAGED_KEY]} if checkpoint.get(AVERAGED_KEY) else {}),
+    }
 
 
 def export_checkpoint(checkpoint: dict, path: pathlib.Path, onnx: bool, extra: dict | None = None) -> pathlib.Path:
     """Export a checkpoint's actor to `path` (and ONNX if asked); returns the actor's path."""
-    actor_path, _ = export_actor(actor_critic_of(checkpoint), path, current_spec_contract(),
-                                 training={**training_info(checkpoint), **(extra or {})}, onnx=onnx)
+    actor_path, _ = export_actor(
+        actor_critic_of(checkpoint),
+        path,
+        current_spec_contract(),
+        training={**training_info(checkpoint), **(extra or {})},
+        onnx=onnx,
+    )
     return actor_path
 
 
-def run_evaluation(actor: pathlib.Path, *, seeds: int, first_seed: int, balls: int, speed: str,
-                   device: str, dtw_dataset: str | None = None) -> dict:
+def run_evaluation(
+    actor: pathlib.Path,
+    *,
+    seeds: int,
+    first_seed: int,
+    balls: int,
+    speed: str,
+    device: str,
+    dtw_dataset: str | None = None,
+) -> dict:
     """evaluate's result dict for an exported actor (success_rate, hit_rate, per_seed, ..., dtw with a dataset)."""
     from stylepong_policy.evaluation import evaluate
-    return evaluate.run_evaluation(actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed,
-                                   device=device, dtw_dataset=dtw_dataset)
+
+    return evaluate.run_evaluation(
+        actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed, device=device, dtw_dataset=dtw_dataset
+    )
 
 
 def dtw_cells(result: dict) -> dict[str, str]:
@@ -173,17 +218,33 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='select_checkpoint_') as tmp:
         actor = export_checkpoint(checkpoint, pathlib.Path(tmp) / 'actor.pt', onnx=False)
-        result = run_evaluation(actor, seeds=setting.seeds, first_seed=setting.first_seed, balls=setting.balls,
-                                speed=setting.speed, device=device, dtw_dataset=setting.dtw_dataset or None)
+        result = run_evaluation(
+            actor,
+            seeds=setting.seeds,
+            first_seed=setting.first_seed,
+            balls=setting.balls,
+            speed=setting.speed,
+            device=device,
+            dtw_dataset=setting.dtw_dataset or None,
+        )
         high = None
         if setting.high_first_seed is not None:
-            high = run_evaluation(actor, seeds=setting.high_seeds, first_seed=setting.high_first_seed,
-                                  balls=setting.high_balls, speed='high', device=device)
-    return {'val_success_all': f'{result["success_rate"]:.4f}', 'val_hit_rate_all': f'{result["hit_rate"]:.4f}',
-            'val_success_high': f'{high["success_rate"]:.4f}' if high else '',
-            'val_hit_rate_high': f'{high["hit_rate"]:.4f}' if high else '',
-            **(dtw_cells(result) if setting.dtw_dataset else {}),
-            'wall_time_s': f'{time.perf_counter() - started:.1f}'}
+            high = run_evaluation(
+                actor,
+                seeds=setting.high_seeds,
+                first_seed=setting.high_first_seed,
+                balls=setting.high_balls,
+                speed='high',
+                device=device,
+            )
+    return {
+        'val_success_all': f'{result["success_rate"]:.4f}',
+        'val_hit_rate_all': f'{result["hit_rate"]:.4f}',
+        'val_success_high': f'{high["success_rate"]:.4f}' if high else '',
+        'val_hit_rate_high': f'{high["hit_rate"]:.4f}' if high else '',
+        **(dtw_cells(result) if setting.dtw_dataset else {}),
+        'wall_time_s': f'{time.perf_counter() - started:.1f}',
+    }
 
 
 # --- validation.csv: append only ---------------------------------------------------------------------
@@ -217,8 +278,9 @@ def _rate(text: str | None) -> float:
     return float(text) if text not in (None, '') else float('-inf')
 
 
-def choose(rows: list[dict[str, str]], min_success: float | None = None,
-           baseline_dtw: dict[str, float] | None = None) -> dict[str, str]:
+def choose(
+    rows: list[dict[str, str]], min_success: float | None = None, baseline_dtw: dict[str, float] | None = None
+) -> dict[str, str]:
     """The row the rule picks: RULE, or with a success floor STYLE_RULE (rows with their DTW columns), or
     WORST_RATIO_RULE when the baseline's DTW distance per direction is given."""
     if min_success is not None:
@@ -226,8 +288,9 @@ def choose(rows: list[dict[str, str]], min_success: float | None = None,
         style = mean_dtw if baseline_dtw is None else (lambda r: worst_ratio(r, baseline_dtw))
         if qualified:
             return min(qualified, key=lambda r: (style(r), -_rate(r['val_success_all']), int(r['iteration'])))
-    return max(rows, key=lambda r: (_rate(r['val_success_all']), _rate(r.get('val_success_high')),
-                                    -int(r['iteration'])))
+    return max(
+        rows, key=lambda r: (_rate(r['val_success_all']), _rate(r.get('val_success_high')), -int(r['iteration']))
+    )
 
 
 def dtw_by_direction(row: dict[str, str]) -> dict[str, float | None]:
@@ -253,8 +316,15 @@ def worst_ratio(row: dict[str, str], baseline_dtw: dict[str, float]) -> float:
 
 def baseline_distances(actor: pathlib.Path, setting: Setting, device: str) -> dict[str, float]:
     """The baseline actor's mean DTW distance (rad) per direction on the setting's validation balls."""
-    result = run_evaluation(actor, seeds=setting.seeds, first_seed=setting.first_seed, balls=setting.balls,
-                            speed=setting.speed, device=device, dtw_dataset=setting.dtw_dataset)
+    result = run_evaluation(
+        actor,
+        seeds=setting.seeds,
+        first_seed=setting.first_seed,
+        balls=setting.balls,
+        speed=setting.speed,
+        device=device,
+        dtw_dataset=setting.dtw_dataset,
+    )
     missing = [d for d in DIRECTIONS if (result.get('dtw') or {}).get(d, {}).get('mean_rad') is None]
     if missing:
         raise ValueError(f'{actor} made no {", ".join(missing)} stroke on the validation balls')
@@ -264,19 +334,29 @@ def baseline_distances(actor: pathlib.Path, setting: Setting, device: str) -> di
 def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Setting, path: pathlib.Path) -> None:
     """Plot validation success against training samples, marking the chosen checkpoint."""
     import matplotlib
+
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     rows = sorted(rows, key=lambda r: int(r['iteration']))
     samples_m = [int(r['samples']) / 1e6 for r in rows]
     fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(samples_m, [float(r['val_success_all']) for r in rows], 'o-',
-            label=f'success, {setting.speed} speeds (seeds {setting.row()["seeds"]})')
+    ax.plot(
+        samples_m,
+        [float(r['val_success_all']) for r in rows],
+        'o-',
+        label=f'success, {setting.speed} speeds (seeds {setting.row()["seeds"]})',
+    )
     if setting.high_first_seed is not None:
-        ax.plot(samples_m, [float(r['val_success_high']) for r in rows], 's-',
-                label=f'success, high speeds (seeds {setting.row()["high_seeds"]})')
-    ax.axvline(int(chosen['samples']) / 1e6, color='grey', linestyle='--',
-               label=f'chosen: iteration {chosen["iteration"]}')
+        ax.plot(
+            samples_m,
+            [float(r['val_success_high']) for r in rows],
+            's-',
+            label=f'success, high speeds (seeds {setting.row()["high_seeds"]})',
+        )
+    ax.axvline(
+        int(chosen['samples']) / 1e6, color='grey', linestyle='--', label=f'chosen: iteration {chosen["iteration"]}'
+    )
     style = [(x, d) for x, d in zip(samples_m, map(mean_dtw, rows)) if d is not None]
     if style:
         dtw_axis = ax.twinx()
@@ -298,8 +378,11 @@ def plot_curve(rows: list[dict[str, str]], chosen: dict[str, str], setting: Sett
 # --- command line ------------------------------------------------------------------------------------
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command line of select_checkpoint."""
-    parser = argparse.ArgumentParser(prog='select_checkpoint', description=__doc__.split('\n\n')[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog='select_checkpoint',
+        description=__doc__.split('\n\n')[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument('--run', required=True, type=pathlib.Path, help='training run directory')
     parser.add_argument('--seeds', type=int, default=10, help='validation seeds')
     parser.add_argument('--first-seed', type=int, default=900, help='first validation seed (< 1000)')
@@ -308,14 +391,28 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--high-first-seed', type=int, help='also validate at high speeds from this seed (< 1000)')
     parser.add_argument('--high-seeds', type=int, help='high-speed validation seeds (default: --seeds)')
     parser.add_argument('--high-balls', type=int, help='balls per high-speed seed (default: --balls)')
-    parser.add_argument('--dtw', metavar='DATASET.npz',
-                        help="also measure the strokes' DTW distance to this reference dataset's clips")
-    parser.add_argument('--min-success', type=float, metavar='RATE',
-                        help='with --dtw: choose by the style rule, among checkpoints returning at least RATE')
-    parser.add_argument('--relative-to', type=pathlib.Path, metavar='BASELINE_ACTOR.pt',
-                        help='with --min-success: choose by the worst-direction rule, ratios to this actor')
-    parser.add_argument('--from-iteration', type=int, default=0, metavar='N',
-                        help='validate and choose among the checkpoints of iteration N and later only')
+    parser.add_argument(
+        '--dtw', metavar='DATASET.npz', help="also measure the strokes' DTW distance to this reference dataset's clips"
+    )
+    parser.add_argument(
+        '--min-success',
+        type=float,
+        metavar='RATE',
+        help='with --dtw: choose by the style rule, among checkpoints returning at least RATE',
+    )
+    parser.add_argument(
+        '--relative-to',
+        type=pathlib.Path,
+        metavar='BASELINE_ACTOR.pt',
+        help='with --min-success: choose by the worst-direction rule, ratios to this actor',
+    )
+    parser.add_argument(
+        '--from-iteration',
+        type=int,
+        default=0,
+        metavar='N',
+        help='validate and choose among the checkpoints of iteration N and later only',
+    )
     parser.add_argument('--export', type=pathlib.Path, metavar='ACTOR.pt', help="write the chosen checkpoint's actor")
     parser.add_argument('--device', default='cpu', help='torch device of the world')
     parser.add_argument('--num-threads', type=int, default=2, help='torch CPU threads')
@@ -338,8 +435,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         if first < 0:
             parser.error(f'{flag} must not be negative')
         if first + count - 1 >= FIRST_EVALUATION_SEED:
-            parser.error(f'{flag} {first} with {count} seeds reaches seed {first + count - 1}: validation seeds '
-                         f'must stay below {FIRST_EVALUATION_SEED} (the evaluation seeds)')
+            parser.error(
+                f'{flag} {first} with {count} seeds reaches seed {first + count - 1}: validation seeds '
+                f'must stay below {FIRST_EVALUATION_SEED} (the evaluation seeds)'
+            )
     return args
 
 
@@ -349,18 +448,32 @@ def main(argv: list[str] | None = None) -> int:
     run_dir: pathlib.Path = args.run
     checkpoints = numbered_checkpoints(run_dir, args.from_iteration)
     if not checkpoints:
-        print(f'select_checkpoint: no numbered checkpoints of iteration {args.from_iteration} or later in '
-              f'{run_dir / CHECKPOINT_DIR} (model_*.pt)', file=sys.stderr)
+        print(
+            f'select_checkpoint: no numbered checkpoints of iteration {args.from_iteration} or later in '
+            f'{run_dir / CHECKPOINT_DIR} (model_*.pt)',
+            file=sys.stderr,
+        )
         return 2
     torch.set_num_threads(args.num_threads)
-    setting = Setting(args.speed, args.first_seed, args.seeds, args.balls, args.high_first_seed, args.high_seeds,
-                      args.high_balls, args.dtw or '')
+    setting = Setting(
+        args.speed,
+        args.first_seed,
+        args.seeds,
+        args.balls,
+        args.high_first_seed,
+        args.high_seeds,
+        args.high_balls,
+        args.dtw or '',
+    )
     csv_path = run_dir / CSV_NAME
     header, rows = read_rows(csv_path)
     missing = [c for c in COLUMNS + (DTW_COLUMNS if args.dtw else ()) if c not in header]
     if missing:
-        print(f'select_checkpoint: {csv_path} lacks the columns {missing}; rows are only appended, so it is '
-              'left as it is (move it aside to start a new one)', file=sys.stderr)
+        print(
+            f'select_checkpoint: {csv_path} lacks the columns {missing}; rows are only appended, so it is '
+            'left as it is (move it aside to start a new one)',
+            file=sys.stderr,
+        )
         return 2
     done = {int(r['iteration']) for r in rows if same_setting(r, setting)}
     for iteration, path in checkpoints:
@@ -372,15 +485,22 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as err:
             print(f'select_checkpoint: skipping {path.name}: {err}', file=sys.stderr)
             continue
-        row = {'iteration': str(int(checkpoint['iteration'])), 'samples': str(int(checkpoint['env_steps'])),
-               'checkpoint': f'{CHECKPOINT_DIR}/{path.name}', **setting.row(),
-               **validate_checkpoint(checkpoint, setting, args.device)}
+        row = {
+            'iteration': str(int(checkpoint['iteration'])),
+            'samples': str(int(checkpoint['env_steps'])),
+            'checkpoint': f'{CHECKPOINT_DIR}/{path.name}',
+            **setting.row(),
+            **validate_checkpoint(checkpoint, setting, args.device),
+        }
         append_row(csv_path, header, row)
         rows.append(row)
-        print(f'iteration {row["iteration"]}: success {row["val_success_all"]} ({setting.speed} speeds)'
-              + (f', {row["val_success_high"]} (high speeds)' if row['val_success_high'] else '')
-              + (f', DTW {" / ".join(row[c] or "-" for c in DTW_COLUMN.values())} rad' if args.dtw else '')
-              + f', {row["wall_time_s"]} s', flush=True)
+        print(
+            f'iteration {row["iteration"]}: success {row["val_success_all"]} ({setting.speed} speeds)'
+            + (f', {row["val_success_high"]} (high speeds)' if row['val_success_high'] else '')
+            + (f', DTW {" / ".join(row[c] or "-" for c in DTW_COLUMN.values())} rad' if args.dtw else '')
+            + f', {row["wall_time_s"]} s',
+            flush=True,
+        )
 
     candidates = [r for r in rows if same_setting(r, setting) and int(r['iteration']) >= args.from_iteration]
     baseline = None
@@ -391,46 +511,70 @@ def main(argv: list[str] | None = None) -> int:
     chosen = choose(candidates, args.min_success, baseline)
     plot_curve(candidates, chosen, setting, run_dir / CURVE_NAME)
     selection = {
-        'iteration': int(chosen['iteration']), 'samples': int(chosen['samples']), 'checkpoint': chosen['checkpoint'],
+        'iteration': int(chosen['iteration']),
+        'samples': int(chosen['samples']),
+        'checkpoint': chosen['checkpoint'],
         'val_success_all': float(chosen['val_success_all']),
         'val_success_high': float(chosen['val_success_high']) if chosen['val_success_high'] else None,
         'val_hit_rate_all': float(chosen['val_hit_rate_all']),
         **({'val_dtw_rad': dtw_by_direction(chosen), 'dtw_dataset': args.dtw} if args.dtw else {}),
-        **({'baseline': {'actor': str(args.relative_to), 'val_dtw_rad': baseline},
-            'val_dtw_ratio': {d: round(r, 4) for d, r in dtw_ratios(chosen, baseline).items()}}
-           if baseline is not None and mean_dtw(chosen) is not None else {}),
-        'rule': (RULE if args.min_success is None else
-                 STYLE_RULE.format(min_success=args.min_success) if baseline is None else
-                 WORST_RATIO_RULE.format(min_success=args.min_success, baseline=args.relative_to)),
-        'validation': {'speed': setting.speed,
-                       'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
-                       'balls_per_seed': setting.balls,
-                       'high_seeds': (list(range(setting.high_first_seed, setting.high_first_seed + setting.high_seeds))
-                                      if setting.high_first_seed is not None else None),
-                       'high_balls_per_seed': setting.high_balls if setting.high_first_seed is not None else None},
-        'candidates': len(candidates), 'validation_csv': CSV_NAME, 'validation_curve': CURVE_NAME,
+        **(
+            {
+                'baseline': {'actor': str(args.relative_to), 'val_dtw_rad': baseline},
+                'val_dtw_ratio': {d: round(r, 4) for d, r in dtw_ratios(chosen, baseline).items()},
+            }
+            if baseline is not None and mean_dtw(chosen) is not None
+            else {}
+        ),
+        'rule': (
+            RULE
+            if args.min_success is None
+            else STYLE_RULE.format(min_success=args.min_success)
+            if baseline is None
+            else WORST_RATIO_RULE.format(min_success=args.min_success, baseline=args.relative_to)
+        ),
+        'validation': {
+            'speed': setting.speed,
+            'seeds': list(range(setting.first_seed, setting.first_seed + setting.seeds)),
+            'balls_per_seed': setting.balls,
+            'high_seeds': (
+                list(range(setting.high_first_seed, setting.high_first_seed + setting.high_seeds))
+                if setting.high_first_seed is not None
+                else None
+            ),
+            'high_balls_per_seed': setting.high_balls if setting.high_first_seed is not None else None,
+        },
+        'candidates': len(candidates),
+        'validation_csv': CSV_NAME,
+        'validation_curve': CURVE_NAME,
     }
     if args.export is not None:
         chosen_path = run_dir / chosen['checkpoint']
         if not chosen_path.is_file():
-            print(f'select_checkpoint: the chosen checkpoint {chosen_path} no longer exists; nothing exported',
-                  file=sys.stderr)
+            print(
+                f'select_checkpoint: the chosen checkpoint {chosen_path} no longer exists; nothing exported',
+                file=sys.stderr,
+            )
             return 1
         # The sidecar names only files that lie beside the actor: the run's config and this selection when
         # the actor goes into the run directory, neither elsewhere.
         in_run_dir = args.export.parent.resolve() == run_dir.resolve()
         extra = {'selected_iteration': selection['iteration']}
         if in_run_dir:
-            extra.update(selection=SELECTION_NAME,
-                         **({'config': CONFIG_NAME} if (run_dir / CONFIG_NAME).is_file() else {}))
+            extra.update(
+                selection=SELECTION_NAME, **({'config': CONFIG_NAME} if (run_dir / CONFIG_NAME).is_file() else {})
+            )
         actor = export_checkpoint(read_checkpoint(chosen_path), args.export, onnx=True, extra=extra)
         if in_run_dir:
             selection['exported_actor'] = actor.name
         print(f'exported the actor of iteration {selection["iteration"]} to {actor}', flush=True)
     (run_dir / SELECTION_NAME).write_text(json.dumps(selection, indent=2) + '\n')
-    print(f'chosen: iteration {selection["iteration"]} ({selection["samples"]} samples), success '
-          f'{selection["val_success_all"]:.4f} on seeds {setting.row()["seeds"]} ({setting.speed} speeds); '
-          f'{run_dir / SELECTION_NAME}', flush=True)
+    print(
+        f'chosen: iteration {selection["iteration"]} ({selection["samples"]} samples), success '
+        f'{selection["val_success_all"]:.4f} on seeds {setting.row()["seeds"]} ({setting.speed} speeds); '
+        f'{run_dir / SELECTION_NAME}',
+        flush=True,
+    )
     return 0
 
 

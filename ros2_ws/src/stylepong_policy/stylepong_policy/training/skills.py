@@ -11,6 +11,7 @@ skill that has already seen a set is not offered as the start for learning that 
 learning those demonstrations, not continuing them (continue a run with learn_style --from). The shipped
 skill records none and is always offered.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -32,6 +33,7 @@ FINGERPRINT_RESOLUTION_RAD = 1e-4
 @dataclass(frozen=True)
 class Skill:
     """A network to start from: its name, its training checkpoint and the fingerprints it learned on."""
+
     name: str
     path: pathlib.Path
     learned_on: tuple[str, ...]
@@ -62,6 +64,7 @@ def lineage_after(start: dict, fingerprint: str) -> list[str]:
 def read_skill(name: str, path: pathlib.Path) -> Skill:
     """The skill in a training checkpoint file."""
     import torch
+
     checkpoint = torch.load(path, map_location='cpu', weights_only=False)
     return Skill(name, path, lineage_of(checkpoint))
 

@@ -37,6 +37,7 @@ Domain randomisation (`randomize`, per episode): table, paddle restitution and t
 sensing noise level (0 to the maximum stds), the ball and joint observation delays and the action
 delay. With randomize=False everything is nominal and noiseless (the evaluation protocol).
 """
+
 from __future__ import annotations
 
 import math
@@ -62,16 +63,17 @@ REWARD_TERMS = ('bat', 'hit', 'aim', 'goal', 'land', 'success', 'illegal', 'acc'
 @dataclass
 class TaskConfig:
     """Every parameter of the environment, its randomisation and its reward (YAML: the `task` section)."""
-    num_envs: int = 1024                            # config/ppo.yaml's (the source; see rl.config)
+
+    num_envs: int = 1024  # config/ppo.yaml's (the source; see rl.config)
     speed_range_m_s: tuple[float, float] = tuple(world_spec.SPEED_RANGES_M_S['all'])
     randomize: bool = True
     # World
     physics_rate_hz: float = batched_world.PHYSICS_RATE_HZ
     arm_substeps: int = batched_world.ARM_SUBSTEPS
-    cpu_threads: int = 1                            # torch threads while the env steps (0: leave as set)
-    compile_world: bool = False                     # torch.compile the world's stages (3x faster, ~1 min start)
-    episode_length_s: float = world_spec.BALL_TIMEOUT_S     # the referee's timeout ends every episode by then
-    reset_joint_noise_rad: float = 0.05             # arm start: home + uniform noise (randomize only)
+    cpu_threads: int = 1  # torch threads while the env steps (0: leave as set)
+    compile_world: bool = False  # torch.compile the world's stages (3x faster, ~1 min start)
+    episode_length_s: float = world_spec.BALL_TIMEOUT_S  # the referee's timeout ends every episode by then
+    reset_joint_noise_rad: float = 0.05  # arm start: home + uniform noise (randomize only)
     goal_radius_m: float = world_spec.GOAL_RADIUS_M
     # Sensing noise: maximum standard deviations; each episode draws a level in [0, 1] times these.
     noise_joint_position_rad: float = 0.003
@@ -79,9 +81,9 @@ class TaskConfig:
     noise_ball_position_m: float = 0.01
     noise_ball_velocity_m_s: float = 0.15
     # Latencies, drawn uniformly per episode in [0, max].
-    max_ball_delay_s: float = 0.025                 # camera tracking
-    max_joint_delay_s: float = 0.008                # joint state
-    max_action_delay_s: float = 1.0 / 60.0          # command to servo (whole physics steps)
+    max_ball_delay_s: float = 0.025  # camera tracking
+    max_joint_delay_s: float = 0.008  # joint state
+    max_action_delay_s: float = 1.0 / 60.0  # command to servo (whole physics steps)
     # Physics randomisation ranges.
     table_restitution_range: tuple[float, float] = tuple(world_spec.TABLE_RESTITUTION_RANGE)
     table_tangential_range: tuple[float, float] = tuple(world_spec.TABLE_TANGENTIAL_FACTOR_RANGE)
@@ -95,11 +97,11 @@ class TaskConfig:
     # control; batched_world.PhysicsParams.velocity_drive): an actor trained on one drive alone returned
     # 56 of 100 balls behind Bullet's motors against 90 behind MuJoCo's PD (docs/DESIGN.md, Known limits).
     velocity_drive_range: tuple[float, float] = (0.0, 0.0)
-    armature_scale_range: tuple[float, float] = (1.0, 1.0)   # of world_spec's rotor inertia
+    armature_scale_range: tuple[float, float] = (1.0, 1.0)  # of world_spec's rotor inertia
     # Reward weights and scales.
     w_bat: float = 0.1
     sigma_bat_m: float = 0.3
-    bat_axes: str = 'yz'                            # which of x, y, z the paddle-ball distance uses
+    bat_axes: str = 'yz'  # which of x, y, z the paddle-ball distance uses
     w_hit: float = 2.0
     w_aim: float = 3.0
     sigma_aim_m: float = 0.7
@@ -145,8 +147,13 @@ class TaskConfig:
                     raise ValueError(f'{f.name} must be (low, high), got {(a, b)}')
         if not set(self.bat_axes) <= set('xyz') or not self.bat_axes:
             raise ValueError(f"bat_axes must be letters of 'xyz', got {self.bat_axes!r}")
-        for name in ('max_ball_delay_s', 'max_joint_delay_s', 'max_action_delay_s', 'style_weight_after_hit',
-                     'style_weight_after_hit_s'):
+        for name in (
+            'max_ball_delay_s',
+            'max_joint_delay_s',
+            'max_action_delay_s',
+            'style_weight_after_hit',
+            'style_weight_after_hit_s',
+        ):
             if getattr(self, name) < 0.0:
                 raise ValueError(f'{name} must not be negative')
 
@@ -155,26 +162,37 @@ class TaskConfig:
 
 
 PRIVILEGED_LAYOUT: tuple[tuple[str, int], ...] = (
-    ('true_joint_position_offset_rad', 6), ('true_joint_velocity_rad_s', 6), ('true_ball_position_m', 3),
-    ('true_ball_velocity_m_s', 3), ('paddle_position_m', 3), ('paddle_normal', 3), ('ball_hit', 1),
-    ('own_bounces', 1), ('time_since_launch_s', 1), ('physics', 8), ('noise_std', 4), ('delays_s', 3),
+    ('true_joint_position_offset_rad', 6),
+    ('true_joint_velocity_rad_s', 6),
+    ('true_ball_position_m', 3),
+    ('true_ball_velocity_m_s', 3),
+    ('paddle_position_m', 3),
+    ('paddle_normal', 3),
+    ('ball_hit', 1),
+    ('own_bounces', 1),
+    ('time_since_launch_s', 1),
+    ('physics', 8),
+    ('noise_std', 4),
+    ('delays_s', 3),
 )
 
 
 @dataclass
 class _Episode:
     """Per-environment quantities drawn at each reset ([N] unless noted)."""
-    goal_xy_m: torch.Tensor                 # [N, 2]
-    noise_std: torch.Tensor                 # [N, 4]: joint pos, joint vel, ball pos, ball vel
-    ball_delay_steps: torch.Tensor          # in policy steps (fractional)
+
+    goal_xy_m: torch.Tensor  # [N, 2]
+    noise_std: torch.Tensor  # [N, 4]: joint pos, joint vel, ball pos, ball vel
+    ball_delay_steps: torch.Tensor  # in policy steps (fractional)
     joint_delay_steps: torch.Tensor
     action_delay_physics_steps: torch.Tensor  # long
-    direction: torch.Tensor                 # long: index into strokes.DIRECTIONS of the stroke the ball asks for
+    direction: torch.Tensor  # long: index into strokes.DIRECTIONS of the stroke the ball asks for
     reward_sums: dict = field(default_factory=dict)
 
 
-def launch_directions(position_m: torch.Tensor, velocity_m_s: torch.Tensor, plane_x_m: float,
-                      paddle_home_y_m: float) -> torch.Tensor:
+def launch_directions(
+    position_m: torch.Tensor, velocity_m_s: torch.Tensor, plane_x_m: float, paddle_home_y_m: float
+) -> torch.Tensor:
     """Index into strokes.DIRECTIONS [K] of balls launched at position_m, velocity_m_s [3, K]: where they
     will cross the paddle's home plane (x = plane_x_m), by strokes.direction_of's thresholds. In this world
     a ball's heading over the table never turns (drag acts along the velocity, no spin) and a bounce scales
@@ -183,14 +201,17 @@ def launch_directions(position_m: torch.Tensor, velocity_m_s: torch.Tensor, plan
     arrival_y_m = position_m[1] + (plane_x_m - position_m[0]) * velocity_m_s[1] / velocity_m_s[0]
     offset_m = arrival_y_m - paddle_home_y_m
     index = strokes.DIRECTIONS.index
-    return torch.where(offset_m > strokes.LEFTWARD_ABOVE_M, index('leftward'),
-                       torch.where(offset_m < strokes.RIGHTWARD_BELOW_M, index('rightward'), index('forward')))
+    return torch.where(
+        offset_m > strokes.LEFTWARD_ABOVE_M,
+        index('leftward'),
+        torch.where(offset_m < strokes.RIGHTWARD_BELOW_M, index('rightward'), index('forward')),
+    )
 
 
 class TableTennisEnv:
     """N table-tennis episodes in parallel (see the module docstring)."""
 
-    HISTORY = 3   # policy steps of sensed state kept for the observation delays
+    HISTORY = 3  # policy steps of sensed state kept for the observation delays
 
     def __init__(self, cfg: TaskConfig, device: str | torch.device = 'cpu', seed: int = 0):
         self.cfg = cfg
@@ -200,27 +221,43 @@ class TableTennisEnv:
         self.num_obs = spec.NUM_OBS
         self.num_critic_obs = spec.NUM_OBS + sum(size for _, size in PRIVILEGED_LAYOUT)
         threads = int(cfg.cpu_threads) if cfg.cpu_threads > 0 and self.device.type == 'cpu' else None
-        self.world = batched_world.BatchedWorld(self.num_envs, self.device, physics_rate_hz=cfg.physics_rate_hz,
-                                                arm_substeps=cfg.arm_substeps, timeout_s=cfg.episode_length_s,
-                                                cpu_threads=None, compile=cfg.compile_world,
-                                                velocity_drive=max(cfg.velocity_drive_range) > 0.0)
+        self.world = batched_world.BatchedWorld(
+            self.num_envs,
+            self.device,
+            physics_rate_hz=cfg.physics_rate_hz,
+            arm_substeps=cfg.arm_substeps,
+            timeout_s=cfg.episode_length_s,
+            cpu_threads=None,
+            compile=cfg.compile_world,
+            velocity_drive=max(cfg.velocity_drive_range) > 0.0,
+        )
         self.cpu_threads = threads
         self.policy_dt_s = self.world.policy_dt_s
-        if cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s or \
-                cfg.max_joint_delay_s > (self.HISTORY - 1) * self.policy_dt_s:
+        if (
+            cfg.max_ball_delay_s > (self.HISTORY - 1) * self.policy_dt_s
+            or cfg.max_joint_delay_s > (self.HISTORY - 1) * self.policy_dt_s
+        ):
             raise ValueError(f'observation delays above {(self.HISTORY - 1) * self.policy_dt_s:.3f} s are not kept')
         if cfg.max_action_delay_s > self.policy_dt_s + 1e-9:
             raise ValueError(f'max_action_delay_s must not exceed one policy period ({self.policy_dt_s:.4f} s)')
         # Two streams: the balls (the sampler's own generator) and everything else the task draws.
-        self.sampler = batched_launcher.IncomingBallSampler(cfg.speed_range_m_s, seed=seed, device=self.device,
-                                                            batch=max(1024, 2 * self.num_envs))
+        self.sampler = batched_launcher.IncomingBallSampler(
+            cfg.speed_range_m_s, seed=seed, device=self.device, batch=max(1024, 2 * self.num_envs)
+        )
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(int(seed) * 7919 + 104729)
         n, kw = self.num_envs, dict(device=self.device, dtype=torch.float32)
         self._home = torch.tensor(spec.HOME_JOINT_POSITIONS_RAD, **kw)
         # Constants of the resets and the privileged observation, made once rather than every step.
-        self._max_noise_std = torch.tensor([cfg.noise_joint_position_rad, cfg.noise_joint_velocity_rad_s,
-                                            cfg.noise_ball_position_m, cfg.noise_ball_velocity_m_s], **kw)
+        self._max_noise_std = torch.tensor(
+            [
+                cfg.noise_joint_position_rad,
+                cfg.noise_joint_velocity_rad_s,
+                cfg.noise_ball_position_m,
+                cfg.noise_ball_velocity_m_s,
+            ],
+            **kw,
+        )
         self._kp_nominal = torch.tensor(world_spec.ARM_KP_NM_PER_RAD, **kw)[:, None]
         self._kd_nominal = torch.tensor(world_spec.ARM_KD_NMS_PER_RAD, **kw)[:, None]
         self._goal_z_m = world_spec.TABLE_CONTACT_HEIGHT_M
@@ -229,12 +266,16 @@ class TableTennisEnv:
         self._qd_prev = torch.zeros(n, spec.NUM_ACTIONS, **kw)
         self._joint_history = torch.zeros(self.HISTORY, n, 2 * spec.NUM_ACTIONS, **kw)
         self._ball_history = torch.zeros(self.HISTORY, n, 6, **kw)
-        self.episode = _Episode(goal_xy_m=torch.zeros(n, 2, **kw), noise_std=torch.zeros(n, 4, **kw),
-                                ball_delay_steps=torch.zeros(n, **kw), joint_delay_steps=torch.zeros(n, **kw),
-                                action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
-                                direction=torch.zeros(n, dtype=torch.long, device=self.device),
-                                reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS})
-        self.launch_velocity_m_s = torch.zeros(n, 3, **kw)   # this episode's ball at launch
+        self.episode = _Episode(
+            goal_xy_m=torch.zeros(n, 2, **kw),
+            noise_std=torch.zeros(n, 4, **kw),
+            ball_delay_steps=torch.zeros(n, **kw),
+            joint_delay_steps=torch.zeros(n, **kw),
+            action_delay_physics_steps=torch.zeros(n, dtype=torch.long, device=self.device),
+            direction=torch.zeros(n, dtype=torch.long, device=self.device),
+            reward_sums={name: torch.zeros(n, **kw) for name in REWARD_TERMS},
+        )
+        self.launch_velocity_m_s = torch.zeros(n, 3, **kw)  # this episode's ball at launch
         # Policy steps since the ball was struck (0 before, and again from the next ball, whose hit flag is clear).
         self._steps_since_hit = torch.zeros(n, dtype=torch.long, device=self.device)
         self._style_weight_steps = round(cfg.style_weight_after_hit_s / self.policy_dt_s)
@@ -282,8 +323,13 @@ class TableTennisEnv:
         self.world.reset_envs(env_ids, q, position, velocity, params)
         # Goal region wholly on the opponent's half.
         r = cfg.goal_radius_m
-        goal = torch.stack((self._uniform(k, (r, world_spec.HALF_LENGTH_M - r)),
-                            self._uniform(k, (-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r))), dim=1)
+        goal = torch.stack(
+            (
+                self._uniform(k, (r, world_spec.HALF_LENGTH_M - r)),
+                self._uniform(k, (-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r)),
+            ),
+            dim=1,
+        )
         self.episode.goal_xy_m[env_ids] = goal
         self.launch_velocity_m_s[env_ids] = velocity.T.to(torch.float32)
         self.episode.direction[env_ids] = launch_directions(position, velocity, self._plane_x_m, self._paddle_home_y_m)
@@ -293,7 +339,8 @@ class TableTennisEnv:
             self.episode.joint_delay_steps[env_ids] = self._uniform(k, (0.0, cfg.max_joint_delay_s)) / self.policy_dt_s
             physics_steps = int(math.floor(cfg.max_action_delay_s / self.world.physics_dt_s + 1e-9))
             self.episode.action_delay_physics_steps[env_ids] = torch.randint(
-                0, physics_steps + 1, (k,), generator=self.generator, device=self.device)
+                0, physics_steps + 1, (k,), generator=self.generator, device=self.device
+            )
         else:
             self.episode.noise_std[env_ids] = 0.0
             self.episode.ball_delay_steps[env_ids] = 0.0
@@ -301,7 +348,7 @@ class TableTennisEnv:
             self.episode.action_delay_physics_steps[env_ids] = 0
         self.last_action[env_ids] = 0.0
         joints = torch.cat((self.world.q_rad[:, env_ids].T, self.world.qd_rad_s[:, env_ids].T), dim=1)
-        self._qd_prev[env_ids] = joints[:, spec.NUM_ACTIONS:]
+        self._qd_prev[env_ids] = joints[:, spec.NUM_ACTIONS :]
         self._joint_history[:, env_ids] = joints
         self._ball_history[:, env_ids] = torch.cat((position.T, velocity.T), dim=1).to(torch.float32)
         for name in REWARD_TERMS:
@@ -353,26 +400,61 @@ class TableTennisEnv:
         joints = self._delayed(self._joint_history, ep.joint_delay_steps)
         ball = self._delayed(self._ball_history, ep.ball_delay_steps)
         if self.cfg.randomize:
-            std = torch.cat((ep.noise_std[:, 0:1].expand(-1, 6), ep.noise_std[:, 1:2].expand(-1, 6),
-                             ep.noise_std[:, 2:3].expand(-1, 3), ep.noise_std[:, 3:4].expand(-1, 3)), dim=1)
+            std = torch.cat(
+                (
+                    ep.noise_std[:, 0:1].expand(-1, 6),
+                    ep.noise_std[:, 1:2].expand(-1, 6),
+                    ep.noise_std[:, 2:3].expand(-1, 3),
+                    ep.noise_std[:, 3:4].expand(-1, 3),
+                ),
+                dim=1,
+            )
             noise = std * torch.randn(std.shape, generator=self.generator, device=self.device)
             joints = joints + noise[:, :12]
             ball = ball + noise[:, 12:]
-        obs = spec.build_observation(joints[:, :6], joints[:, 6:], ball[:, :3], ball[:, 3:], ep.goal_xy_m,
-                                     self.last_action)
+        obs = spec.build_observation(
+            joints[:, :6], joints[:, 6:], ball[:, :3], ball[:, 3:], ep.goal_xy_m, self.last_action
+        )
         w = self.world
         p = w.params
-        physics = torch.stack((p.gravity_m_s2, p.drag_k_per_m / world_spec.DRAG_K_PER_M, p.table_restitution,
-                               p.table_tangential_factor, p.paddle_restitution, p.paddle_tangential_factor,
-                               (p.kp_nm_per_rad / self._kp_nominal).mean(0),
-                               (p.kd_nms_per_rad / self._kd_nominal).mean(0)),
-                              dim=1)
-        delays = torch.stack((ep.ball_delay_steps * self.policy_dt_s, ep.joint_delay_steps * self.policy_dt_s,
-                              ep.action_delay_physics_steps.to(torch.float32) * w.physics_dt_s), dim=1)
-        privileged = torch.cat((w.q_rad.T - self._home, w.qd_rad_s.T, w.ball_pos_m.T, w.ball_vel_m_s.T,
-                                w.paddle_pos_m.T, w.paddle_rot[:, 2].T, w.hit[:, None].float(),
-                                w.own_bounces[:, None].float(), w.time_s[:, None], physics, ep.noise_std, delays),
-                               dim=1)
+        physics = torch.stack(
+            (
+                p.gravity_m_s2,
+                p.drag_k_per_m / world_spec.DRAG_K_PER_M,
+                p.table_restitution,
+                p.table_tangential_factor,
+                p.paddle_restitution,
+                p.paddle_tangential_factor,
+                (p.kp_nm_per_rad / self._kp_nominal).mean(0),
+                (p.kd_nms_per_rad / self._kd_nominal).mean(0),
+            ),
+            dim=1,
+        )
+        delays = torch.stack(
+            (
+                ep.ball_delay_steps * self.policy_dt_s,
+                ep.joint_delay_steps * self.policy_dt_s,
+                ep.action_delay_physics_steps.to(torch.float32) * w.physics_dt_s,
+            ),
+            dim=1,
+        )
+        privileged = torch.cat(
+            (
+                w.q_rad.T - self._home,
+                w.qd_rad_s.T,
+                w.ball_pos_m.T,
+                w.ball_vel_m_s.T,
+                w.paddle_pos_m.T,
+                w.paddle_rot[:, 2].T,
+                w.hit[:, None].float(),
+                w.own_bounces[:, None].float(),
+                w.time_s[:, None],
+                physics,
+                ep.noise_std,
+                delays,
+            ),
+            dim=1,
+        )
         return obs, torch.cat((obs, privileged), dim=1)
 
     # --- stepping ---------------------------------------------------------------------------------
@@ -419,21 +501,31 @@ class TableTennisEnv:
         self._qd_prev = qd.clone()
         self.last_action = action
         self._joint_history = torch.cat((arm_state[None], self._joint_history[:-1]), dim=0)
-        self._ball_history = torch.cat((torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1)[None],
-                                        self._ball_history[:-1]), dim=0)
+        self._ball_history = torch.cat(
+            (torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1)[None], self._ball_history[:-1]), dim=0
+        )
 
         dones = events.decided
-        outcome = {'done': dones, 'success': events.success & dones, 'hit': w.hit & dones,
-                   'reason': events.reason.clamp_min(0)}
+        outcome = {
+            'done': dones,
+            'success': events.success & dones,
+            'hit': w.hit & dones,
+            'reason': events.reason.clamp_min(0),
+        }
         timed_out = dones & (events.reason == referee.REASON_INDEX[referee.REASON_TIMEOUT])
-        extras = {env_contract.EXTRAS_TIME_OUTS: timed_out,
-                  env_contract.EXTRAS_LOG: {}, env_contract.EXTRAS_LOG_WEIGHT: 0,
-                  env_contract.EXTRAS_STYLE_STATE: arm_state,
-                  env_contract.EXTRAS_STYLE_LABEL: self.episode.direction.clone(),
-                  env_contract.EXTRAS_STYLE_PHASE: w.hit.long(),
-                  'outcome': outcome, 'paddle_hit': events.paddle_hit,
-                  'arm_state': arm_state, 'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
-                  'reward_terms': terms}
+        extras = {
+            env_contract.EXTRAS_TIME_OUTS: timed_out,
+            env_contract.EXTRAS_LOG: {},
+            env_contract.EXTRAS_LOG_WEIGHT: 0,
+            env_contract.EXTRAS_STYLE_STATE: arm_state,
+            env_contract.EXTRAS_STYLE_LABEL: self.episode.direction.clone(),
+            env_contract.EXTRAS_STYLE_PHASE: w.hit.long(),
+            'outcome': outcome,
+            'paddle_hit': events.paddle_hit,
+            'arm_state': arm_state,
+            'ball_state': torch.cat((w.ball_pos_m.T, w.ball_vel_m_s.T), dim=1),
+            'reward_terms': terms,
+        }
         self._steps_since_hit = torch.where(w.hit, self._steps_since_hit + 1, 0)
         extras[env_contract.EXTRAS_STYLE_TIME] = self._style_time_s()
         extras[env_contract.EXTRAS_STYLE_STROKE_END] = self._steps_since_hit == self._follow_through_steps
@@ -475,28 +567,43 @@ class TableTennisEnv:
         hit = cfg.w_hit * events.paddle_hit.float()
         goal_point = torch.cat((self.episode.goal_xy_m, torch.full_like(ball[:, :1], self._goal_z_m)), dim=1)
         returning = w.hit & (w.open | events.decided)
-        goal = (cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m)
-                * returning)
+        goal = (
+            cfg.w_goal * torch.exp(-torch.linalg.vector_norm(ball - goal_point, dim=1) / cfg.sigma_goal_m) * returning
+        )
         aim = cfg.w_aim * self._aim_quality(events.paddle_hit)
         success = events.success
         landing = w.landing_xy_m.T
-        land = cfg.w_land * torch.exp(-torch.linalg.vector_norm(landing - self.episode.goal_xy_m, dim=1)
-                                      / cfg.sigma_land_m) * success
+        land = (
+            cfg.w_land
+            * torch.exp(-torch.linalg.vector_norm(landing - self.episode.goal_xy_m, dim=1) / cfg.sigma_land_m)
+            * success
+        )
         illegal_mask = torch.zeros_like(success)
         for name in ILLEGAL_REASONS:
             illegal_mask |= events.decided & (events.reason == referee.REASON_INDEX[name])
         qdd = (qd - self._qd_prev) / self.policy_dt_s
         acc = cfg.w_acc * (torch.exp(-torch.linalg.vector_norm(qdd, dim=1) / cfg.sigma_acc_rad_s2) - 1.0)
         dof = cfg.w_dof * (torch.exp(-torch.linalg.vector_norm(q - self._home, dim=1) / cfg.sigma_dof_rad) - 1.0)
-        rate = cfg.w_rate * (torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate)
-                             - 1.0)
+        rate = cfg.w_rate * (
+            torch.exp(-torch.linalg.vector_norm(action - self.last_action, dim=1) / cfg.sigma_rate) - 1.0
+        )
         command = torch.zeros_like(acc)
         if cfg.w_command:
             command = -cfg.w_command * w.commands_below_table_top(q_cmd).float()
-        return {'bat': bat, 'hit': hit, 'aim': aim, 'goal': goal, 'land': land,
-                'success': cfg.w_success * success.float(),
-                'illegal': -cfg.w_illegal * illegal_mask.float(), 'acc': acc, 'dof': dof, 'rate': rate,
-                'action': -cfg.w_action * action.abs().amax(dim=1), 'command': command}
+        return {
+            'bat': bat,
+            'hit': hit,
+            'aim': aim,
+            'goal': goal,
+            'land': land,
+            'success': cfg.w_success * success.float(),
+            'illegal': -cfg.w_illegal * illegal_mask.float(),
+            'acc': acc,
+            'dof': dof,
+            'rate': rate,
+            'action': -cfg.w_action * action.abs().amax(dim=1),
+            'command': command,
+        }
 
     def _aim_quality(self, just_hit: torch.Tensor) -> torch.Tensor:
         """How well the ball's drag-free flight from its state now heads for the goal, where it was just hit.
@@ -516,19 +623,24 @@ class TableTennisEnv:
         z_net = p[2] + v[2] * t_net - 0.5 * g * t_net * t_net
         clearance = z_net - (world_spec.NET_TOP_HEIGHT_M + world_spec.BALL_RADIUS_M)
         over_net = torch.sigmoid(clearance / 0.02) * ((v[0] > 0.0) & (t_net < t_land))
-        distance = torch.sqrt((land_x - self.episode.goal_xy_m[:, 0]) ** 2
-                              + (land_y - self.episode.goal_xy_m[:, 1]) ** 2)
+        distance = torch.sqrt(
+            (land_x - self.episode.goal_xy_m[:, 0]) ** 2 + (land_y - self.episode.goal_xy_m[:, 1]) ** 2
+        )
         return torch.exp(-distance / self.cfg.sigma_aim_m) * over_net * just_hit
 
     def _episode_log(self, done_ids: torch.Tensor, outcome: dict[str, torch.Tensor]) -> dict[str, float]:
         """Means over the episodes that ended now: ball outcomes, verdict shares and reward-term sums."""
         success = outcome['success'][done_ids]
-        in_goal = torch.linalg.vector_norm(self.world.landing_xy_m.T[done_ids] - self.episode.goal_xy_m[done_ids],
-                                           dim=1) <= self.cfg.goal_radius_m
-        log = {'success_rate': float(success.float().mean()),
-               'hit_rate': float(outcome['hit'][done_ids].float().mean()),
-               'goal_rate': float((in_goal & success).float().mean()),
-               'episode_length_s': float(self.world.time_s[done_ids].mean())}
+        in_goal = (
+            torch.linalg.vector_norm(self.world.landing_xy_m.T[done_ids] - self.episode.goal_xy_m[done_ids], dim=1)
+            <= self.cfg.goal_radius_m
+        )
+        log = {
+            'success_rate': float(success.float().mean()),
+            'hit_rate': float(outcome['hit'][done_ids].float().mean()),
+            'goal_rate': float((in_goal & success).float().mean()),
+            'episode_length_s': float(self.world.time_s[done_ids].mean()),
+        }
         shares = torch.bincount(outcome['reason'][done_ids], minlength=len(FAILURE_REASONS)).float() / len(done_ids)
         log.update({f'ball/{name}': share for name, share in zip(FAILURE_REASONS, shares.tolist())})
         log.update({f'reward/{name}': float(self.episode.reward_sums[name][done_ids].mean()) for name in REWARD_TERMS})

@@ -15,6 +15,7 @@ notation, angular part first). In that frame a joint's motion axis S_j = (z_j, o
 its parent body, so body velocities, bias accelerations and composite inertias are prefix and suffix
 sums along the joint axis: no loop over links, exact agreement with Pinocchio's CRBA and RNEA.
 """
+
 from __future__ import annotations
 
 import functools
@@ -27,8 +28,7 @@ from stylepong_description import robot_model
 from stylepong_sim import world_spec
 
 NUM_JOINTS = robot_model.NUM_JOINTS
-LINK_BODIES = ('shoulder_link', 'upper_arm_link', 'forearm_link', 'wrist_1_link', 'wrist_2_link',
-               'wrist_3_link')
+LINK_BODIES = ('shoulder_link', 'upper_arm_link', 'forearm_link', 'wrist_1_link', 'wrist_2_link', 'wrist_3_link')
 
 
 # --- Small products on the leading axes (the environment axis and any others trail) ------------------
@@ -61,6 +61,7 @@ def mat_mat(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 @dataclass(frozen=True)
 class Capsule:
     """A segment a-b with a radius, fixed in the frame of joint `joint` (0-based); metres."""
+
     joint: int
     a_m: tuple[float, float, float]
     b_m: tuple[float, float, float]
@@ -76,28 +77,29 @@ class ArmModel:
     (Rodrigues' formula with the fixed placement folded in), with origin `joint_origin_m[:, i]`.
     A link's inertia about its centre of mass is Q diag(moments) Q^T in its joint frame.
     """
-    rot_a: torch.Tensor              # [3, 3, 6, 1]
-    rot_b: torch.Tensor              # [3, 3, 6, 1]
-    rot_c: torch.Tensor              # [3, 3, 6, 1]
-    joint_origin_m: torch.Tensor     # [3, 6] in the parent joint's frame (the first: in the base frame)
-    axis: torch.Tensor               # [3, 6] each joint's axis in its own frame
-    base_rot: torch.Tensor           # [3, 3] robot base orientation in the world
-    base_pos_m: torch.Tensor         # [3] robot base origin in the world
-    mass_kg: torch.Tensor            # [6, 1] link masses (the paddle is part of the last)
-    com_m: torch.Tensor              # [3, 6, 1] centres of mass, joint frames
-    inertia_axes: torch.Tensor       # [3, 3, 6, 1] principal axes Q (columns), joint frames
-    inertia_moments: torch.Tensor    # [3, 6, 1] principal moments, kg m^2
-    paddle_rot: torch.Tensor         # [3, 3, 1] paddle_centre frame in the last joint's frame
-    paddle_pos_m: torch.Tensor       # [3, 1]
-    capsule_joint: torch.Tensor      # [L] long: the joint frame each collision capsule is fixed in
-    capsule_a_m: torch.Tensor        # [3, L, 1]
-    capsule_b_m: torch.Tensor        # [3, L, 1]
-    capsule_radius_m: torch.Tensor   # [L, 1]
+
+    rot_a: torch.Tensor  # [3, 3, 6, 1]
+    rot_b: torch.Tensor  # [3, 3, 6, 1]
+    rot_c: torch.Tensor  # [3, 3, 6, 1]
+    joint_origin_m: torch.Tensor  # [3, 6] in the parent joint's frame (the first: in the base frame)
+    axis: torch.Tensor  # [3, 6] each joint's axis in its own frame
+    base_rot: torch.Tensor  # [3, 3] robot base orientation in the world
+    base_pos_m: torch.Tensor  # [3] robot base origin in the world
+    mass_kg: torch.Tensor  # [6, 1] link masses (the paddle is part of the last)
+    com_m: torch.Tensor  # [3, 6, 1] centres of mass, joint frames
+    inertia_axes: torch.Tensor  # [3, 3, 6, 1] principal axes Q (columns), joint frames
+    inertia_moments: torch.Tensor  # [3, 6, 1] principal moments, kg m^2
+    paddle_rot: torch.Tensor  # [3, 3, 1] paddle_centre frame in the last joint's frame
+    paddle_pos_m: torch.Tensor  # [3, 1]
+    capsule_joint: torch.Tensor  # [L] long: the joint frame each collision capsule is fixed in
+    capsule_a_m: torch.Tensor  # [3, L, 1]
+    capsule_b_m: torch.Tensor  # [3, L, 1]
+    capsule_radius_m: torch.Tensor  # [L, 1]
     capsule_joints: tuple[int, ...]  # capsule_joint as Python ints (no device round trip per step)
-    lower_rad: torch.Tensor          # [6, 1]
-    upper_rad: torch.Tensor          # [6, 1]
+    lower_rad: torch.Tensor  # [6, 1]
+    upper_rad: torch.Tensor  # [6, 1]
     velocity_limit_rad_s: torch.Tensor  # [6, 1]
-    effort_limit_nm: torch.Tensor    # [6, 1]
+    effort_limit_nm: torch.Tensor  # [6, 1]
 
 
 _AXES = {'JointModelRX': (1.0, 0.0, 0.0), 'JointModelRY': (0.0, 1.0, 0.0), 'JointModelRZ': (0.0, 0.0, 1.0)}
@@ -121,10 +123,10 @@ def _fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     along = (points - centre) @ axis
     radial = np.linalg.norm((points - centre) - np.outer(along, axis), axis=1)
     radius = float(radial.max())
-    reach = np.sqrt(np.maximum(radius ** 2 - radial ** 2, 0.0))   # how far past an end a vertex may be
+    reach = np.sqrt(np.maximum(radius**2 - radial**2, 0.0))  # how far past an end a vertex may be
     hi = float((along - reach).max())
     lo = float((along + reach).min())
-    if lo > hi:   # short and fat: a sphere around the middle
+    if lo > hi:  # short and fat: a sphere around the middle
         middle = centre + 0.5 * (along.min() + along.max()) * axis
         return middle, middle, float(np.linalg.norm(points - middle, axis=1).max())
     return centre + lo * axis, centre + hi * axis, radius
@@ -132,11 +134,13 @@ def _fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 def _quat_to_matrix(wxyz: np.ndarray) -> np.ndarray:
     w, x, y, z = wxyz
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @functools.lru_cache(maxsize=1)
@@ -147,6 +151,7 @@ def link_capsules() -> tuple[Capsule, ...]:
     is not among them: the world treats it exactly, as a disc.
     """
     import mujoco
+
     mj = robot_model.mujoco_model()
     capsules = []
     for joint, body in enumerate(LINK_BODIES):
@@ -157,7 +162,7 @@ def link_capsules() -> tuple[Capsule, ...]:
                 continue
             mesh = mj.geom_dataid[geom]
             start, count = mj.mesh_vertadr[mesh], mj.mesh_vertnum[mesh]
-            vertices = mj.mesh_vert[start:start + count].astype(float)
+            vertices = mj.mesh_vert[start : start + count].astype(float)
             points.append(vertices @ _quat_to_matrix(mj.geom_quat[geom]).T + mj.geom_pos[geom])
         if points:
             a, b, radius = _fit_capsule(np.concatenate(points))
@@ -204,19 +209,28 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
         return t(np.stack(ms, axis=-1))[..., None]
 
     return ArmModel(
-        rot_a=per_joint_matrices(rot_a), rot_b=per_joint_matrices(rot_b), rot_c=per_joint_matrices(rot_c),
-        joint_origin_m=t(np.stack(origins, axis=-1)), axis=t(np.stack(axes, axis=-1)),
-        base_rot=t(base_rot), base_pos_m=t(base_pos_m),
-        mass_kg=t(masses)[:, None], com_m=t(np.stack(coms, axis=-1))[..., None],
-        inertia_axes=per_joint_matrices(inertia_axes), inertia_moments=t(np.stack(moments, axis=-1))[..., None],
-        paddle_rot=t(paddle.placement.rotation)[..., None], paddle_pos_m=t(paddle.placement.translation)[:, None],
+        rot_a=per_joint_matrices(rot_a),
+        rot_b=per_joint_matrices(rot_b),
+        rot_c=per_joint_matrices(rot_c),
+        joint_origin_m=t(np.stack(origins, axis=-1)),
+        axis=t(np.stack(axes, axis=-1)),
+        base_rot=t(base_rot),
+        base_pos_m=t(base_pos_m),
+        mass_kg=t(masses)[:, None],
+        com_m=t(np.stack(coms, axis=-1))[..., None],
+        inertia_axes=per_joint_matrices(inertia_axes),
+        inertia_moments=t(np.stack(moments, axis=-1))[..., None],
+        paddle_rot=t(paddle.placement.rotation)[..., None],
+        paddle_pos_m=t(paddle.placement.translation)[:, None],
         capsule_joint=torch.tensor([c.joint for c in capsules], dtype=torch.long, device=device),
         capsule_a_m=t(np.stack([c.a_m for c in capsules], axis=-1))[..., None],
         capsule_b_m=t(np.stack([c.b_m for c in capsules], axis=-1))[..., None],
         capsule_radius_m=t([c.radius_m for c in capsules])[:, None],
         capsule_joints=tuple(c.joint for c in capsules),
-        lower_rad=t(limits.lower_rad)[:, None], upper_rad=t(limits.upper_rad)[:, None],
-        velocity_limit_rad_s=t(limits.velocity_rad_s)[:, None], effort_limit_nm=t(limits.effort_nm)[:, None],
+        lower_rad=t(limits.lower_rad)[:, None],
+        upper_rad=t(limits.upper_rad)[:, None],
+        velocity_limit_rad_s=t(limits.velocity_rad_s)[:, None],
+        effort_limit_nm=t(limits.effort_nm)[:, None],
     )
 
 
@@ -224,10 +238,11 @@ def build_arm_model(device: str | torch.device = 'cpu', dtype: torch.dtype = tor
 @dataclass
 class Kinematics:
     """World poses of the joint frames and of the paddle centre, for N configurations."""
-    rot: torch.Tensor           # [3, 3, 6, N] joint frame orientations
-    origin_m: torch.Tensor      # [3, 6, N] joint frame origins
-    axis: torch.Tensor          # [3, 6, N] joint axes (unit)
-    paddle_rot: torch.Tensor    # [3, 3, N] columns: paddle_centre x, y, z (z = the blade's face normal)
+
+    rot: torch.Tensor  # [3, 3, 6, N] joint frame orientations
+    origin_m: torch.Tensor  # [3, 6, N] joint frame origins
+    axis: torch.Tensor  # [3, 6, N] joint axes (unit)
+    paddle_rot: torch.Tensor  # [3, 3, N] columns: paddle_centre x, y, z (z = the blade's face normal)
     paddle_pos_m: torch.Tensor  # [3, N] blade centre
 
 
@@ -245,8 +260,13 @@ def forward_kinematics(model: ArmModel, q_rad: torch.Tensor) -> Kinematics:
         origins.append(pos)
     rot_all = torch.stack(rots, dim=2)
     axis = mat_vec(rot_all, model.axis[..., None])
-    return Kinematics(rot=rot_all, origin_m=torch.stack(origins, dim=1), axis=axis,
-                      paddle_rot=mat_mat(rot, model.paddle_rot), paddle_pos_m=pos + mat_vec(rot, model.paddle_pos_m))
+    return Kinematics(
+        rot=rot_all,
+        origin_m=torch.stack(origins, dim=1),
+        axis=axis,
+        paddle_rot=mat_mat(rot, model.paddle_rot),
+        paddle_pos_m=pos + mat_vec(rot, model.paddle_pos_m),
+    )
 
 
 def capsule_segments(model: ArmModel, kin: Kinematics) -> tuple[torch.Tensor, torch.Tensor]:
@@ -262,7 +282,7 @@ def capsule_segments(model: ArmModel, kin: Kinematics) -> tuple[torch.Tensor, to
                 parts.append((kin.origin_m[:, j] + mat_vec(kin.rot[:, :, j], local[:, c]))[:, None])
             ends.append(torch.cat(parts, dim=1))
         return ends[0], ends[1]
-    rot = kin.rot[:, :, model.capsule_joint]       # [3, 3, L, N]
+    rot = kin.rot[:, :, model.capsule_joint]  # [3, 3, L, N]
     origin = kin.origin_m[:, model.capsule_joint]  # [3, L, N]
     return origin + mat_vec(rot, model.capsule_a_m), origin + mat_vec(rot, model.capsule_b_m)
 
@@ -271,20 +291,26 @@ def capsule_segments(model: ArmModel, kin: Kinematics) -> tuple[torch.Tensor, to
 @dataclass
 class Spatial:
     """Per-link world-frame quantities (about the base origin) shared by M(q) and the bias torques."""
-    axis: torch.Tensor            # [3, 6, N] angular part of S_j
-    axis_moment: torch.Tensor     # [3, 6, N] linear part of S_j: o_j x z_j
-    mass: torch.Tensor            # [6, 1]
-    com: torch.Tensor             # [3, 6, N]
-    principal: torch.Tensor       # [3, 3, 6, N] principal axes of each link's inertia, world orientation
-    moments: torch.Tensor         # [3, 6, 1]
+
+    axis: torch.Tensor  # [3, 6, N] angular part of S_j
+    axis_moment: torch.Tensor  # [3, 6, N] linear part of S_j: o_j x z_j
+    mass: torch.Tensor  # [6, 1]
+    com: torch.Tensor  # [3, 6, N]
+    principal: torch.Tensor  # [3, 3, 6, N] principal axes of each link's inertia, world orientation
+    moments: torch.Tensor  # [3, 6, 1]
 
 
 def spatial(model: ArmModel, kin: Kinematics) -> Spatial:
     """The links' Spatial quantities for the given kinematics, about the base origin."""
-    origin = kin.origin_m - model.base_pos_m[:, None, None]   # small lever arms keep float32 exact
-    return Spatial(axis=kin.axis, axis_moment=cross(origin, kin.axis), mass=model.mass_kg,
-                   com=origin + mat_vec(kin.rot, model.com_m), principal=mat_mat(kin.rot, model.inertia_axes),
-                   moments=model.inertia_moments)
+    origin = kin.origin_m - model.base_pos_m[:, None, None]  # small lever arms keep float32 exact
+    return Spatial(
+        axis=kin.axis,
+        axis_moment=cross(origin, kin.axis),
+        mass=model.mass_kg,
+        com=origin + mat_vec(kin.rot, model.com_m),
+        principal=mat_mat(kin.rot, model.inertia_axes),
+        moments=model.inertia_moments,
+    )
 
 
 def _rotational_inertia_times(sp: Spatial, w: torch.Tensor) -> torch.Tensor:
@@ -313,8 +339,11 @@ def mass_matrix(sp: Spatial) -> torch.Tensor:
     p = sp.principal
     # Central inertia P diag(moments) P^T plus the parallel-axis term m (|c|^2 1 - c c^T).
     weighted = p * sp.moments[None]
-    inertia = weighted[:, 0, None] * p[None, :, 0] + weighted[:, 1, None] * p[None, :, 1] \
+    inertia = (
+        weighted[:, 0, None] * p[None, :, 0]
+        + weighted[:, 1, None] * p[None, :, 1]
         + weighted[:, 2, None] * p[None, :, 2]
+    )
     mc = sp.mass * c
     inertia = inertia - mc[:, None] * c[None, :]
     inertia = inertia + _eye_like(inertia) * dot(mc, c)
@@ -323,7 +352,7 @@ def mass_matrix(sp: Spatial) -> torch.Tensor:
     composite_mass = suffix_sum(sp.mass)
     f_ang = mat_vec(composite_inertia, z) + cross(composite_moment, u)
     f_lin = composite_mass * u + cross(z, composite_moment)
-    products = dot(f_ang[:, :, None], z[:, None]) + dot(f_lin[:, :, None], u[:, None])   # [6i, 6j, N]
+    products = dot(f_ang[:, :, None], z[:, None]) + dot(f_lin[:, :, None], u[:, None])  # [6i, 6j, N]
     return torch.where(_LOWER_TRIANGLE.to(products.device), products, products.transpose(0, 1))
 
 
@@ -355,7 +384,7 @@ def bias_torques(sp: Spatial, qd_rad_s: torch.Tensor, gravity_m_s2: torch.Tensor
     gravity_m_s2: gravity's magnitude along -z (float or [N]); 0 gives the velocity terms alone.
     """
     z, u = sp.axis, sp.axis_moment
-    w = prefix_sum(z * qd_rad_s)                 # body spatial velocities (w, v)
+    w = prefix_sum(z * qd_rad_s)  # body spatial velocities (w, v)
     v = prefix_sum(u * qd_rad_s)
     w_parent = torch.cat((torch.zeros_like(w[:, :1]), w[:, :-1]), dim=1)
     v_parent = torch.cat((torch.zeros_like(v[:, :1]), v[:, :-1]), dim=1)
@@ -364,11 +393,16 @@ def bias_torques(sp: Spatial, qd_rad_s: torch.Tensor, gravity_m_s2: torch.Tensor
     av = prefix_sum(qd_rad_s * (cross(w_parent, u) + cross(v_parent, z)))
     if not (isinstance(gravity_m_s2, float) and gravity_m_s2 == 0.0):
         # The base accelerating upwards at g stands for gravity acting on every link.
-        av = av + torch.stack((torch.zeros_like(av[0]), torch.zeros_like(av[0]),
-                               torch.as_tensor(gravity_m_s2, dtype=av.dtype, device=av.device).expand_as(av[0])))
-    hn, hf = _inertia_times(sp, w, v)            # momentum
+        av = av + torch.stack(
+            (
+                torch.zeros_like(av[0]),
+                torch.zeros_like(av[0]),
+                torch.as_tensor(gravity_m_s2, dtype=av.dtype, device=av.device).expand_as(av[0]),
+            )
+        )
+    hn, hf = _inertia_times(sp, w, v)  # momentum
     fn, ff = _inertia_times(sp, aw, av)
-    fn = fn + cross(w, hn) + cross(v, hf)        # + v x* (I v)
+    fn = fn + cross(w, hn) + cross(v, hf)  # + v x* (I v)
     ff = ff + cross(w, hf)
     fn = suffix_sum(fn)
     ff = suffix_sum(ff)

@@ -17,6 +17,7 @@ of the net are interpolated with cubic Hermite polynomials, so the solution is m
 reference's 2 ms Euler flights (they differ by a few millimetres at the bounce point).
 Balls are kept in a bank refilled in batches; the whole stream is reproducible from the generator.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,8 @@ import torch
 from stylepong_sim import world_spec
 
 MIN_ELEVATION_RAD, MAX_ELEVATION_RAD = world_spec.AIM_ELEVATION_RANGE_RAD
-FLIGHT_DT_S = 0.04             # RK4 + Hermite crossings: within 1 um of a 1 ms flight
-ILLINOIS_ITERATIONS = 16           # at most; stops once all land within 1 um
+FLIGHT_DT_S = 0.04  # RK4 + Hermite crossings: within 1 um of a 1 ms flight
+ILLINOIS_ITERATIONS = 16  # at most; stops once all land within 1 um
 
 
 def _hermite(y0, y1, d0, d1, tau, dt):
@@ -39,8 +40,12 @@ def _hermite(y0, y1, d0, d1, tau, dt):
 def _hermite_slope(y0, y1, d0, d1, tau, dt):
     """Derivative of `_hermite` with respect to the fraction tau."""
     t2 = tau * tau
-    return ((6 * t2 - 6 * tau) * y0 + (3 * t2 - 4 * tau + 1) * dt * d0 + (-6 * t2 + 6 * tau) * y1
-            + (3 * t2 - 2 * tau) * dt * d1)
+    return (
+        (6 * t2 - 6 * tau) * y0
+        + (3 * t2 - 4 * tau + 1) * dt * d0
+        + (-6 * t2 + 6 * tau) * y1
+        + (3 * t2 - 2 * tau) * dt * d1
+    )
 
 
 def _crossing_fraction(y0, y1, d0, d1, level, dt):
@@ -57,6 +62,7 @@ def _rk4_flight_step(s, z, vs, vz, dt: float, drag_k_per_m, gravity_m_s2):
 
     (s, z): distance along the heading and height (m); (vs, vz) their rates (m/s). Tensors, any shape.
     """
+
     def accel(us, uz):
         speed = torch.sqrt(us * us + uz * uz)
         return -drag_k_per_m * speed * us, -gravity_m_s2 - drag_k_per_m * speed * uz
@@ -72,9 +78,14 @@ def _rk4_flight_step(s, z, vs, vz, dt: float, drag_k_per_m, gravity_m_s2):
     return s1, z1, vs1, vz1
 
 
-def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad: torch.Tensor,
-                  net_distance_m: torch.Tensor, gravity_m_s2: float = world_spec.GRAVITY_M_S2,
-                  drag_k_per_m: float = world_spec.DRAG_K_PER_M) -> tuple[torch.Tensor, torch.Tensor]:
+def planar_flight(
+    height_m: torch.Tensor,
+    speed_m_s: torch.Tensor,
+    elevation_rad: torch.Tensor,
+    net_distance_m: torch.Tensor,
+    gravity_m_s2: float = world_spec.GRAVITY_M_S2,
+    drag_k_per_m: float = world_spec.DRAG_K_PER_M,
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Fly balls in their vertical plane until the ball's bottom reaches the table.
 
     height_m: launch height of the ball centre above the contact level (table + radius);
@@ -117,8 +128,13 @@ def planar_flight(height_m: torch.Tensor, speed_m_s: torch.Tensor, elevation_rad
     return landing, clearance, landing_vs, landing_vz
 
 
-def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: torch.Tensor, vz_m_s: torch.Tensor,
-                    distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING) -> torch.Tensor:
+def rebound_reaches(
+    bounce_xy_m: torch.Tensor,
+    heading: torch.Tensor,
+    vs_m_s: torch.Tensor,
+    vz_m_s: torch.Tensor,
+    distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING,
+) -> torch.Tensor:
     """world_spec.rebound_reaches for many balls: after a nominal table bounce at bounce_xy [2, n] with
     contact velocity (vs along the unit heading [2, n], vz), does the ball pass through the paddle's
     reachable region before falling back to table level?
@@ -145,12 +161,13 @@ def rebound_reaches(bounce_xy_m: torch.Tensor, heading: torch.Tensor, vs_m_s: to
         for tau in (0.25, 0.5, 0.75, 1.0):
             zi = _hermite(z, z1, vz, vz1, tau, dt)
             si = _hermite(s, s1, vs, vs1, tau, dt)
-            active = active & (zi >= z_contact)      # fell back to table level: out of play or a 2nd bounce
+            active = active & (zi >= z_contact)  # fell back to table level: out of play or a 2nd bounce
             dx = dx0 + heading[0] * si
             dy = dy0 + heading[1] * si
             dz = zi - centre[2]
-            inside = (zi >= distribution.min_hit_height_m) & (dx * dx + dy * dy + dz * dz
-                                                              <= distribution.reach_radius_m ** 2)
+            inside = (zi >= distribution.min_hit_height_m) & (
+                dx * dx + dy * dy + dz * dz <= distribution.reach_radius_m**2
+            )
             reached = reached | (active & inside)
             active = active & ~inside
         s, z, vs, vz = s1, z1, vs1, vz1
@@ -165,9 +182,15 @@ class IncomingBallSampler:
     Reproducible: the same seed (and the same sequence of `sample` sizes) gives the same balls.
     """
 
-    def __init__(self, speed_range_m_s: tuple[float, float] | None = None, seed: int = 0,
-                 device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
-                 distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING, batch: int = 4096):
+    def __init__(
+        self,
+        speed_range_m_s: tuple[float, float] | None = None,
+        seed: int = 0,
+        device: str | torch.device = 'cpu',
+        dtype: torch.dtype = torch.float32,
+        distribution: world_spec.IncomingBallDistribution = world_spec.INCOMING,
+        batch: int = 4096,
+    ):
         self.distribution = distribution
         self.speed_range_m_s = tuple(speed_range_m_s or distribution.speed_m_s)
         if not self.speed_range_m_s[0] <= self.speed_range_m_s[1]:
@@ -188,8 +211,9 @@ class IncomingBallSampler:
     def _candidates(self, n: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """n draws; returns (launch [3, n], velocity [3, n], bounce [2, n], accepted [n])."""
         d = self.distribution
-        start = torch.stack((self._uniform(n, d.launch_x_m), self._uniform(n, d.launch_y_m),
-                             self._uniform(n, d.launch_z_m)))
+        start = torch.stack(
+            (self._uniform(n, d.launch_x_m), self._uniform(n, d.launch_y_m), self._uniform(n, d.launch_z_m))
+        )
         bounce = torch.stack((self._uniform(n, d.bounce_x_m), self._uniform(n, d.bounce_y_m)))
         speed = self._uniform(n, self.speed_range_m_s)
         offset = bounce - start[:2]
@@ -209,9 +233,14 @@ class IncomingBallSampler:
         ends, _, _, _ = planar_flight(height.repeat(2), speed.repeat(2), torch.cat((low, high)), net_distance.repeat(2))
         f_low, f_high = (ends - distance.repeat(2)).chunk(2)
         reachable = (f_low <= 0.0) & (f_high >= 0.0) & torch.isfinite(f_high)
-        elevation = self._solve_elevation(reachable, low, high, f_low, f_high,
-                                          lambda idx, el: planar_flight(height[idx], speed[idx], el,
-                                                                        net_distance[idx])[0] - distance[idx])
+        elevation = self._solve_elevation(
+            reachable,
+            low,
+            high,
+            f_low,
+            f_high,
+            lambda idx, el: planar_flight(height[idx], speed[idx], el, net_distance[idx])[0] - distance[idx],
+        )
         error, clearance, vs, vz = landing_error(elevation)
         velocity = torch.cat((speed * torch.cos(elevation) * heading, (speed * torch.sin(elevation))[None]))
         accepted = reachable & (clearance >= d.net_clearance_m) & (error.abs() < 1e-3)
@@ -227,7 +256,7 @@ class IncomingBallSampler:
         elevation = 0.5 * (low + high)
         todo = torch.nonzero(reachable).squeeze(1)
         lo, hi, f_lo, f_hi = low[todo], high[todo], f_low[todo], f_high[todo]
-        side = torch.zeros_like(lo)   # which end was replaced last: -1 low, +1 high
+        side = torch.zeros_like(lo)  # which end was replaced last: -1 low, +1 high
         for _ in range(ILLINOIS_ITERATIONS):
             if todo.numel() == 0:
                 break
@@ -241,7 +270,7 @@ class IncomingBallSampler:
             lo, f_lo = torch.where(below, mid, lo), torch.where(below, f_mid, f_lo)
             hi, f_hi = torch.where(below, hi, mid), torch.where(below, f_hi, f_mid)
             side = torch.where(below, -torch.ones_like(side), torch.ones_like(side))
-            keep = f_mid.abs() > 1e-6   # a micrometre from the bounce point is converged
+            keep = f_mid.abs() > 1e-6  # a micrometre from the bounce point is converged
             todo, lo, hi, f_lo, f_hi, side = todo[keep], lo[keep], hi[keep], f_lo[keep], f_hi[keep], side[keep]
         return elevation
 

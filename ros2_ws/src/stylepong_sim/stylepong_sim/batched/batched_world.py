@@ -27,6 +27,7 @@ compiled world (`compile=True`) steps the same states as the eager one to float3
 (test_batched_world_compiled). Robot-link contacts use capsules fitted to the links'
 collision meshes (the cell queries the meshes themselves).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -54,12 +55,13 @@ _NO_CONTACT = 2.0
 
 class _Contact(NamedTuple):
     """The ball's contact in one physics step, per environment: which surface, when and where."""
-    kind: torch.Tensor                   # long [N]: _NONE, _TABLE, _NET or _PADDLE
-    fraction: torch.Tensor               # [N] of the step at which it happens (1 where none)
-    robot_link: torch.Tensor             # bool [N]: a robot link other than the blade, where nothing else was
-    centre_m: torch.Tensor               # [3, N] ball centre at the contact, on the surface
-    normal: torch.Tensor                 # [3, N] unit, out of the surface towards the ball
-    surface_velocity_m_s: torch.Tensor   # [3, N] the blade's velocity at the contact (0: table, net, none)
+
+    kind: torch.Tensor  # long [N]: _NONE, _TABLE, _NET or _PADDLE
+    fraction: torch.Tensor  # [N] of the step at which it happens (1 where none)
+    robot_link: torch.Tensor  # bool [N]: a robot link other than the blade, where nothing else was
+    centre_m: torch.Tensor  # [3, N] ball centre at the contact, on the surface
+    normal: torch.Tensor  # [3, N] unit, out of the surface towards the ball
+    surface_velocity_m_s: torch.Tensor  # [3, N] the blade's velocity at the contact (0: table, net, none)
 
 
 @contextlib.contextmanager
@@ -87,6 +89,7 @@ class PhysicsParams:
 
     Defaults are the world spec's nominal values; the task randomises them (domain randomisation).
     """
+
     gravity_m_s2: torch.Tensor
     drag_k_per_m: torch.Tensor
     table_restitution: torch.Tensor
@@ -104,8 +107,9 @@ class PhysicsParams:
     armature_kg_m2: torch.Tensor
 
     @staticmethod
-    def nominal(num_envs: int, device: torch.device | str = 'cpu', dtype: torch.dtype = torch.float32
-                ) -> 'PhysicsParams':
+    def nominal(
+        num_envs: int, device: torch.device | str = 'cpu', dtype: torch.dtype = torch.float32
+    ) -> 'PhysicsParams':
         def full(value: float) -> torch.Tensor:
             return torch.full((num_envs,), float(value), device=device, dtype=dtype)
 
@@ -113,14 +117,17 @@ class PhysicsParams:
             return torch.tensor(values, device=device, dtype=dtype)[:, None].repeat(1, num_envs)
 
         return PhysicsParams(
-            gravity_m_s2=full(world_spec.GRAVITY_M_S2), drag_k_per_m=full(world_spec.DRAG_K_PER_M),
+            gravity_m_s2=full(world_spec.GRAVITY_M_S2),
+            drag_k_per_m=full(world_spec.DRAG_K_PER_M),
             table_restitution=full(world_spec.TABLE_RESTITUTION),
             table_tangential_factor=full(world_spec.TABLE_TANGENTIAL_FACTOR),
             paddle_restitution=full(world_spec.PADDLE_RESTITUTION),
             paddle_tangential_factor=full(world_spec.PADDLE_TANGENTIAL_FACTOR),
             kp_nm_per_rad=per_joint(world_spec.ARM_KP_NM_PER_RAD),
-            kd_nms_per_rad=per_joint(world_spec.ARM_KD_NMS_PER_RAD), velocity_drive=full(0.0),
-            armature_kg_m2=per_joint(world_spec.ARM_ARMATURE_KG_M2))
+            kd_nms_per_rad=per_joint(world_spec.ARM_KD_NMS_PER_RAD),
+            velocity_drive=full(0.0),
+            armature_kg_m2=per_joint(world_spec.ARM_ARMATURE_KG_M2),
+        )
 
     def assign(self, env_ids: torch.Tensor, other: 'PhysicsParams') -> None:
         """Copy `other`'s values (for len(env_ids) environments) into these environments."""
@@ -130,20 +137,22 @@ class PhysicsParams:
 
 class ArmDynamics(NamedTuple):
     """The arm's joint-space dynamics at one state, held over a policy step's sub-steps ([6, 6, N], [6, N])."""
-    inertia: torch.Tensor                # M(q) + armature
-    inverse: torch.Tensor                # its inverse
-    coriolis: torch.Tensor               # C(q, qd) qd
-    gravity: torch.Tensor | None         # g(q); None in a world without velocity_drive (the PD's is compensated)
+
+    inertia: torch.Tensor  # M(q) + armature
+    inverse: torch.Tensor  # its inverse
+    coriolis: torch.Tensor  # C(q, qd) qd
+    gravity: torch.Tensor | None  # g(q); None in a world without velocity_drive (the PD's is compensated)
 
 
 @dataclass
 class StepEvents:
     """What happened during one `BatchedWorld.step` (one policy period), per environment [N]."""
-    paddle_hit: torch.Tensor       # bool: the paddle touched the ball
-    own_bounce: torch.Tensor       # bool: the ball bounced on the robot's half
-    decided: torch.Tensor          # bool: the rally got its verdict in this period
-    success: torch.Tensor          # bool: the verdict (valid where decided)
-    reason: torch.Tensor           # long: index into referee.REASONS (valid where decided)
+
+    paddle_hit: torch.Tensor  # bool: the paddle touched the ball
+    own_bounce: torch.Tensor  # bool: the ball bounced on the robot's half
+    decided: torch.Tensor  # bool: the rally got its verdict in this period
+    success: torch.Tensor  # bool: the verdict (valid where decided)
+    reason: torch.Tensor  # long: index into referee.REASONS (valid where decided)
 
 
 class BatchedWorld:
@@ -157,17 +166,27 @@ class BatchedWorld:
     its latest table contact.
     """
 
-    def __init__(self, num_envs: int, device: str | torch.device = 'cpu', dtype: torch.dtype = torch.float32,
-                 policy_rate_hz: float = world_spec.POLICY_RATE_HZ, physics_rate_hz: float = PHYSICS_RATE_HZ,
-                 arm_substeps: int = ARM_SUBSTEPS,
-                 timeout_s: float = world_spec.BALL_TIMEOUT_S, dynamics_every: int | None = None,
-                 cpu_threads: int | None = 1, compile: bool = False, velocity_drive: bool = False):
+    def __init__(
+        self,
+        num_envs: int,
+        device: str | torch.device = 'cpu',
+        dtype: torch.dtype = torch.float32,
+        policy_rate_hz: float = world_spec.POLICY_RATE_HZ,
+        physics_rate_hz: float = PHYSICS_RATE_HZ,
+        arm_substeps: int = ARM_SUBSTEPS,
+        timeout_s: float = world_spec.BALL_TIMEOUT_S,
+        dynamics_every: int | None = None,
+        cpu_threads: int | None = 1,
+        compile: bool = False,
+        velocity_drive: bool = False,
+    ):
         if num_envs < 1:
             raise ValueError('num_envs must be positive')
         steps = physics_rate_hz / policy_rate_hz
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
-            raise ValueError(f'physics rate {physics_rate_hz} Hz must be a multiple of the policy rate '
-                             f'{policy_rate_hz} Hz')
+            raise ValueError(
+                f'physics rate {physics_rate_hz} Hz must be a multiple of the policy rate {policy_rate_hz} Hz'
+            )
         if arm_substeps < 1:
             raise ValueError('arm_substeps must be at least 1')
         self.num_envs = int(num_envs)
@@ -195,8 +214,8 @@ class BatchedWorld:
         self.q_rad = home.repeat(1, n)
         self.qd_rad_s = torch.zeros(6, n, **kw)
         self.q_ref_rad = self.q_rad.clone()
-        self.q_cmd_rad = self.q_rad.clone()       # the target the servo is tracking now
-        self.q_issued_rad = self.q_rad.clone()    # the latest command given to `step` (delayed to the servo)
+        self.q_cmd_rad = self.q_rad.clone()  # the target the servo is tracking now
+        self.q_issued_rad = self.q_rad.clone()  # the latest command given to `step` (delayed to the servo)
         self.ball_pos_m = torch.zeros(3, n, **kw)
         self.ball_vel_m_s = torch.zeros(3, n, **kw)
         self.time_s = torch.zeros(n, **kw)
@@ -206,7 +225,7 @@ class BatchedWorld:
         self.success = torch.zeros(n, dtype=torch.bool, device=self.device)
         self.reason = torch.full((n,), referee.NO_VERDICT, dtype=torch.long, device=self.device)
         self.landing_xy_m = torch.zeros(2, n, **kw)
-        self._eye6 = torch.eye(6, **kw)[..., None]   # [6, 6, 1]
+        self._eye6 = torch.eye(6, **kw)[..., None]  # [6, 6, 1]
         self.table_contact_pos_m = torch.zeros(3, n, **kw)
         self._kin = batched_kinematics.forward_kinematics(self.model, self.q_rad)
         self._constants()
@@ -225,9 +244,9 @@ class BatchedWorld:
         r = world_spec.BALL_RADIUS_M
         self._net_lo = torch.tensor(world_spec.NET_BOX_LOW_M, **kw)[:, None]
         self._net_hi = torch.tensor(world_spec.NET_BOX_HIGH_M, **kw)[:, None]
-        self._link_reach_sq_m2 = (self.model.capsule_radius_m + r) ** 2       # [L, 1]
+        self._link_reach_sq_m2 = (self.model.capsule_radius_m + r) ** 2  # [L, 1]
         # Both end spheres of every capsule, in the order capsule_segments' a, b are concatenated.
-        radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))   # [2L, 1]
+        radius = torch.cat((self.model.capsule_radius_m, self.model.capsule_radius_m))  # [2L, 1]
         self._capsule_end_radius_sq_m2 = radius * radius
         self._blade_radius_m = robot_model.PADDLE.blade_radius_m
         self._blade_half_thickness_m = robot_model.PADDLE.blade_thickness_m / 2.0
@@ -248,9 +267,15 @@ class BatchedWorld:
         return self._kin
 
     # --- resets --------------------------------------------------------------------------------------
-    def reset_envs(self, env_ids: torch.Tensor, q_rad: torch.Tensor, ball_pos_m: torch.Tensor,
-                   ball_vel_m_s: torch.Tensor, params: PhysicsParams | None = None,
-                   qd_rad_s: torch.Tensor | None = None) -> None:
+    def reset_envs(
+        self,
+        env_ids: torch.Tensor,
+        q_rad: torch.Tensor,
+        ball_pos_m: torch.Tensor,
+        ball_vel_m_s: torch.Tensor,
+        params: PhysicsParams | None = None,
+        qd_rad_s: torch.Tensor | None = None,
+    ) -> None:
         """Put the arm of environments env_ids at rest (or qd) at q [6, k], launch a ball [3, k], open a rally."""
         if env_ids.numel() == 0:
             return
@@ -304,8 +329,13 @@ class BatchedWorld:
             paddle_hit = paddle_hit | hit
             own_bounce = own_bounce | bounce
         decided = was_open & ~self.open
-        return StepEvents(paddle_hit=paddle_hit, own_bounce=own_bounce, decided=decided,
-                          success=self.success & decided, reason=torch.where(decided, self.reason, referee.NO_VERDICT))
+        return StepEvents(
+            paddle_hit=paddle_hit,
+            own_bounce=own_bounce,
+            decided=decided,
+            success=self.success & decided,
+            reason=torch.where(decided, self.reason, referee.NO_VERDICT),
+        )
 
     # --- the arm -------------------------------------------------------------------------------------
     def _arm_dynamics(self, kin: Kinematics) -> ArmDynamics:
@@ -314,8 +344,11 @@ class BatchedWorld:
         inertia = batched_kinematics.mass_matrix(sp) + self._eye6 * self.params.armature_kg_m2[None]
         inverse = torch.linalg.inv_ex(inertia.permute(2, 0, 1))[0].permute(1, 2, 0)
         coriolis = batched_kinematics.bias_torques(sp, self.qd_rad_s)
-        gravity = (batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s), self.params.gravity_m_s2)
-                   if self.velocity_drive else None)
+        gravity = (
+            batched_kinematics.bias_torques(sp, torch.zeros_like(self.qd_rad_s), self.params.gravity_m_s2)
+            if self.velocity_drive
+            else None
+        )
         return ArmDynamics(inertia, inverse, coriolis, gravity)
 
     def _arm_step(self, dynamics: ArmDynamics) -> None:
@@ -393,8 +426,9 @@ class BatchedWorld:
         table_ok = (p0[2] >= contact_z) & (p1[2] < contact_z) & world_spec.on_table(at[0], at[1])
         return torch.where(table_ok, f_table, _NO_CONTACT)
 
-    def _net_contact(self, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
-                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def _net_contact(
+        self, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """The net: its two faces swept exactly; its top and ends by the end position against its box.
         Returns (fraction [N], normal [3, N], ball centre at the contact [3, N])."""
         r = world_spec.BALL_RADIUS_M
@@ -403,8 +437,13 @@ class BatchedWorld:
         s0, s1 = side_net * p0[0], side_net * p1[0]
         f_net = (s0 - face_x) / (s0 - s1)
         at = p0 + f_net * (p1 - p0)
-        net_face = (s0 >= face_x) & (s1 < face_x) & (at[1].abs() <= world_spec.NET_LENGTH_M / 2) \
-            & (at[2] > world_spec.TABLE_HEIGHT_M) & (at[2] <= world_spec.NET_TOP_HEIGHT_M)
+        net_face = (
+            (s0 >= face_x)
+            & (s1 < face_x)
+            & (at[1].abs() <= world_spec.NET_LENGTH_M / 2)
+            & (at[2] > world_spec.TABLE_HEIGHT_M)
+            & (at[2] <= world_spec.NET_TOP_HEIGHT_M)
+        )
         closest_net = torch.maximum(torch.minimum(p1, self._net_hi), self._net_lo)
         offset_net = p1 - closest_net
         dist_net = torch.sqrt(batched_kinematics.dot(offset_net, offset_net))
@@ -416,8 +455,9 @@ class BatchedWorld:
         centre_net[0] = torch.where(net_face, side_net * face_x, centre_net[0])
         return f_net, normal_net, centre_net
 
-    def _blade_contact(self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor,
-                       v1: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    def _blade_contact(
+        self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """The blade: its faces swept in its moving frame (positions relative to the blade before and after
         the step), its rim by the end position. Returns (fraction [N], normal, ball centre at the contact,
         the blade's velocity there [3, N])."""
@@ -432,7 +472,7 @@ class BatchedWorld:
         s0, s1 = side_pad * local0[2], side_pad * local1[2]
         f_face = (s0 - face_z) / (s0 - s1)
         local_at = local0 + f_face * (local1 - local0)
-        face_hit = (s0 >= face_z) & (s1 < face_z) & (local_at[0] ** 2 + local_at[1] ** 2 <= radius ** 2)
+        face_hit = (s0 >= face_z) & (s1 < face_z) & (local_at[0] ** 2 + local_at[1] ** 2 <= radius**2)
         local_face = torch.stack((local_at[0], local_at[1], side_pad * face_z))
         # Rim (and a ball found inside the blade's slab): the end position against the solid disc.
         rho = torch.sqrt(local1[0] ** 2 + local1[1] ** 2)
@@ -451,8 +491,9 @@ class BatchedWorld:
         centre_pad = surface_pad + normal_pad * r
         return f_pad, normal_pad, centre_pad, u_pad
 
-    def _earliest_contact(self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor,
-                          v1: torch.Tensor) -> tuple[_Contact, torch.Tensor, torch.Tensor]:
+    def _earliest_contact(
+        self, kin0: Kinematics, kin1: Kinematics, p0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+    ) -> tuple[_Contact, torch.Tensor, torch.Tensor]:
         """The earliest of the table, net and blade contacts in the step; robot links only when nothing else
         was touched. Returns it with the robot's capsules [3, L, N] (end points a, b) at the step's end."""
         f_table = self._table_contact(p0, p1)
@@ -468,34 +509,56 @@ class BatchedWorld:
         centre = torch.where(is_table, p0 + f * (p1 - p0), torch.where(is_net, centre_net, centre_pad))
         centre[2] = torch.where(is_table, torch.full_like(f, world_spec.TABLE_CONTACT_HEIGHT_M), centre[2])
         surface_velocity = torch.where(is_pad, u_pad, torch.zeros_like(u_pad))
-        contact = _Contact(kind=kind, fraction=f, robot_link=robot, centre_m=centre, normal=normal,
-                           surface_velocity_m_s=surface_velocity)
+        contact = _Contact(
+            kind=kind,
+            fraction=f,
+            robot_link=robot,
+            centre_m=centre,
+            normal=normal,
+            surface_velocity_m_s=surface_velocity,
+        )
         return contact, capsule_a, capsule_b
 
-    def _bounce(self, contact: _Contact, p0: torch.Tensor, v0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
-                ) -> tuple[torch.Tensor, torch.Tensor]:
+    def _bounce(
+        self, contact: _Contact, p0: torch.Tensor, v0: torch.Tensor, p1: torch.Tensor, v1: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """The ball's position and velocity [3, N] at the step's end: off the surface it touched
         (world_spec.contact_response) and flown for the rest of the step, or as flown where it touched none."""
         f, kind = contact.fraction, contact.kind
         is_table, is_net = kind == _TABLE, kind == _NET
-        restitution = torch.where(is_table, self.params.table_restitution,
-                                  torch.where(is_net, torch.full_like(f, world_spec.NET_RESTITUTION),
-                                              self.params.paddle_restitution))
-        tangential = torch.where(is_table, self.params.table_tangential_factor,
-                                 torch.where(is_net, torch.full_like(f, world_spec.NET_TANGENTIAL_FACTOR),
-                                             self.params.paddle_tangential_factor))
+        restitution = torch.where(
+            is_table,
+            self.params.table_restitution,
+            torch.where(is_net, torch.full_like(f, world_spec.NET_RESTITUTION), self.params.paddle_restitution),
+        )
+        tangential = torch.where(
+            is_table,
+            self.params.table_tangential_factor,
+            torch.where(
+                is_net, torch.full_like(f, world_spec.NET_TANGENTIAL_FACTOR), self.params.paddle_tangential_factor
+            ),
+        )
         surface_velocity = contact.surface_velocity_m_s
         v_at = v0 + f * (v1 - v0)
         relative = (v_at - surface_velocity).T
-        v_out = surface_velocity + world_spec.contact_response(relative, contact.normal.T, restitution[:, None],
-                                                               tangential[:, None]).T
+        v_out = (
+            surface_velocity
+            + world_spec.contact_response(relative, contact.normal.T, restitution[:, None], tangential[:, None]).T
+        )
         rest = (1.0 - f) * self.physics_dt_s
         displacement, v_after = self._free_flight(v_out, rest)
         touched = kind != _NONE
         return torch.where(touched, contact.centre_m + displacement, p1), torch.where(touched, v_after, v1)
 
-    def _judge(self, kin1: Kinematics, capsule_a: torch.Tensor, capsule_b: torch.Tensor, contact: _Contact,
-               p_new: torch.Tensor, v_new: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def _judge(
+        self,
+        kin1: Kinematics,
+        capsule_a: torch.Tensor,
+        capsule_b: torch.Tensor,
+        contact: _Contact,
+        p_new: torch.Tensor,
+        v_new: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """The referee's rules (stylepong_sim.referee, the same functions and order as the cell's referee) for
         this step's contact and the ball's state after it; updates the rally state and returns the flags
         (paddle's first hit, own-side bounce) [N]."""
@@ -565,12 +628,16 @@ class BatchedWorld:
         a, b = batched_kinematics.capsule_segments(self.model, kin)
         return self._robot_touches_table(kin, a, b, bottom_m=-math.inf)
 
-    def _robot_touches_table(self, kin: Kinematics, a: torch.Tensor, b: torch.Tensor,
-                             bottom_m: float = world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M
-                             ) -> torch.Tensor:
+    def _robot_touches_table(
+        self,
+        kin: Kinematics,
+        a: torch.Tensor,
+        b: torch.Tensor,
+        bottom_m: float = world_spec.TABLE_HEIGHT_M - world_spec.TABLE_THICKNESS_M,
+    ) -> torch.Tensor:
         """Any robot geometry inside the table top (between bottom_m and the top surface): the capsules'
         end spheres (a segment's lowest point is one of its ends) and the blade's lowest point."""
-        points = torch.cat((a, b), dim=1)                                     # [3, 2L, N]
+        points = torch.cat((a, b), dim=1)  # [3, 2L, N]
         gap_x = (points[0].abs() - world_spec.HALF_LENGTH_M).clamp_min(0.0)
         gap_y = (points[1].abs() - world_spec.HALF_WIDTH_M).clamp_min(0.0)
         gap_z = (points[2] - world_spec.TABLE_HEIGHT_M).clamp_min(0.0) + (bottom_m - points[2]).clamp_min(0.0)

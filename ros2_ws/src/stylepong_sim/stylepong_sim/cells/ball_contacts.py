@@ -11,6 +11,7 @@ Only the geometry of the world spec and the paddle is here. What needs MuJoCo (t
 point, from the arm's Jacobian; the other robot links' meshes) stays in the cell, which hands the first
 in as a function. The batched world finds the same contacts for N balls in torch (batched_world).
 """
+
 from __future__ import annotations
 
 import math
@@ -42,10 +43,11 @@ Pose = tuple[np.ndarray, np.ndarray]
 @dataclass
 class Contact:
     """A contact of the ball within a step."""
-    kind: str                 # TABLE | NET | PADDLE | ROBOT
-    fraction: float           # of the step at which it happens
-    centre_m: np.ndarray      # ball centre at the contact, on the surface
-    normal: np.ndarray        # unit, out of the surface towards the ball
+
+    kind: str  # TABLE | NET | PADDLE | ROBOT
+    fraction: float  # of the step at which it happens
+    centre_m: np.ndarray  # ball centre at the contact, on the surface
+    normal: np.ndarray  # unit, out of the surface towards the ball
     surface_velocity_m_s: np.ndarray
 
 
@@ -65,8 +67,8 @@ def net_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray) -> Contact | Non
     """The ball crossing one of the net's faces, or its end position against the net's top edge and ends."""
     r, face_x = world_spec.BALL_RADIUS_M, world_spec.NET_FACE_CONTACT_X_M
     if (p0[0] > face_x and p1[0] > face_x) or (p0[0] < -face_x and p1[0] < -face_x):
-        return None   # on one side of the net, not touching it
-    for side in (-1.0, 1.0):   # the net's two faces: exact crossing of the plane x = side * face_x
+        return None  # on one side of the net, not touching it
+    for side in (-1.0, 1.0):  # the net's two faces: exact crossing of the plane x = side * face_x
         s0, s1 = side * p0[0], side * p1[0]
         if s0 >= face_x > s1:
             fraction = (s0 - face_x) / (s0 - s1)
@@ -86,19 +88,19 @@ def net_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray) -> Contact | Non
     return Contact(NET, 1.0, closest + normal * r, normal, _ZERO3)
 
 
-def paddle_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, before: Pose, after: Pose,
-                   blade_point_velocity: PointVelocity) -> Contact | None:
+def paddle_contact(
+    p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, before: Pose, after: Pose, blade_point_velocity: PointVelocity
+) -> Contact | None:
     """The ball against the blade (a disc), which moved from pose `before` to `after` in this step:
     a face crossed in the blade's frame, or the end position against the rim."""
     (c0, rot0), (c1, rot1) = before, after
     # Far from the blade's bounding sphere, even allowing for this step's motion of ball and blade?
-    reach = (_BLADE_BOUND_M + world_spec.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0))
-             + float(np.linalg.norm(c1 - c0)))
+    reach = _BLADE_BOUND_M + world_spec.BALL_RADIUS_M + float(np.linalg.norm(p1 - p0)) + float(np.linalg.norm(c1 - c0))
     offset = p1 - c1
     if offset @ offset > reach * reach:
         return None
-    local0 = rot0.T @ (p0 - c0)   # ball centre in the blade's frame (z = face normal) before the step
-    local1 = rot1.T @ (p1 - c1)   # and after it: the segment between them is the relative motion
+    local0 = rot0.T @ (p0 - c0)  # ball centre in the blade's frame (z = face normal) before the step
+    local1 = rot1.T @ (p1 - c1)  # and after it: the segment between them is the relative motion
     h, radius, r = BLADE_HALF_THICKNESS_M, BLADE_RADIUS_M, world_spec.BALL_RADIUS_M
     face_z = h + r
     for side in (-1.0, 1.0):
@@ -106,7 +108,7 @@ def paddle_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, before: Pose,
         if s0 >= face_z > s1:
             fraction = (s0 - face_z) / (s0 - s1)
             local = local0 + fraction * (local1 - local0)
-            if local[0] ** 2 + local[1] ** 2 <= radius ** 2:
+            if local[0] ** 2 + local[1] ** 2 <= radius**2:
                 local[2] = side * face_z
                 normal = rot1[:, 2] * side
                 centre = c1 + rot1 @ local
@@ -132,10 +134,22 @@ def paddle_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, before: Pose,
     return Contact(PADDLE, 1.0, surface_point + normal * r, normal, u)
 
 
-def earliest_contact(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, blade_before: Pose, blade_after: Pose,
-                     blade_point_velocity: PointVelocity) -> Contact | None:
+def earliest_contact(
+    p0: np.ndarray,
+    p1: np.ndarray,
+    v1: np.ndarray,
+    blade_before: Pose,
+    blade_after: Pose,
+    blade_point_velocity: PointVelocity,
+) -> Contact | None:
     """The first of the table, net and blade contacts within the step (None: none of them)."""
-    candidates = [c for c in (table_contact(p0, p1), net_contact(p0, p1, v1),
-                              paddle_contact(p0, p1, v1, blade_before, blade_after, blade_point_velocity))
-                  if c is not None]
+    candidates = [
+        c
+        for c in (
+            table_contact(p0, p1),
+            net_contact(p0, p1, v1),
+            paddle_contact(p0, p1, v1, blade_before, blade_after, blade_point_velocity),
+        )
+        if c is not None
+    ]
     return min(candidates, key=lambda c: c.fraction) if candidates else None

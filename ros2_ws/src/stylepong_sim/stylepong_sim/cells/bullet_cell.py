@@ -49,6 +49,7 @@ The referee reads Bullet's contact points after each step: a touch of a body (ta
 robot link) that was not touched in the previous step is a contact event at the ball's centre; a robot link
 touching the table or net is a robot-table contact.
 """
+
 from __future__ import annotations
 
 import math
@@ -61,7 +62,7 @@ import numpy as np
 
 from stylepong_sim.cells.quiet_stdout import quiet_c_stdout
 
-with quiet_c_stdout():   # its import prints its build time on stdout, which a node's output should not carry
+with quiet_c_stdout():  # its import prints its build time on stdout, which a node's output should not carry
     import pybullet
     from pybullet_utils import bullet_client
 
@@ -73,14 +74,14 @@ from stylepong_sim.cells.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_
 
 MOTOR_DRIVE, PD_DRIVE = 'motor', 'pd'
 JOINT_DRIVES = (MOTOR_DRIVE, PD_DRIVE)
-PADDLE_HANDLE_LINK = 'paddle_handle'      # the handle's collision split from the blade's (own restitution)
-TABLE_TANGENT_OVER_NORMAL = 1.67          # mean |v_t|/|v_n| of the incoming balls at their first bounce
-CONTACT_TANGENT_OVER_NORMAL = 0.5         # guessed for blade, net and links
-BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * world_spec.BALL_MASS_KG * world_spec.BALL_RADIUS_M ** 2
+PADDLE_HANDLE_LINK = 'paddle_handle'  # the handle's collision split from the blade's (own restitution)
+TABLE_TANGENT_OVER_NORMAL = 1.67  # mean |v_t|/|v_n| of the incoming balls at their first bounce
+CONTACT_TANGENT_OVER_NORMAL = 0.5  # guessed for blade, net and links
+BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * world_spec.BALL_MASS_KG * world_spec.BALL_RADIUS_M**2
 SOLVER_ITERATIONS = 50
-ROTORS_POSITION_M = [0.0, 0.0, -5.0]      # out of the way (the rotors collide with nothing anyway)
-ROTOR_MASS_KG = 1.0                       # on the rotor's axis: no gravity torque, only its inertia counts
-GEAR_MAX_TORQUE_NM = 1.0e5                # a rigid gear: far above any joint's effort
+ROTORS_POSITION_M = [0.0, 0.0, -5.0]  # out of the way (the rotors collide with nothing anyway)
+ROTOR_MASS_KG = 1.0  # on the rotor's axis: no gravity torque, only its inertia counts
+GEAR_MAX_TORQUE_NM = 1.0e5  # a rigid gear: far above any joint's effort
 
 
 def coulomb_friction(tangential_factor: float, restitution: float, tangent_over_normal: float) -> float:
@@ -92,20 +93,32 @@ def coulomb_friction(tangential_factor: float, restitution: float, tangent_over_
 @dataclass(frozen=True)
 class SurfaceContact:
     """A surface's Bullet contact coefficients (the ball's are 1: the pair takes these)."""
+
     restitution: float
     friction: float
 
 
 SURFACES = {
-    'table': SurfaceContact(world_spec.TABLE_RESTITUTION, coulomb_friction(
-        world_spec.TABLE_TANGENTIAL_FACTOR, world_spec.TABLE_RESTITUTION, TABLE_TANGENT_OVER_NORMAL)),
-    'net': SurfaceContact(world_spec.NET_RESTITUTION, coulomb_friction(
-        world_spec.NET_TANGENTIAL_FACTOR, world_spec.NET_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
-    'blade': SurfaceContact(world_spec.PADDLE_RESTITUTION, coulomb_friction(
-        world_spec.PADDLE_TANGENTIAL_FACTOR, world_spec.PADDLE_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL)),
-    'link': SurfaceContact(world_spec.ROBOT_LINK_RESTITUTION, coulomb_friction(world_spec.ROBOT_LINK_TANGENTIAL_FACTOR,
-                                                                       world_spec.ROBOT_LINK_RESTITUTION,
-                                                                       CONTACT_TANGENT_OVER_NORMAL)),
+    'table': SurfaceContact(
+        world_spec.TABLE_RESTITUTION,
+        coulomb_friction(world_spec.TABLE_TANGENTIAL_FACTOR, world_spec.TABLE_RESTITUTION, TABLE_TANGENT_OVER_NORMAL),
+    ),
+    'net': SurfaceContact(
+        world_spec.NET_RESTITUTION,
+        coulomb_friction(world_spec.NET_TANGENTIAL_FACTOR, world_spec.NET_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL),
+    ),
+    'blade': SurfaceContact(
+        world_spec.PADDLE_RESTITUTION,
+        coulomb_friction(
+            world_spec.PADDLE_TANGENTIAL_FACTOR, world_spec.PADDLE_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL
+        ),
+    ),
+    'link': SurfaceContact(
+        world_spec.ROBOT_LINK_RESTITUTION,
+        coulomb_friction(
+            world_spec.ROBOT_LINK_TANGENTIAL_FACTOR, world_spec.ROBOT_LINK_RESTITUTION, CONTACT_TANGENT_OVER_NORMAL
+        ),
+    ),
 }
 
 
@@ -143,16 +156,23 @@ def _quaternion_of(rotation: np.ndarray) -> tuple[float, float, float, float]:
 
 class BulletCell(CellBase):
     """The cell in PyBullet: UR5 with paddle, table, net, floor and ball, with the referee watching."""
-    def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD, actuator: str = ur_servoj.IDEAL,
-                 servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings(), joint_drive: str = MOTOR_DRIVE):
+
+    def __init__(
+        self,
+        home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD,
+        actuator: str = ur_servoj.IDEAL,
+        servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings(),
+        joint_drive: str = MOTOR_DRIVE,
+    ):
         if joint_drive not in JOINT_DRIVES:
-            raise ValueError(f"joint_drive must be one of {', '.join(JOINT_DRIVES)}, got {joint_drive!r}")
+            raise ValueError(f'joint_drive must be one of {", ".join(JOINT_DRIVES)}, got {joint_drive!r}')
         self.joint_drive = joint_drive
         self._time_s = 0.0
         super().__init__(home_joint_positions_rad, actuator, world_spec.PHYSICS_DT_S)
         self._effort_nm = self._joint_limits.effort_nm.copy()
-        self._reference = ur_servoj.make_reference(actuator, self.home_joint_positions_rad,
-                                                   self._joint_limits.velocity_rad_s, servoj)
+        self._reference = ur_servoj.make_reference(
+            actuator, self.home_joint_positions_rad, self._joint_limits.velocity_rad_s, servoj
+        )
         kp = np.array(world_spec.ARM_KP_NM_PER_RAD)
         kd = np.array(world_spec.ARM_KD_NMS_PER_RAD)
         self._position_gains = (kp / kd * self._dt).tolist()
@@ -161,19 +181,28 @@ class BulletCell(CellBase):
         self._kp_nm_per_rad = kp
         self._kd_nms_per_rad = kd
 
-        with quiet_c_stdout():   # connecting prints 'argv[0]=' on stdout
+        with quiet_c_stdout():  # connecting prints 'argv[0]=' on stdout
             self._p = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         p = self._p
         p.setTimeStep(self._dt)
         p.setGravity(0.0, 0.0, -world_spec.GRAVITY_M_S2)
-        p.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, restitutionVelocityThreshold=0.0,
-                                    warmStartingFactor=0.0, useSplitImpulse=1, contactSlop=0.0,
-                                    contactERP=0.0, frictionERP=0.0, enableConeFriction=0,
-                                    deterministicOverlappingPairs=1)
+        p.setPhysicsEngineParameter(
+            numSolverIterations=SOLVER_ITERATIONS,
+            restitutionVelocityThreshold=0.0,
+            warmStartingFactor=0.0,
+            useSplitImpulse=1,
+            contactSlop=0.0,
+            contactERP=0.0,
+            frictionERP=0.0,
+            enableConeFriction=0,
+            deterministicOverlappingPairs=1,
+        )
         half_thickness_m = world_spec.TABLE_THICKNESS_M / 2.0
-        self._table = self._static_box((0.0, 0.0, world_spec.TABLE_HEIGHT_M - half_thickness_m),
-                                       (world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M, half_thickness_m),
-                                       SURFACES['table'])
+        self._table = self._static_box(
+            (0.0, 0.0, world_spec.TABLE_HEIGHT_M - half_thickness_m),
+            (world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M, half_thickness_m),
+            SURFACES['table'],
+        )
         low, high = np.array(world_spec.NET_BOX_LOW_M), np.array(world_spec.NET_BOX_HIGH_M)
         self._net = self._static_box((low + high) / 2.0, (high - low) / 2.0, SURFACES['net'])
         self._floor = p.createMultiBody(0.0, p.createCollisionShape(pybullet.GEOM_PLANE), useMaximalCoordinates=True)
@@ -184,8 +213,15 @@ class BulletCell(CellBase):
         self._tool_link = self._links[robot_model.TOOL_FRAME]
         self._centre_link = self._links[robot_model.PADDLE_CENTRE_FRAME]
         # The tool's subtree (what a wrist F/T sensor carries): tool0, paddle, handle, paddle_centre.
-        self._tool_links = [self._links[n] for n in (robot_model.TOOL_FRAME, robot_model.PADDLE_BODY,
-                                                      PADDLE_HANDLE_LINK, robot_model.PADDLE_CENTRE_FRAME)]
+        self._tool_links = [
+            self._links[n]
+            for n in (
+                robot_model.TOOL_FRAME,
+                robot_model.PADDLE_BODY,
+                PADDLE_HANDLE_LINK,
+                robot_model.PADDLE_CENTRE_FRAME,
+            )
+        ]
         self._tool_mass_kg = sum(p.getDynamicsInfo(self._robot, link)[0] for link in self._tool_links)
         self._ball_shape = p.createCollisionShape(pybullet.GEOM_SPHERE, radius=world_spec.BALL_RADIUS_M)
         self._ball_body: int | None = None
@@ -195,7 +231,7 @@ class BulletCell(CellBase):
         self._qd = np.zeros(6)
         self._tau = np.zeros(6)
         self._tau_pd = np.zeros(6)
-        if joint_drive == PD_DRIVE:   # Bullet's default velocity motors off: the torques are all ours
+        if joint_drive == PD_DRIVE:  # Bullet's default velocity motors off: the torques are all ours
             p.setJointMotorControlArray(self._robot, self._joints, pybullet.VELOCITY_CONTROL, forces=[0.0] * 6)
         self._tool_velocity_prev: tuple[np.ndarray, np.ndarray] | None = None
         self._tool_acceleration = (np.zeros(3), np.zeros(3))
@@ -207,8 +243,15 @@ class BulletCell(CellBase):
         shape = p.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[float(v) for v in half_extents_m])
         # Static rigid bodies (maximal coordinates): their contacts with the ball are solved with split impulse.
         body = p.createMultiBody(0.0, shape, basePosition=[float(v) for v in centre_m], useMaximalCoordinates=True)
-        p.changeDynamics(body, -1, restitution=surface.restitution, lateralFriction=surface.friction,
-                         rollingFriction=0.0, spinningFriction=0.0, contactProcessingThreshold=0.0)
+        p.changeDynamics(
+            body,
+            -1,
+            restitution=surface.restitution,
+            lateralFriction=surface.friction,
+            rollingFriction=0.0,
+            spinningFriction=0.0,
+            contactProcessingThreshold=0.0,
+        )
         return body
 
     def _load_robot(self) -> tuple[int, list[int], dict[str, int]]:
@@ -218,8 +261,13 @@ class BulletCell(CellBase):
             path = os.path.join(folder, 'ur5_paddle.urdf')
             with open(path, 'w') as file:
                 file.write(bullet_urdf_xml())
-            robot = p.loadURDF(path, basePosition=position.tolist(), baseOrientation=_quaternion_of(rotation),
-                               useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+            robot = p.loadURDF(
+                path,
+                basePosition=position.tolist(),
+                baseOrientation=_quaternion_of(rotation),
+                useFixedBase=True,
+                flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
+            )
         joints_by_name, links = {}, {}
         for index in range(p.getNumJoints(robot)):
             info = p.getJointInfo(robot, index)
@@ -231,9 +279,17 @@ class BulletCell(CellBase):
             p.changeDynamics(robot, joint, maxJointVelocity=float(velocity[i]), jointDamping=0.0)
         for link in [-1, *links.values()]:
             surface = SURFACES['blade'] if link == links[robot_model.PADDLE_BODY] else SURFACES['link']
-            p.changeDynamics(robot, link, restitution=surface.restitution, lateralFriction=surface.friction,
-                             rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
-                             contactProcessingThreshold=0.0)
+            p.changeDynamics(
+                robot,
+                link,
+                restitution=surface.restitution,
+                lateralFriction=surface.friction,
+                rollingFriction=0.0,
+                spinningFriction=0.0,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                contactProcessingThreshold=0.0,
+            )
         return robot, joints, links
 
     def _add_rotors(self) -> int:
@@ -245,17 +301,38 @@ class BulletCell(CellBase):
         armature = [float(a) for a in world_spec.ARM_ARMATURE_KG_M2]
         identity = [0.0, 0.0, 0.0, 1.0]
         rotors = p.createMultiBody(
-            baseMass=0.0, basePosition=ROTORS_POSITION_M,
-            linkMasses=[ROTOR_MASS_KG] * 6, linkCollisionShapeIndices=[-1] * 6, linkVisualShapeIndices=[-1] * 6,
-            linkPositions=[[0.0, 0.0, 0.0]] * 6, linkOrientations=[identity] * 6,
-            linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 6, linkInertialFrameOrientations=[identity] * 6,
-            linkParentIndices=[0] * 6, linkJointTypes=[pybullet.JOINT_REVOLUTE] * 6,
-            linkJointAxis=[[0.0, 0.0, 1.0]] * 6)
+            baseMass=0.0,
+            basePosition=ROTORS_POSITION_M,
+            linkMasses=[ROTOR_MASS_KG] * 6,
+            linkCollisionShapeIndices=[-1] * 6,
+            linkVisualShapeIndices=[-1] * 6,
+            linkPositions=[[0.0, 0.0, 0.0]] * 6,
+            linkOrientations=[identity] * 6,
+            linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 6,
+            linkInertialFrameOrientations=[identity] * 6,
+            linkParentIndices=[0] * 6,
+            linkJointTypes=[pybullet.JOINT_REVOLUTE] * 6,
+            linkJointAxis=[[0.0, 0.0, 1.0]] * 6,
+        )
         for rotor, (joint, inertia) in enumerate(zip(self._joints, armature)):
-            p.changeDynamics(rotors, rotor, localInertiaDiagonal=[inertia] * 3, linearDamping=0.0, angularDamping=0.0,
-                             jointDamping=0.0)
-            gear = p.createConstraint(self._robot, joint, rotors, rotor, pybullet.JOINT_GEAR, [0.0, 0.0, 1.0],
-                                      [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+            p.changeDynamics(
+                rotors,
+                rotor,
+                localInertiaDiagonal=[inertia] * 3,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                jointDamping=0.0,
+            )
+            gear = p.createConstraint(
+                self._robot,
+                joint,
+                rotors,
+                rotor,
+                pybullet.JOINT_GEAR,
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0],
+            )
             # gearRatio -1: the rotor turns with its joint; erp 0: only velocities are tied (angles may drift apart).
             p.changeConstraint(gear, gearRatio=-1.0, maxForce=GEAR_MAX_TORQUE_NM, erp=0.0)
         p.setJointMotorControlArray(rotors, list(range(6)), pybullet.VELOCITY_CONTROL, forces=[0.0] * 6)
@@ -267,14 +344,24 @@ class BulletCell(CellBase):
 
     def _start_ball(self) -> None:
         p = self._p
-        body = p.createMultiBody(world_spec.BALL_MASS_KG, self._ball_shape, basePosition=self._ball_p.tolist(),
-                                 useMaximalCoordinates=True)
+        body = p.createMultiBody(
+            world_spec.BALL_MASS_KG, self._ball_shape, basePosition=self._ball_p.tolist(), useMaximalCoordinates=True
+        )
         # mass again: on a maximal-coordinates body, changing the inertia alone zeroes the mass (PyBullet 3.2.7).
-        p.changeDynamics(body, -1, mass=world_spec.BALL_MASS_KG, restitution=1.0, lateralFriction=1.0,
-                         rollingFriction=0.0, spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
-                         contactProcessingThreshold=0.0,
-                         localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
-                         ccdSweptSphereRadius=0.9 * world_spec.BALL_RADIUS_M)
+        p.changeDynamics(
+            body,
+            -1,
+            mass=world_spec.BALL_MASS_KG,
+            restitution=1.0,
+            lateralFriction=1.0,
+            rollingFriction=0.0,
+            spinningFriction=0.0,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            contactProcessingThreshold=0.0,
+            localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
+            ccdSweptSphereRadius=0.9 * world_spec.BALL_RADIUS_M,
+        )
         p.resetBaseVelocity(body, self._ball_v.tolist(), [0.0, 0.0, 0.0])
         self._ball_body = body
         self._touching = set()
@@ -356,7 +443,7 @@ class BulletCell(CellBase):
 
     def _tool_centre_of_mass(self) -> np.ndarray:
         state = self._p.getLinkState(self._robot, self._blade_link, computeForwardKinematics=True)
-        return np.array(state[0])   # the paddle link carries the tool's mass (tool0 and the frames have none)
+        return np.array(state[0])  # the paddle link carries the tool's mass (tool0 and the frames have none)
 
     def _push_on_tool(self, force_n: np.ndarray, torque_nm: np.ndarray) -> None:
         origin, _ = self.tool_pose()
@@ -370,10 +457,16 @@ class BulletCell(CellBase):
         if self.joint_drive == PD_DRIVE:
             self._apply_pd_torques(q_ref, v_ref)
         else:
-            p.setJointMotorControlArray(self._robot, self._joints, pybullet.POSITION_CONTROL,
-                                        targetPositions=q_ref.tolist(), targetVelocities=v_ref.tolist(),
-                                        positionGains=self._position_gains, velocityGains=self._velocity_gains,
-                                        forces=self._forces)
+            p.setJointMotorControlArray(
+                self._robot,
+                self._joints,
+                pybullet.POSITION_CONTROL,
+                targetPositions=q_ref.tolist(),
+                targetVelocities=v_ref.tolist(),
+                positionGains=self._position_gains,
+                velocityGains=self._velocity_gains,
+                forces=self._forces,
+            )
         if self._hand is not None:
             self._apply_hand_wrench()
         if self._ball_body is not None:
@@ -395,15 +488,18 @@ class BulletCell(CellBase):
         zeros = [0.0] * robot_model.NUM_JOINTS
         gravity = np.array(self._p.calculateInverseDynamics(self._robot, self._q.tolist(), zeros, zeros))
         self._tau_pd = np.clip(pd, -self._effort_nm, self._effort_nm) + gravity
-        self._p.setJointMotorControlArray(self._robot, self._joints, pybullet.TORQUE_CONTROL,
-                                          forces=self._tau_pd.tolist())
+        self._p.setJointMotorControlArray(
+            self._robot, self._joints, pybullet.TORQUE_CONTROL, forces=self._tau_pd.tolist()
+        )
 
     def _track_tool_acceleration(self) -> None:
         state = self._p.getLinkState(self._robot, self._blade_link, computeLinkVelocity=True)
         velocity = (np.array(state[6]), np.array(state[7]))
         if self._tool_velocity_prev is not None:
-            self._tool_acceleration = ((velocity[0] - self._tool_velocity_prev[0]) / self._dt,
-                                       (velocity[1] - self._tool_velocity_prev[1]) / self._dt)
+            self._tool_acceleration = (
+                (velocity[0] - self._tool_velocity_prev[0]) / self._dt,
+                (velocity[1] - self._tool_velocity_prev[1]) / self._dt,
+            )
         self._tool_velocity_prev = velocity
 
     def _check_robot_table_contacts(self) -> None:
@@ -422,7 +518,7 @@ class BulletCell(CellBase):
             return 'net'
         if body == self._robot:
             return 'blade' if link == self._blade_link else 'link'
-        return None   # the floor: the referee sees a dead ball by its position
+        return None  # the floor: the referee sees a dead ball by its position
 
     def _watch_ball(self) -> None:
         p = self._p
@@ -435,9 +531,13 @@ class BulletCell(CellBase):
             if kind is not None and contact[9] > 0.0:
                 touching.add(kind)
         time_s = self._time_s
-        report = {'table': self._referee.table_contact, 'net': self._referee.net_contact,
-                  'blade': self._referee.paddle_contact, 'link': self._referee.robot_contact}
-        for kind in ('table', 'net', 'blade', 'link'):   # new touches only: a ball resting on a body is one touch
+        report = {
+            'table': self._referee.table_contact,
+            'net': self._referee.net_contact,
+            'blade': self._referee.paddle_contact,
+            'link': self._referee.robot_contact,
+        }
+        for kind in ('table', 'net', 'blade', 'link'):  # new touches only: a ball resting on a body is one touch
             if kind in touching and kind not in self._touching:
                 self._events += report[kind](time_s, self._ball_p)
         self._touching = touching

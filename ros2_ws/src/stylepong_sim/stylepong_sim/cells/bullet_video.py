@@ -6,6 +6,7 @@ with the same cameras and looks as ur5_sim's. Nothing of MuJoCo's dynamics runs.
     view = MirroredScene(); recorder = VideoRecorder(view.model, 'rally.mp4')
     recorder.capture(view.show(bullet_cell))
 """
+
 from __future__ import annotations
 
 import mujoco
@@ -15,6 +16,7 @@ from stylepong_sim.cells import scene
 
 class MirroredScene:
     """The MuJoCo scene posed like a cell (any object with joint_positions_rad and ball_position_m)."""
+
     def __init__(self):
         self.model = scene.build_model()
         self.data = mujoco.MjData(self.model)

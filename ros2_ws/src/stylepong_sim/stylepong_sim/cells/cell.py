@@ -56,6 +56,7 @@ same forces by the midpoint rule at its coarser step):
   BALL_LIFETIME_S after its launch.
 The referee (referee.py) is told every contact and the ball's state after every step.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -75,6 +76,7 @@ _GRAVITY = np.array([0.0, 0.0, -world_spec.GRAVITY_M_S2])
 @dataclass(frozen=True)
 class BallPhysics:
     """Contact and air coefficients of the ball (world_spec's nominal values; vary them to randomise)."""
+
     drag_k_per_m: float = world_spec.DRAG_K_PER_M
     table_restitution: float = world_spec.TABLE_RESTITUTION
     table_tangential_factor: float = world_spec.TABLE_TANGENTIAL_FACTOR
@@ -88,9 +90,14 @@ class BallPhysics:
 
 class Cell(CellBase):
     """The simulated cell: UR5 with paddle, table, net and ball in MuJoCo, with the referee watching."""
-    def __init__(self, home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD,
-                 ball_physics: BallPhysics = BallPhysics(),
-                 actuator: str = ur_servoj.IDEAL, servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
+
+    def __init__(
+        self,
+        home_joint_positions_rad=world_spec.HOME_JOINT_POSITIONS_RAD,
+        ball_physics: BallPhysics = BallPhysics(),
+        actuator: str = ur_servoj.IDEAL,
+        servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings(),
+    ):
         self.model = scene.build_model()
         self.data = mujoco.MjData(self.model)
         super().__init__(home_joint_positions_rad, actuator, self.model.opt.timestep)
@@ -114,8 +121,9 @@ class Cell(CellBase):
         self._robot_geom_mask = np.array([m.geom_bodyid[g] in robot_bodies for g in range(m.ngeom)])
         # Links the ball may touch besides the blade (handle, wrist, arm); ee_link's tiny marker box excluded.
         blade_geom = m.geom('paddle_blade').id
-        self._link_geoms = np.array([g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != blade_geom
-                                     and m.geom_size[g].max() > 0.006])
+        self._link_geoms = np.array(
+            [g for g in range(m.ngeom) if self._robot_geom_mask[g] and g != blade_geom and m.geom_size[g].max() > 0.006]
+        )
         # A link's geom can touch the ball only if the ball centre is within its bounding sphere + radius.
         self._link_reach_sq_m2 = (m.geom_rbound[self._link_geoms] + world_spec.BALL_RADIUS_M) ** 2
         self._tool_subtree = np.array([b for b in range(m.nbody) if self._is_in_subtree(b, self._tool_body)])
@@ -135,8 +143,11 @@ class Cell(CellBase):
         self._feedforward_active = False
         # actuator 'ur_servoj': the UR controller's servoj shapes the reference (ur_servoj.py); 'ideal' keeps
         # world_spec's reference below, which the batched world shares.
-        self._servoj = (ur_servoj.ServojReference(self.home_joint_positions_rad, servoj)
-                        if actuator == ur_servoj.UR_SERVOJ else None)
+        self._servoj = (
+            ur_servoj.ServojReference(self.home_joint_positions_rad, servoj)
+            if actuator == ur_servoj.UR_SERVOJ
+            else None
+        )
         self._reset_robot()
 
     # --- the engine's side of the commands (CellBase has the rest) -------------------------------
@@ -187,8 +198,11 @@ class Cell(CellBase):
         weight = self._tool_weight_n
         external = d.cfrc_ext[self._tool_subtree].sum(axis=0)
         force = weight + external[3:]
-        torque = (np.cross(d.subtree_com[tool] - origin, weight) + external[:3]
-                  + np.cross(d.subtree_com[self._tree_root] - origin, external[3:]))
+        torque = (
+            np.cross(d.subtree_com[tool] - origin, weight)
+            + external[:3]
+            + np.cross(d.subtree_com[self._tree_root] - origin, external[3:])
+        )
         return rotation.T @ force, rotation.T @ torque
 
     def paddle_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +264,7 @@ class Cell(CellBase):
         elif self._ref_moving:
             self._advance_servo_reference()
         elif self._feedforward_active:
-            d.ctrl[:6] = self._q_ref   # the reference has arrived: no more velocity feed-forward
+            d.ctrl[:6] = self._q_ref  # the reference has arrived: no more velocity feed-forward
             self._feedforward_active = False
         if self._hand is not None:
             self._apply_hand_wrench()
@@ -261,7 +275,7 @@ class Cell(CellBase):
         if d.ncon:
             self._check_robot_table_contacts()
         if self.ball_id is not None:
-            mujoco.mj_kinematics(m, d)   # poses at the new time, for the ball's contacts
+            mujoco.mj_kinematics(m, d)  # poses at the new time, for the ball's contacts
             self._step_ball()
 
     def _check_robot_table_contacts(self) -> None:
@@ -279,14 +293,14 @@ class Cell(CellBase):
         return self.data.xpos[body].copy(), self.data.xmat[body].reshape(3, 3).copy()
 
     def _point_velocity(self, point_m: np.ndarray, body: int) -> np.ndarray:
-        mujoco.mj_comPos(self.model, self.data)   # mj_jac needs the motion subspaces at the new poses
+        mujoco.mj_comPos(self.model, self.data)  # mj_jac needs the motion subspaces at the new poses
         mujoco.mj_jac(self.model, self.data, self._jac, None, point_m, body)
         return self._jac @ self.data.qvel
 
     # --- internals: ball -------------------------------------------------------------------------
     def _place_ball_marker(self) -> None:
         self.data.mocap_pos[self._ball_mocap] = self._ball_p
-        self.data.geom_xpos[self._ball_geom] = self._ball_p   # for distance queries before the next step
+        self.data.geom_xpos[self._ball_geom] = self._ball_p  # for distance queries before the next step
 
     def _step_ball(self) -> None:
         dt = self._dt
@@ -309,10 +323,12 @@ class Cell(CellBase):
             v1 = u + world_spec.contact_response(v1 - u, contact.normal, restitution, tangential)
             p1 = contact.centre_m + v1 * ((1.0 - contact.fraction) * dt)
             contact_time_s = time_s - (1.0 - contact.fraction) * dt
-            report = {ball_contacts.TABLE: self._referee.table_contact,
-                      ball_contacts.NET: self._referee.net_contact,
-                      ball_contacts.PADDLE: self._referee.paddle_contact,
-                      ball_contacts.ROBOT: self._referee.robot_contact}[contact.kind]
+            report = {
+                ball_contacts.TABLE: self._referee.table_contact,
+                ball_contacts.NET: self._referee.net_contact,
+                ball_contacts.PADDLE: self._referee.paddle_contact,
+                ball_contacts.ROBOT: self._referee.robot_contact,
+            }[contact.kind]
             self._events += report(contact_time_s, contact.centre_m)
         self._ball_p, self._ball_v = p1, v1
         self._place_ball_marker()

@@ -8,6 +8,7 @@ the command reaching its actuator model, and a wrench pushing on the tool. This 
 ball_contacts nor batched_world: the PyBullet cell, which derives from it, must load nothing of the analytic
 ball contacts.
 """
+
 from __future__ import annotations
 
 import abc
@@ -25,6 +26,7 @@ from stylepong_sim.cells.cell_inputs import FRAME_TOOL, FRAME_WORLD, MAX_LAUNCH_
 @dataclass
 class HandWrench:
     """A hand on the tool: force and torque at tool0's origin, in tool0's axes or the world's, until a time."""
+
     force_n: np.ndarray
     torque_nm: np.ndarray
     in_tool_frame: bool
@@ -34,7 +36,7 @@ class HandWrench:
 def checked_actuator(actuator: str) -> str:
     """`actuator` if it names one of ur_servoj's actuator models; ValueError otherwise."""
     if actuator not in ur_servoj.ACTUATORS:
-        raise ValueError(f"actuator must be one of {', '.join(ur_servoj.ACTUATORS)}, got {actuator!r}")
+        raise ValueError(f'actuator must be one of {", ".join(ur_servoj.ACTUATORS)}, got {actuator!r}')
     return actuator
 
 
@@ -53,8 +55,7 @@ def checked_ball_launch(position_m, velocity_m_s) -> tuple[np.ndarray, np.ndarra
     return position, velocity
 
 
-def checked_hand_wrench(force_n, torque_nm, frame: str, duration_s: float,
-                        time_s: float) -> HandWrench:
+def checked_hand_wrench(force_n, torque_nm, frame: str, duration_s: float, time_s: float) -> HandWrench:
     """The hand wrench set at time_s for duration_s; InputError if not finite, in an unknown frame or not
     lasting."""
     force = np.array(force_n, dtype=float).reshape(3)
@@ -70,6 +71,7 @@ def checked_hand_wrench(force_n, torque_nm, frame: str, duration_s: float,
 
 class CellBase(abc.ABC):
     """The engine-free half of a cell: inputs, ball bookkeeping, referee events, hand wrench, getters."""
+
     def __init__(self, home_joint_positions_rad, actuator: str, dt_s: float):
         self.actuator = checked_actuator(actuator)
         self._dt = dt_s
@@ -140,8 +142,9 @@ class CellBase(abc.ABC):
         """The last target accepted by set_joint_targets (home after a reset)."""
         return self._q_cmd.copy()
 
-    def set_hand_wrench(self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD,
-                        duration_s: float = math.inf) -> None:
+    def set_hand_wrench(
+        self, force_n, torque_nm=(0.0, 0.0, 0.0), frame: str = FRAME_WORLD, duration_s: float = math.inf
+    ) -> None:
         self._hand = checked_hand_wrench(force_n, torque_nm, frame, duration_s, self.time_s)
 
     def clear_hand_wrench(self) -> None:
@@ -228,6 +231,5 @@ class CellBase(abc.ABC):
         ball goes when dead or BALL_LIFETIME_S after its launch."""
         if self._referee.rally_open:
             self._events += self._referee.ball_state(time_s, self._ball_p, self._ball_v)
-        elif (referee.ball_is_dead(self._ball_p)
-              or time_s - self._ball_launch_time_s >= world_spec.BALL_LIFETIME_S):
+        elif referee.ball_is_dead(self._ball_p) or time_s - self._ball_launch_time_s >= world_spec.BALL_LIFETIME_S:
             self.remove_ball()

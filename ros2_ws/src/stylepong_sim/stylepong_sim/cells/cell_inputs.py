@@ -1,6 +1,7 @@
 """What every cell (MuJoCo `cell.Cell`, PyBullet `bullet_cell.BulletCell`) accepts: frames, launch speed, the
 error it raises for a rejected input. Its own module so that the PyBullet cell needs nothing of the MuJoCo
 cell (whose module brings the analytic ball contacts with it)."""
+
 from __future__ import annotations
 
 from stylepong_description import robot_model

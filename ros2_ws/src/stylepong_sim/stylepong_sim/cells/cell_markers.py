@@ -2,6 +2,7 @@
 
 Geometry from world_spec, the one definition the physics uses. No rclpy here: the nodes publish the array.
 """
+
 from __future__ import annotations
 
 from visualization_msgs.msg import Marker, MarkerArray

@@ -5,6 +5,7 @@ compared with the true one at its stamp.
 Used by the estimator's accuracy test and by `make bench`. The arm stays at home (it may touch the ball;
 only the flight up to the first paddle contact is compared).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,16 +22,18 @@ from stylepong_sim.cells.tracker import BallTracker, TrackerConfig, camera_to_wo
 @dataclass(frozen=True)
 class EstimateError:
     """One published estimate: when, and how far from the truth at its stamp."""
+
     seed: int
-    since_appeared_s: float        # stamp - the ball's launch
-    since_bounce_s: float          # stamp - the first bounce on the robot's half (nan before it)
+    since_appeared_s: float  # stamp - the ball's launch
+    since_bounce_s: float  # stamp - the first bounce on the robot's half (nan before it)
     position_error_m: float
     velocity_error_m_s: float
-    velocity_std_m_s: float        # what the estimator said of its velocity
+    velocity_std_m_s: float  # what the estimator said of its velocity
 
 
-def estimator_errors(seeds, tracker_config: TrackerConfig, estimator_config: EstimatorConfig | None = None,
-                     cell=None) -> list[EstimateError]:
+def estimator_errors(
+    seeds, tracker_config: TrackerConfig, estimator_config: EstimatorConfig | None = None, cell=None
+) -> list[EstimateError]:
     """Every published estimate's error over one ball per seed (evaluate's incoming balls), in `cell` (a
     MuJoCo Cell by default; a BulletCell works alike)."""
     cell = cell or Cell()
@@ -40,8 +43,9 @@ def estimator_errors(seeds, tracker_config: TrackerConfig, estimator_config: Est
     return out
 
 
-def _one_ball(cell, seed: int, tracker_config: TrackerConfig,
-              estimator_config: EstimatorConfig | None) -> list[EstimateError]:
+def _one_ball(
+    cell, seed: int, tracker_config: TrackerConfig, estimator_config: EstimatorConfig | None
+) -> list[EstimateError]:
     cell.reset()
     rng = np.random.default_rng(seed)
     tracker = BallTracker(tracker_config, rng)
@@ -69,7 +73,14 @@ def _one_ball(cell, seed: int, tracker_config: TrackerConfig,
             if result.outcome != Outcome.PUBLISHED or true is None:
                 continue
             e = result.estimate
-            errors.append(EstimateError(seed, e.stamp_s - launch_s, e.stamp_s - bounce_s,
-                                        float(np.linalg.norm(e.position_m - true[0])),
-                                        float(np.linalg.norm(e.velocity_m_s - true[1])), e.velocity_std_m_s))
+            errors.append(
+                EstimateError(
+                    seed,
+                    e.stamp_s - launch_s,
+                    e.stamp_s - bounce_s,
+                    float(np.linalg.norm(e.position_m - true[0])),
+                    float(np.linalg.norm(e.velocity_m_s - true[1])),
+                    e.velocity_std_m_s,
+                )
+            )
     return errors

@@ -1,5 +1,6 @@
 """Silence what C code prints on the process's stdout and stderr for the length of a block (file descriptors 1
 and 2): pybullet prints its build time and 'argv[0]=' there, which a node's output should not carry."""
+
 from __future__ import annotations
 
 import contextlib
@@ -23,7 +24,7 @@ def quiet_c_stdout(descriptors: tuple[int, ...] = (1, 2)):
             try:
                 yield
             finally:
-                _LIBC.fflush(None)   # C's stdout is block-buffered into a pipe: empty it while it goes nowhere
+                _LIBC.fflush(None)  # C's stdout is block-buffered into a pipe: empty it while it goes nowhere
                 for fd, copy in zip(descriptors, saved):
                     os.dup2(copy, fd)
     finally:

@@ -12,6 +12,7 @@ with these names (used by cell.py and the video recorder):
 Collision filtering: robot geoms (contype 1, conaffinity 2) touch the environment (contype 2,
 conaffinity 1) but never each other (the URDF's collision meshes of neighbouring links overlap).
 """
+
 from __future__ import annotations
 
 import mujoco
@@ -26,7 +27,7 @@ FT_SITE = 'ft_sensor'
 FT_FORCE_SENSOR = 'ft_force'
 FT_TORQUE_SENSOR = 'ft_torque'
 BALL_BODY = 'ball'
-BALL_PARKING_POSITION_M = (0.0, 0.0, -1.0)   # under the floor, out of sight, while no ball is in play
+BALL_PARKING_POSITION_M = (0.0, 0.0, -1.0)  # under the floor, out of sight, while no ball is in play
 CAMERAS = ('overview', 'robot_view')
 
 _TABLE_RGBA = (0.05, 0.25, 0.55, 1.0)
@@ -55,33 +56,66 @@ def _quat_of(rotation: np.ndarray) -> list[float]:
 
 
 def _static_box(spec: mujoco.MjSpec, name: str, centre_m, half_size_m, rgba, collides: bool) -> None:
-    spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, pos=list(centre_m), size=list(half_size_m),
-                            rgba=list(rgba), contype=ENV_CONTYPE if collides else 0,
-                            conaffinity=ENV_CONAFFINITY if collides else 0)
+    spec.worldbody.add_geom(
+        name=name,
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=list(centre_m),
+        size=list(half_size_m),
+        rgba=list(rgba),
+        contype=ENV_CONTYPE if collides else 0,
+        conaffinity=ENV_CONAFFINITY if collides else 0,
+    )
 
 
 def _add_table_and_net(spec: mujoco.MjSpec) -> None:
     top_z = world_spec.TABLE_HEIGHT_M
     half_length_m, half_width_m = world_spec.HALF_LENGTH_M, world_spec.HALF_WIDTH_M
-    _static_box(spec, 'table_top', (0.0, 0.0, top_z - world_spec.TABLE_THICKNESS_M / 2.0),
-                (half_length_m, half_width_m, world_spec.TABLE_THICKNESS_M / 2.0), _TABLE_RGBA, collides=True)
-    _static_box(spec, 'net', (0.0, 0.0, top_z + world_spec.NET_HEIGHT_M / 2.0),
-                (world_spec.NET_THICKNESS_M / 2.0, world_spec.NET_LENGTH_M / 2.0, world_spec.NET_HEIGHT_M / 2.0),
-                _NET_RGBA, collides=True)
+    _static_box(
+        spec,
+        'table_top',
+        (0.0, 0.0, top_z - world_spec.TABLE_THICKNESS_M / 2.0),
+        (half_length_m, half_width_m, world_spec.TABLE_THICKNESS_M / 2.0),
+        _TABLE_RGBA,
+        collides=True,
+    )
+    _static_box(
+        spec,
+        'net',
+        (0.0, 0.0, top_z + world_spec.NET_HEIGHT_M / 2.0),
+        (world_spec.NET_THICKNESS_M / 2.0, world_spec.NET_LENGTH_M / 2.0, world_spec.NET_HEIGHT_M / 2.0),
+        _NET_RGBA,
+        collides=True,
+    )
     # Markings and legs: looks only.
     line_z = top_z + 0.0005
     for sign in (-1.0, 1.0):
-        _static_box(spec, f'line_side_{int(sign):+d}', (0.0, sign * (half_width_m - _LINE_WIDTH_M / 2), line_z),
-                    (half_length_m, _LINE_WIDTH_M / 2, 0.0005), _LINE_RGBA, collides=False)
-        _static_box(spec, f'line_end_{int(sign):+d}', (sign * (half_length_m - _LINE_WIDTH_M / 2), 0.0, line_z),
-                    (_LINE_WIDTH_M / 2, half_width_m, 0.0005), _LINE_RGBA, collides=False)
+        _static_box(
+            spec,
+            f'line_side_{int(sign):+d}',
+            (0.0, sign * (half_width_m - _LINE_WIDTH_M / 2), line_z),
+            (half_length_m, _LINE_WIDTH_M / 2, 0.0005),
+            _LINE_RGBA,
+            collides=False,
+        )
+        _static_box(
+            spec,
+            f'line_end_{int(sign):+d}',
+            (sign * (half_length_m - _LINE_WIDTH_M / 2), 0.0, line_z),
+            (_LINE_WIDTH_M / 2, half_width_m, 0.0005),
+            _LINE_RGBA,
+            collides=False,
+        )
         for side in (-1.0, 1.0):
             leg_height = top_z - world_spec.TABLE_THICKNESS_M
-            _static_box(spec, f'leg_{int(sign):+d}_{int(side):+d}',
-                        (sign * (half_length_m - 0.2), side * (half_width_m - 0.1), leg_height / 2),
-                        (_LEG_HALF_SIZE_M, _LEG_HALF_SIZE_M, leg_height / 2), (0.2, 0.2, 0.2, 1.0), collides=False)
-    _static_box(spec, 'centre_line', (0.0, 0.0, line_z), (half_length_m, 0.0015, 0.0005), _LINE_RGBA,
-                collides=False)
+            _static_box(
+                spec,
+                f'leg_{int(sign):+d}_{int(side):+d}',
+                (sign * (half_length_m - 0.2), side * (half_width_m - 0.1), leg_height / 2),
+                (_LEG_HALF_SIZE_M, _LEG_HALF_SIZE_M, leg_height / 2),
+                (0.2, 0.2, 0.2, 1.0),
+                collides=False,
+            )
+    _static_box(spec, 'centre_line', (0.0, 0.0, line_z), (half_length_m, 0.0015, 0.0005), _LINE_RGBA, collides=False)
 
 
 def _add_pedestal(spec: mujoco.MjSpec) -> None:
@@ -92,25 +126,54 @@ def _add_pedestal(spec: mujoco.MjSpec) -> None:
 
 def _add_ball(spec: mujoco.MjSpec) -> None:
     body = spec.worldbody.add_body(name=BALL_BODY, mocap=True, pos=list(BALL_PARKING_POSITION_M))
-    body.add_geom(name='ball', type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[world_spec.BALL_RADIUS_M, 0.0, 0.0],
-                  rgba=list(_BALL_RGBA), contype=0, conaffinity=0, mass=world_spec.BALL_MASS_KG)
+    body.add_geom(
+        name='ball',
+        type=mujoco.mjtGeom.mjGEOM_SPHERE,
+        size=[world_spec.BALL_RADIUS_M, 0.0, 0.0],
+        rgba=list(_BALL_RGBA),
+        contype=0,
+        conaffinity=0,
+        mass=world_spec.BALL_MASS_KG,
+    )
 
 
 def _add_looks(spec: mujoco.MjSpec) -> None:
-    spec.add_texture(name='sky', type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
-                     width=64, height=64, rgb1=[0.55, 0.6, 0.68], rgb2=[0.12, 0.13, 0.16])
-    spec.add_texture(name='floor_grid', type=mujoco.mjtTexture.mjTEXTURE_2D,
-                     builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
-                     rgb1=[0.32, 0.32, 0.34], rgb2=[0.27, 0.27, 0.29])
+    spec.add_texture(
+        name='sky',
+        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+        width=64,
+        height=64,
+        rgb1=[0.55, 0.6, 0.68],
+        rgb2=[0.12, 0.13, 0.16],
+    )
+    spec.add_texture(
+        name='floor_grid',
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        width=256,
+        height=256,
+        rgb1=[0.32, 0.32, 0.34],
+        rgb2=[0.27, 0.27, 0.29],
+    )
     material = spec.add_material(name='floor_grid', texrepeat=[8.0, 8.0])
     material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = 'floor_grid'
-    spec.worldbody.add_geom(name='floor', type=mujoco.mjtGeom.mjGEOM_PLANE, size=[6.0, 5.0, 0.05],
-                            material='floor_grid', contype=ENV_CONTYPE, conaffinity=ENV_CONAFFINITY)
-    spec.worldbody.add_light(name='ceiling', pos=[-0.5, 0.0, 4.0], dir=[0.0, 0.0, -1.0], castshadow=False,
-                             diffuse=[0.7, 0.7, 0.7])
+    spec.worldbody.add_geom(
+        name='floor',
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[6.0, 5.0, 0.05],
+        material='floor_grid',
+        contype=ENV_CONTYPE,
+        conaffinity=ENV_CONAFFINITY,
+    )
+    spec.worldbody.add_light(
+        name='ceiling', pos=[-0.5, 0.0, 4.0], dir=[0.0, 0.0, -1.0], castshadow=False, diffuse=[0.7, 0.7, 0.7]
+    )
     # Side view of the robot's half, and the opponent's view of the robot.
-    for name, position, target in (('overview', (-0.5, 2.3, 1.65), (-1.25, 0.0, 0.85)),
-                                   ('robot_view', (2.6, 0.0, 1.9), (-1.5, 0.0, 0.8))):
+    for name, position, target in (
+        ('overview', (-0.5, 2.3, 1.65), (-1.25, 0.0, 0.85)),
+        ('robot_view', (2.6, 0.0, 1.9), (-1.5, 0.0, 0.8)),
+    ):
         spec.worldbody.add_camera(name=name, pos=list(position), quat=_look_at_quat(position, target), fovy=55.0)
 
 
@@ -121,7 +184,7 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
     base.quat = _quat_of(rotation)
     for body in spec.bodies:
         if body.name != 'world':
-            body.gravcomp = 1.0   # ideal gravity compensation, in joint space (must be set before compiling)
+            body.gravcomp = 1.0  # ideal gravity compensation, in joint space (must be set before compiling)
     for geom in spec.geoms:
         geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
     limits = robot_model.joint_limits()
@@ -138,8 +201,10 @@ def _configure_robot(spec: mujoco.MjSpec) -> None:
         actuator.forcerange = [-float(limits.effort_nm[i]), float(limits.effort_nm[i])]
         actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
     spec.body(robot_model.TOOL_FRAME).add_site(name=FT_SITE, pos=[0.0, 0.0, 0.0])
-    for name, sensor_type in ((FT_FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
-                              (FT_TORQUE_SENSOR, mujoco.mjtSensor.mjSENS_TORQUE)):
+    for name, sensor_type in (
+        (FT_FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
+        (FT_TORQUE_SENSOR, mujoco.mjtSensor.mjSENS_TORQUE),
+    ):
         spec.add_sensor(name=name, type=sensor_type, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
 
 
@@ -155,7 +220,7 @@ def build_spec() -> mujoco.MjSpec:
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = 1920
     spec.visual.global_.offheight = 1080
-    _configure_robot(spec)   # before anything else is added: it touches every geom and body present
+    _configure_robot(spec)  # before anything else is added: it touches every geom and body present
     _add_table_and_net(spec)
     _add_pedestal(spec)
     _add_ball(spec)

@@ -8,6 +8,7 @@ holds realistic levels for robustness tests.
   ForceTorqueSensor  adds a constant bias and Gaussian noise to the true wrench.
   SampleClock        tells at which physics steps a stream running at rate_hz takes its samples.
 """
+
 from __future__ import annotations
 
 import collections
@@ -20,6 +21,7 @@ import numpy as np
 @dataclass(frozen=True)
 class SensingConfig:
     """Sensor imperfections: ball camera noise, latency and dropout; F/T noise and bias; the seed."""
+
     ball_position_noise_std_m: float = 0.0
     ball_velocity_noise_std_m_s: float = 0.0
     ball_latency_s: float = 0.0
@@ -31,8 +33,13 @@ class SensingConfig:
     seed: int = 0
 
     def __post_init__(self):
-        for name in ('ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s',
-                     'ft_force_noise_std_n', 'ft_torque_noise_std_nm'):
+        for name in (
+            'ball_position_noise_std_m',
+            'ball_velocity_noise_std_m_s',
+            'ball_latency_s',
+            'ft_force_noise_std_n',
+            'ft_torque_noise_std_nm',
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f'{name} must be finite and >= 0, got {value}')
@@ -47,13 +54,15 @@ class SensingConfig:
 @dataclass(frozen=True)
 class BallObservation:
     """A ball camera sample: when it was observed, position and velocity."""
-    stamp_s: float               # the instant the observation shows
+
+    stamp_s: float  # the instant the observation shows
     position_m: np.ndarray
     velocity_m_s: np.ndarray
 
 
 class BallCamera:
     """The ball camera: noisy samples, some dropped, delivered after the latency."""
+
     def __init__(self, config: SensingConfig, rng: np.random.Generator):
         self._config = config
         self._rng = rng
@@ -82,6 +91,7 @@ class BallCamera:
 
 class ForceTorqueSensor:
     """The wrist F/T sensor: the true wrench plus bias and noise."""
+
     def __init__(self, config: SensingConfig, rng: np.random.Generator):
         self._config = config
         self._rng = rng

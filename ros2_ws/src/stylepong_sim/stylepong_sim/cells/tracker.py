@@ -10,6 +10,7 @@ ball (a white shoe, a light) and delivers each frame some tens of milliseconds a
 The camera frame `ball_camera` sits where a tracker's reference camera would: beside the table, above it,
 looking down at the table's centre. Its pose is a parameter; ur5_sim publishes it on /tf_static.
 """
+
 from __future__ import annotations
 
 import collections
@@ -33,6 +34,7 @@ OUTLIER_BOX_M = ((-3.0, 3.0), (-2.0, 2.0), (0.0, 2.0))
 @dataclass(frozen=True)
 class TrackerConfig:
     """A tracker's rate and imperfections, and the pose of its camera frame in world."""
+
     rate_hz: float = 150.0
     latency_s: float = 0.0
     latency_jitter_s: float = 0.0
@@ -50,8 +52,10 @@ class TrackerConfig:
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f'ball_detection_{name} must be finite and >= 0, got {value}')
         if self.latency_jitter_s > self.latency_s:
-            raise ValueError(f'ball_detection_latency_jitter_s ({self.latency_jitter_s}) must not exceed '
-                             f'ball_detection_latency_s ({self.latency_s})')
+            raise ValueError(
+                f'ball_detection_latency_jitter_s ({self.latency_jitter_s}) must not exceed '
+                f'ball_detection_latency_s ({self.latency_s})'
+            )
         for name in ('dropout_probability', 'outlier_probability'):
             value = getattr(self, name)
             if not 0.0 <= value < 1.0:
@@ -70,6 +74,7 @@ class TrackerConfig:
 @dataclass(frozen=True)
 class Detection:
     """One tracker frame: its exposure instant and the reported centre in the camera frame."""
+
     stamp_s: float
     position_camera_m: np.ndarray
     delivery_s: float
@@ -122,8 +127,8 @@ class BallTracker:
         return out
 
 
-
 def camera_to_world(config: TrackerConfig, position_camera_m: np.ndarray) -> np.ndarray:
     """A camera-frame point in world (what tf does with the /tf_static transform)."""
     return rotate(config.camera_rotation_xyzw, np.asarray(position_camera_m, dtype=float)) + np.asarray(
-        config.camera_xyz_m)
+        config.camera_xyz_m
+    )

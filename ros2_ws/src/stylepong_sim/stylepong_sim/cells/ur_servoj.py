@@ -28,6 +28,7 @@ which hands every command to URScript servoj:
   measured with servoj (look-ahead 0.03 s) on a UR10e (Universal_Robots_Client_Library's issue tracker).
   No acceleration limit: UR publishes none (the torque limits bound it).
 """
+
 from __future__ import annotations
 
 import math
@@ -40,20 +41,24 @@ UR_SERVOJ = 'ur_servoj'
 ACTUATORS = (IDEAL, UR_SERVOJ)
 UR_JOINT_SPEED_LIMIT_RAD_S = math.radians(180.0)
 SERVO_RATE_RANGE_HZ = (10.0, 1000.0)
-LOOKAHEAD_RANGE_S = (0.03, 0.2)       # URScript servoj
-GAIN_RANGE = (100.0, 3000.0)          # URScript says 100-2000; the driver's xacro accepts up to 3000
+LOOKAHEAD_RANGE_S = (0.03, 0.2)  # URScript servoj
+GAIN_RANGE = (100.0, 3000.0)  # URScript says 100-2000; the driver's xacro accepts up to 3000
 
 
 @dataclass(frozen=True)
 class ServojSettings:
     """servoj's settings: controller rate, look-ahead time and gain (ur_robot_driver's defaults)."""
+
     servo_rate_hz: float = 125.0
     lookahead_s: float = 0.03
     gain: float = 2000.0
 
     def __post_init__(self):
-        for name, (low, high) in (('servo_rate_hz', SERVO_RATE_RANGE_HZ), ('lookahead_s', LOOKAHEAD_RANGE_S),
-                                  ('gain', GAIN_RANGE)):
+        for name, (low, high) in (
+            ('servo_rate_hz', SERVO_RATE_RANGE_HZ),
+            ('lookahead_s', LOOKAHEAD_RANGE_S),
+            ('gain', GAIN_RANGE),
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and low <= value <= high):
                 raise ValueError(f'{name} must be within [{low}, {high}], got {value}')
@@ -61,12 +66,13 @@ class ServojSettings:
 
 class IdealReference:
     """world_spec's servo reference: towards the command at no more than the URDF velocity limit."""
+
     def __init__(self, home_rad: np.ndarray, max_speed_rad_s: np.ndarray):
         self._max_speed = np.asarray(max_speed_rad_s, dtype=float)
         self.reset(home_rad)
 
     def reset(self, q_rad: np.ndarray, time_s: float = 0.0) -> None:
-        del time_s   # no clock of its own
+        del time_s  # no clock of its own
         self.q_ref = np.array(q_rad, dtype=float)
         self.v_ref = np.zeros_like(self.q_ref)
         self._q_cmd = self.q_ref.copy()
@@ -76,7 +82,7 @@ class IdealReference:
 
     def step(self, time_s: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """The reference after the step that ends at time_s."""
-        del time_s   # the ideal servo reads every command at once
+        del time_s  # the ideal servo reads every command at once
         limit = self._max_speed * dt_s
         move = np.clip(self._q_cmd - self.q_ref, -limit, limit)
         self.q_ref = self.q_ref + move
@@ -86,8 +92,13 @@ class IdealReference:
 
 class ServojReference:
     """The UR controller's servoj, as the module docstring states: sampled, looked ahead, gained, speed-limited."""
-    def __init__(self, home_rad: np.ndarray, settings: ServojSettings = ServojSettings(),
-                 max_speed_rad_s: float = UR_JOINT_SPEED_LIMIT_RAD_S):
+
+    def __init__(
+        self,
+        home_rad: np.ndarray,
+        settings: ServojSettings = ServojSettings(),
+        max_speed_rad_s: float = UR_JOINT_SPEED_LIMIT_RAD_S,
+    ):
         self.settings = settings
         self._period_s = 1.0 / settings.servo_rate_hz
         self._max_speed = max_speed_rad_s
@@ -112,7 +123,8 @@ class ServojReference:
             self._next_tick = math.floor(time_s / self._period_s + 1e-9) + 1
         s = self.settings
         self._q_filtered = self._q_filtered + (1.0 - math.exp(-dt_s / s.lookahead_s)) * (
-            self._q_sampled - self._q_filtered)
+            self._q_sampled - self._q_filtered
+        )
         limit = self._max_speed * dt_s
         move = np.clip((1.0 - math.exp(-s.gain * dt_s)) * (self._q_filtered - self.q_ref), -limit, limit)
         self.q_ref = self.q_ref + move
@@ -120,11 +132,12 @@ class ServojReference:
         return self.q_ref, self.v_ref
 
 
-def make_reference(actuator: str, home_rad: np.ndarray, urdf_max_speed_rad_s: np.ndarray,
-                   servoj: ServojSettings = ServojSettings()) -> IdealReference | ServojReference:
+def make_reference(
+    actuator: str, home_rad: np.ndarray, urdf_max_speed_rad_s: np.ndarray, servoj: ServojSettings = ServojSettings()
+) -> IdealReference | ServojReference:
     """The actuator model named `actuator` (one of ACTUATORS), at rest at home_rad."""
     if actuator == IDEAL:
         return IdealReference(home_rad, urdf_max_speed_rad_s)
     if actuator == UR_SERVOJ:
         return ServojReference(home_rad, servoj)
-    raise ValueError(f"actuator must be one of {', '.join(ACTUATORS)}, got {actuator!r}")
+    raise ValueError(f'actuator must be one of {", ".join(ACTUATORS)}, got {actuator!r}')

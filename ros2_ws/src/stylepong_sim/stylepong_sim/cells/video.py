@@ -7,6 +7,7 @@ A 640x480 frame costs about 15-20 ms of CPU.
     if recorder.clock.due(cell.time_s): recorder.capture(cell.data)
     recorder.close()                                            # finishes the MP4 (needed to play it)
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -20,8 +21,16 @@ from stylepong_sim.cells.sensing import SampleClock
 
 class VideoRecorder:
     """Renders the cell from one camera at a fixed frame rate to an MP4 file or a folder of PNGs."""
-    def __init__(self, model: mujoco.MjModel, path: str, fps: float = 30.0, width: int = 640, height: int = 480,
-                 camera: str = 'overview'):
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        path: str,
+        fps: float = 30.0,
+        width: int = 640,
+        height: int = 480,
+        camera: str = 'overview',
+    ):
         if camera not in scene.CAMERAS:
             raise ValueError(f'unknown camera {camera!r}; the cell has {", ".join(scene.CAMERAS)}')
         if width % 16 or height % 16:
@@ -39,14 +48,18 @@ class VideoRecorder:
         try:
             self._renderer = mujoco.Renderer(model, height, width)
         except mujoco.FatalError as error:
-            raise RuntimeError(f'no OpenGL context ({error}); without a display set MUJOCO_GL=egl (or osmesa) '
-                               'before anything imports mujoco') from error
+            raise RuntimeError(
+                f'no OpenGL context ({error}); without a display set MUJOCO_GL=egl (or osmesa) '
+                'before anything imports mujoco'
+            ) from error
         self._writer = None
         if self.path.suffix.lower() == '.mp4':
             import imageio_ffmpeg
-            self._writer = imageio_ffmpeg.write_frames(str(self.path), (width, height), fps=fps, codec='libx264',
-                                                       pix_fmt_out='yuv420p', quality=7)
-            self._writer.send(None)   # starts ffmpeg
+
+            self._writer = imageio_ffmpeg.write_frames(
+                str(self.path), (width, height), fps=fps, codec='libx264', pix_fmt_out='yuv420p', quality=7
+            )
+            self._writer.send(None)  # starts ffmpeg
 
     def capture(self, data: mujoco.MjData) -> None:
         self._renderer.update_scene(data, camera=self.camera)
@@ -55,6 +68,7 @@ class VideoRecorder:
             self._writer.send(frame)
         else:
             import imageio.v3 as iio
+
             iio.imwrite(self.path / f'frame_{self.frames:06d}.png', frame)
         self.frames += 1
 

@@ -15,6 +15,7 @@ models on a step, in numbers (results/calibration.md and .json).
 Every simulator samples the ball on the same 60 Hz grid (the batched world's policy steps) so that differences
 come from the physics, not from when they were looked at.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,7 +30,7 @@ import numpy as np
 from stylepong_sim import referee, world_spec
 from stylepong_sim.cells import ur_servoj
 
-CROSSING_X_M = -1.2                    # before the paddle at home (x = -1.47): the arm does not touch the rebound
+CROSSING_X_M = -1.2  # before the paddle at home (x = -1.47): the arm does not touch the rebound
 POLICY_DT_S = 1.0 / world_spec.POLICY_RATE_HZ
 HOME = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
 # Scripted strokes: joint offsets from home, commanded as one step at t = 0; the ball meets the blade at HIT_TIME_S.
@@ -41,7 +42,7 @@ STROKES = {
 HIT_TIME_S = 0.15
 INCOMING_SPEED_M_S = 5.0
 STEP_RAD = 0.2
-STEP_JOINTS = (0, 5)                   # shoulder_pan (150 N m), wrist_3 (28 N m)
+STEP_JOINTS = (0, 5)  # shoulder_pan (150 N m), wrist_3 (28 N m)
 ACTUATOR_SETTINGS = {
     'ideal': (ur_servoj.IDEAL, ur_servoj.ServojSettings()),
     'ur_servoj 125 Hz, 0.03 s, 2000': (ur_servoj.UR_SERVOJ, ur_servoj.ServojSettings(125.0, 0.03, 2000.0)),
@@ -54,21 +55,25 @@ SIMULATORS = ('batched', 'mujoco', 'pybullet')
 @dataclass
 class BallTrace:
     """A ball on the 60 Hz grid and its events (times from the launch)."""
+
     times_s: list[float] = field(default_factory=list)
     positions_m: list[np.ndarray] = field(default_factory=list)
     velocities_m_s: list[np.ndarray] = field(default_factory=list)
     first_bounce_m: np.ndarray | None = None
     hit_time_s: float | None = None
-    landing_m: np.ndarray | None = None      # first table contact after the hit
+    landing_m: np.ndarray | None = None  # first table contact after the hit
 
 
-def make_cell(engine: str, actuator: str = ur_servoj.IDEAL,
-              servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()):
+def make_cell(
+    engine: str, actuator: str = ur_servoj.IDEAL, servoj: ur_servoj.ServojSettings = ur_servoj.ServojSettings()
+):
     """A fresh cell of `engine` ('mujoco' or 'pybullet')."""
     if engine == 'pybullet':
         from stylepong_sim.cells.bullet_cell import BulletCell
+
         return BulletCell(actuator=actuator, servoj=servoj)
     from stylepong_sim.cells.cell import Cell
+
     return Cell(actuator=actuator, servoj=servoj)
 
 
@@ -108,12 +113,14 @@ def _note_event(trace: BallTrace, event_type: int, time_s: float, position_m: np
         trace.landing_m = position_m
 
 
-def batched_ball_traces(positions_m: np.ndarray, velocities_m_s: np.ndarray, q_target=None,
-                        duration_s: float = 1.2) -> list[BallTrace]:
+def batched_ball_traces(
+    positions_m: np.ndarray, velocities_m_s: np.ndarray, q_target=None, duration_s: float = 1.2
+) -> list[BallTrace]:
     """The same balls [N, 3] in one batched world (float64, its default rates), arm commanded to q_target."""
     import torch
 
     from stylepong_sim.batched import batched_world
+
     n = len(positions_m)
     world = batched_world.BatchedWorld(n, dtype=torch.float64)
     world.reset_envs(torch.arange(n), world.q_rad.clone(), torch.tensor(positions_m).T, torch.tensor(velocities_m_s).T)
@@ -138,8 +145,9 @@ def batched_ball_traces(positions_m: np.ndarray, velocities_m_s: np.ndarray, q_t
 def crossing(trace: BallTrace, x_m: float = CROSSING_X_M) -> tuple[float, float, float] | None:
     """(y, z, speed) where the ball first crosses the plane x = x_m going towards the robot (linear
     interpolation between 60 Hz samples); None if it does not."""
-    for (p0, v0), (p1, v1) in zip(zip(trace.positions_m, trace.velocities_m_s),
-                                  zip(trace.positions_m[1:], trace.velocities_m_s[1:])):
+    for (p0, v0), (p1, v1) in zip(
+        zip(trace.positions_m, trace.velocities_m_s), zip(trace.positions_m[1:], trace.velocities_m_s[1:])
+    ):
         if p0[0] > x_m >= p1[0]:
             f = (p0[0] - x_m) / (p0[0] - p1[0])
             p = p0 + f * (p1 - p0)
@@ -157,13 +165,17 @@ def return_after_hit(trace: BallTrace) -> dict | None:
         return None
     v = trace.velocities_m_s[k]
     horizontal = math.hypot(v[0], v[1])
-    return {'speed_m_s': float(np.linalg.norm(v)), 'elevation_deg': math.degrees(math.atan2(v[2], horizontal)),
-            'heading_deg': math.degrees(math.atan2(v[1], v[0])),
-            'landing_xy_m': None if trace.landing_m is None else [float(trace.landing_m[0]), float(trace.landing_m[1])]}
+    return {
+        'speed_m_s': float(np.linalg.norm(v)),
+        'elevation_deg': math.degrees(math.atan2(v[2], horizontal)),
+        'heading_deg': math.degrees(math.atan2(v[1], v[0])),
+        'landing_xy_m': None if trace.landing_m is None else [float(trace.landing_m[0]), float(trace.landing_m[1])],
+    }
 
 
-def aimed_throw(target_m: np.ndarray, direction: np.ndarray, speed_m_s: float, flight_s: float
-                ) -> tuple[np.ndarray, np.ndarray]:
+def aimed_throw(
+    target_m: np.ndarray, direction: np.ndarray, speed_m_s: float, flight_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """A launch (position, velocity) whose flight with gravity and drag reaches target_m after flight_s,
     arriving roughly along -direction at about speed_m_s (secant corrections of the launch velocity)."""
     start = target_m + direction * speed_m_s * flight_s
@@ -213,15 +225,19 @@ def step_response(engine: str, actuator: str, servoj: ur_servoj.ServojSettings) 
         outside = np.flatnonzero(np.abs(fraction - 1.0) > 0.02)
         settle = times_s[outside[-1] + 1] if outside.size and outside[-1] + 1 < len(times_s) else float('nan')
         name = 'shoulder_pan' if joint == 0 else 'wrist_3'
-        result[name] = {'delay_10_ms': 1e3 * t10, 'rise_10_90_ms': 1e3 * (t90 - t10), 'settle_2pct_ms': 1e3 * settle,
-                        'overshoot_pct': 100.0 * max(0.0, fraction.max() - 1.0)}
+        result[name] = {
+            'delay_10_ms': 1e3 * t10,
+            'rise_10_90_ms': 1e3 * (t90 - t10),
+            'settle_2pct_ms': 1e3 * settle,
+            'overshoot_pct': 100.0 * max(0.0, fraction.max() - 1.0),
+        }
     cell.reset()
     start_s = cell.time_s
     lags = []
     for _ in range(900):
         t = cell.time_s - start_s
         command = HOME.copy()
-        command[0] += 1.0 * math.floor(t / POLICY_DT_S) * POLICY_DT_S   # held commands, as the player sends them
+        command[0] += 1.0 * math.floor(t / POLICY_DT_S) * POLICY_DT_S  # held commands, as the player sends them
         cell.set_joint_targets(command)
         cell.step(1)
         if t > 0.5:
@@ -238,17 +254,21 @@ def ball_part(first_seed: int, balls: int) -> list[dict]:
     launches = [world_spec.incoming_ball_for_seed(seed) for seed in range(first_seed, first_seed + balls)]
     positions = np.array([b.position_m for b in launches])
     velocities = np.array([b.velocity_m_s for b in launches])
-    traces = {'batched': batched_ball_traces(positions, velocities),
-              'mujoco': [cell_ball_trace('mujoco', p, v) for p, v in zip(positions, velocities)],
-              'pybullet': [cell_ball_trace('pybullet', p, v) for p, v in zip(positions, velocities)]}
+    traces = {
+        'batched': batched_ball_traces(positions, velocities),
+        'mujoco': [cell_ball_trace('mujoco', p, v) for p, v in zip(positions, velocities)],
+        'pybullet': [cell_ball_trace('pybullet', p, v) for p, v in zip(positions, velocities)],
+    }
     rows = []
     for i, seed in enumerate(range(first_seed, first_seed + balls)):
         row = {'seed': seed}
         for name in SIMULATORS:
             trace = traces[name][i]
             bounce = trace.first_bounce_m
-            row[name] = {'bounce_xy_m': None if bounce is None else [float(bounce[0]), float(bounce[1])],
-                         'crossing_y_z_speed': crossing(trace)}
+            row[name] = {
+                'bounce_xy_m': None if bounce is None else [float(bounce[0]), float(bounce[1])],
+                'crossing_y_z_speed': crossing(trace),
+            }
         rows.append(row)
     return rows
 
@@ -259,11 +279,16 @@ def stroke_part() -> list[dict]:
     for name, offset in STROKES.items():
         q_target = HOME + offset
         centre, normal = blade_at(q_target, HIT_TIME_S)
-        start, velocity = aimed_throw(centre + normal * world_spec.BALL_RADIUS_M, normal, INCOMING_SPEED_M_S,
-                                      HIT_TIME_S)
-        row = {'stroke': name, 'joint_offset_rad': offset.tolist(), 'launch_m': start.tolist(),
-               'launch_velocity_m_s': velocity.tolist(),
-               'batched': return_after_hit(batched_ball_traces(start[None], velocity[None], q_target)[0])}
+        start, velocity = aimed_throw(
+            centre + normal * world_spec.BALL_RADIUS_M, normal, INCOMING_SPEED_M_S, HIT_TIME_S
+        )
+        row = {
+            'stroke': name,
+            'joint_offset_rad': offset.tolist(),
+            'launch_m': start.tolist(),
+            'launch_velocity_m_s': velocity.tolist(),
+            'batched': return_after_hit(batched_ball_traces(start[None], velocity[None], q_target)[0]),
+        }
         for engine in ('mujoco', 'pybullet'):
             row[engine] = return_after_hit(cell_ball_trace(engine, start, velocity, q_target))
         # Where the PyBullet arm has the blade when the MuJoCo arm's blade meets the ball (same command).
@@ -276,8 +301,10 @@ def stroke_part() -> list[dict]:
 
 def actuator_part() -> dict:
     """Step and ramp responses of every actuator setting in both cells."""
-    return {label: {engine: step_response(engine, actuator, settings) for engine in ('mujoco', 'pybullet')}
-            for label, (actuator, settings) in ACTUATOR_SETTINGS.items()}
+    return {
+        label: {engine: step_response(engine, actuator, settings) for engine in ('mujoco', 'pybullet')}
+        for label, (actuator, settings) in ACTUATOR_SETTINGS.items()
+    }
 
 
 def _distance_mm(a, b) -> float:
@@ -295,12 +322,15 @@ def summarise_ball(rows: list[dict]) -> dict:
         ref = [r['mujoco']['crossing_y_z_speed'] for r in rows]
         both = [(a, b) for a, b in zip(ours, ref) if a is not None and b is not None]
         summary[name] = {
-            'bounce_mm_max': float(np.nanmax(bounce)), 'bounce_mm_mean': float(np.nanmean(bounce)),
+            'bounce_mm_max': float(np.nanmax(bounce)),
+            'bounce_mm_mean': float(np.nanmean(bounce)),
             'crossing_y_mm_max': max((1e3 * abs(a[0] - b[0]) for a, b in both), default=float('nan')),
             'crossing_z_mm_max': max((1e3 * abs(a[1] - b[1]) for a, b in both), default=float('nan')),
             'crossing_z_mm_mean': float(np.mean([1e3 * (a[1] - b[1]) for a, b in both])) if both else float('nan'),
             'crossing_speed_m_s_max': max((abs(a[2] - b[2]) for a, b in both), default=float('nan')),
-            'crossings_compared': len(both), 'balls': len(rows)}
+            'crossings_compared': len(both),
+            'balls': len(rows),
+        }
     return summary
 
 
@@ -312,31 +342,49 @@ def _fmt(value, digits: int = 1) -> str:
 
 def markdown(result: dict) -> list[str]:
     """calibration.md's lines."""
-    lines = ['# Calibration: the three simulators and the actuator models side by side', '',
-             f'Written by `{result["command"]}` ({result["wall_time_s"]:.0f} s). Reference: the MuJoCo cell '
-             '(`ur5_sim`); the batched world is what training runs; the PyBullet cell (`ur5_bullet`) shares no contact '
-             'code with either. Ideal servo in every simulator unless the actuator table says otherwise.', '',
-             f'## Ball: first bounce and rebound (seeds {result["seeds"][0]}-{result["seeds"][-1]}, arm at home)', '',
-             f'Differences against the MuJoCo cell; the crossing is where the rebound passes x = {CROSSING_X_M} m.', '',
-             '| simulator | bounce point, max / mean (mm) | crossing y, max (mm) | crossing z, max / mean signed (mm) '
-             '| crossing speed, max (m/s) |', '|---|---|---|---|---|']
+    lines = [
+        '# Calibration: the three simulators and the actuator models side by side',
+        '',
+        f'Written by `{result["command"]}` ({result["wall_time_s"]:.0f} s). Reference: the MuJoCo cell '
+        '(`ur5_sim`); the batched world is what training runs; the PyBullet cell (`ur5_bullet`) shares no contact '
+        'code with either. Ideal servo in every simulator unless the actuator table says otherwise.',
+        '',
+        f'## Ball: first bounce and rebound (seeds {result["seeds"][0]}-{result["seeds"][-1]}, arm at home)',
+        '',
+        f'Differences against the MuJoCo cell; the crossing is where the rebound passes x = {CROSSING_X_M} m.',
+        '',
+        '| simulator | bounce point, max / mean (mm) | crossing y, max (mm) | crossing z, max / mean signed (mm) '
+        '| crossing speed, max (m/s) |',
+        '|---|---|---|---|---|',
+    ]
     for name, s in result['ball_summary'].items():
-        lines.append(f'| {name} | {_fmt(s["bounce_mm_max"])} / {_fmt(s["bounce_mm_mean"])} | '
-                     f'{_fmt(s["crossing_y_mm_max"])} | '
-                     f'{_fmt(s["crossing_z_mm_max"])} / {_fmt(s["crossing_z_mm_mean"])} | '
-                     f'{_fmt(s["crossing_speed_m_s_max"], 3)} |')
-    lines += ['', '## Paddle: the return of scripted strokes', '',
-              f'A step command from home to the stroke\'s joint offsets at t = 0; a ball thrown at the blade\'s centre '
-              f'along its face normal at {INCOMING_SPEED_M_S} m/s meets it at {HIT_TIME_S} s (aimed with the MuJoCo '
-              'arm\'s blade). The return at the first 60 Hz sample after the hit, and its first table contact. The '
-              'batched world\'s arm is held to the MuJoCo arm by its agreement test; the PyBullet arm (Bullet\'s joint '
-              'motors, gravity within the torque limits) has its blade elsewhere at the hit time:',
-              '']
-    lines += [f'- {row["stroke"]}: PyBullet blade {row["pybullet_blade_offset_mm"]:.0f} mm from the MuJoCo blade, '
-              f'its face turned {row["pybullet_blade_tilt_deg"]:.1f} deg' for row in result['strokes']]
-    lines += ['',
-              '| stroke | simulator | speed (m/s) | elevation (deg) | heading (deg) | landing x, y (m) |',
-              '|---|---|---|---|---|---|']
+        lines.append(
+            f'| {name} | {_fmt(s["bounce_mm_max"])} / {_fmt(s["bounce_mm_mean"])} | '
+            f'{_fmt(s["crossing_y_mm_max"])} | '
+            f'{_fmt(s["crossing_z_mm_max"])} / {_fmt(s["crossing_z_mm_mean"])} | '
+            f'{_fmt(s["crossing_speed_m_s_max"], 3)} |'
+        )
+    lines += [
+        '',
+        '## Paddle: the return of scripted strokes',
+        '',
+        f"A step command from home to the stroke's joint offsets at t = 0; a ball thrown at the blade's centre "
+        f'along its face normal at {INCOMING_SPEED_M_S} m/s meets it at {HIT_TIME_S} s (aimed with the MuJoCo '
+        "arm's blade). The return at the first 60 Hz sample after the hit, and its first table contact. The "
+        "batched world's arm is held to the MuJoCo arm by its agreement test; the PyBullet arm (Bullet's joint "
+        'motors, gravity within the torque limits) has its blade elsewhere at the hit time:',
+        '',
+    ]
+    lines += [
+        f'- {row["stroke"]}: PyBullet blade {row["pybullet_blade_offset_mm"]:.0f} mm from the MuJoCo blade, '
+        f'its face turned {row["pybullet_blade_tilt_deg"]:.1f} deg'
+        for row in result['strokes']
+    ]
+    lines += [
+        '',
+        '| stroke | simulator | speed (m/s) | elevation (deg) | heading (deg) | landing x, y (m) |',
+        '|---|---|---|---|---|---|',
+    ]
     for row in result['strokes']:
         for name in SIMULATORS:
             r = row[name]
@@ -344,33 +392,48 @@ def markdown(result: dict) -> list[str]:
                 lines.append(f'| {row["stroke"]} | {name} | no hit | | | |')
                 continue
             landing = '-' if r['landing_xy_m'] is None else f'{r["landing_xy_m"][0]:.3f}, {r["landing_xy_m"][1]:.3f}'
-            lines.append(f'| {row["stroke"]} | {name} | {r["speed_m_s"]:.2f} | {r["elevation_deg"]:.1f} | '
-                         f'{r["heading_deg"]:.1f} | {landing} |')
-    lines += ['', '## Actuators: step and ramp', '',
-              f'A {STEP_RAD} rad step on shoulder_pan and wrist_3 together; the ramp is 1 rad/s on shoulder_pan '
-              'commanded at 60 Hz (held between commands), its lag averaged after 0.5 s. ur_servoj settings: rate, '
-              'look-ahead, gain '
-              '(`stylepong_sim/cells/ur_servoj.py`).', '',
-              '| actuator | cell | pan delay 10 % (ms) | pan rise 10-90 % (ms) | pan settle 2 % (ms) '
-              '| pan overshoot (%) '
-              '| wrist_3 delay / rise / settle (ms) | ramp lag (ms) |', '|---|---|---|---|---|---|---|---|']
+            lines.append(
+                f'| {row["stroke"]} | {name} | {r["speed_m_s"]:.2f} | {r["elevation_deg"]:.1f} | '
+                f'{r["heading_deg"]:.1f} | {landing} |'
+            )
+    lines += [
+        '',
+        '## Actuators: step and ramp',
+        '',
+        f'A {STEP_RAD} rad step on shoulder_pan and wrist_3 together; the ramp is 1 rad/s on shoulder_pan '
+        'commanded at 60 Hz (held between commands), its lag averaged after 0.5 s. ur_servoj settings: rate, '
+        'look-ahead, gain '
+        '(`stylepong_sim/cells/ur_servoj.py`).',
+        '',
+        '| actuator | cell | pan delay 10 % (ms) | pan rise 10-90 % (ms) | pan settle 2 % (ms) '
+        '| pan overshoot (%) '
+        '| wrist_3 delay / rise / settle (ms) | ramp lag (ms) |',
+        '|---|---|---|---|---|---|---|---|',
+    ]
     for label, cells in result['actuators'].items():
         for engine, r in cells.items():
             pan, wrist = r['shoulder_pan'], r['wrist_3']
-            lines.append(f'| {label} | {engine} | {pan["delay_10_ms"]:.0f} | {pan["rise_10_90_ms"]:.0f} | '
-                         f'{_fmt(pan["settle_2pct_ms"], 0)} | {pan["overshoot_pct"]:.1f} | '
-                         f'{wrist["delay_10_ms"]:.0f} / {wrist["rise_10_90_ms"]:.0f} / '
-                         f'{_fmt(wrist["settle_2pct_ms"], 0)} | '
-                         f'{r["ramp_lag_ms"]:.1f} |')
+            lines.append(
+                f'| {label} | {engine} | {pan["delay_10_ms"]:.0f} | {pan["rise_10_90_ms"]:.0f} | '
+                f'{_fmt(pan["settle_2pct_ms"], 0)} | {pan["overshoot_pct"]:.1f} | '
+                f'{wrist["delay_10_ms"]:.0f} / {wrist["rise_10_90_ms"]:.0f} / '
+                f'{_fmt(wrist["settle_2pct_ms"], 0)} | '
+                f'{r["ramp_lag_ms"]:.1f} |'
+            )
     return lines
 
 
 def run(argv: list[str] | None = None) -> int:
     """The command: all three parts, written to --out; its exit code."""
     import time
+
     parser = argparse.ArgumentParser(prog='cell_calibration', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--out', type=pathlib.Path, default=pathlib.Path('results'),
-                        help='folder for calibration.md and calibration.json')
+    parser.add_argument(
+        '--out',
+        type=pathlib.Path,
+        default=pathlib.Path('results'),
+        help='folder for calibration.md and calibration.json',
+    )
     parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED)
     parser.add_argument('--balls', type=int, default=10)
     args = parser.parse_args(argv)
@@ -380,9 +443,14 @@ def run(argv: list[str] | None = None) -> int:
     started = time.monotonic()
     rows = ball_part(args.first_seed, args.balls)
     arguments = ' '.join(argv if argv is not None else sys.argv[1:])
-    result = {'command': f'ros2 run stylepong_sim cell_calibration {arguments}',
-              'seeds': [r['seed'] for r in rows], 'ball': rows, 'ball_summary': summarise_ball(rows),
-              'strokes': stroke_part(), 'actuators': actuator_part()}
+    result = {
+        'command': f'ros2 run stylepong_sim cell_calibration {arguments}',
+        'seeds': [r['seed'] for r in rows],
+        'ball': rows,
+        'ball_summary': summarise_ball(rows),
+        'strokes': stroke_part(),
+        'actuators': actuator_part(),
+    }
     result['command'] = result['command'].strip()
     result['wall_time_s'] = time.monotonic() - started
     args.out.mkdir(parents=True, exist_ok=True)

@@ -25,6 +25,7 @@ plus balls_per_seed, speed, the rallies' outcomes and the player's last status (
 Exit codes: 0 done; 2 a bad flag (one line on stderr naming it, as the nodes do for a bad parameter,
 stylepong_common.node_support); 1 ur5_sim or the player failed it; 130 Ctrl-C.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -58,24 +59,26 @@ from stylepong_sim.referee import REASON_RETURNED
 
 HOME_TOLERANCE_RAD = 0.02
 REST_SPEED_RAD_S = 0.05
-BALL_GONE_S = 0.3                 # no /sim/ball/ground_truth for this long (wall): the ball has left the cell
+BALL_GONE_S = 0.3  # no /sim/ball/ground_truth for this long (wall): the ball has left the cell
 
 
 @dataclass
 class Rally:
     """One served ball and its verdict."""
+
     seed: int
     index: int
     ball_id: int = -1
     success: bool = False
     hit: bool = False
     reason: str = ''
-    duration_s: float = 0.0       # sim time from launch to the verdict
+    duration_s: float = 0.0  # sim time from launch to the verdict
 
 
 @dataclass
 class SeedResult:
     """The rallies of one seed."""
+
     seed: int
     rallies: list[Rally] = field(default_factory=list)
 
@@ -88,8 +91,10 @@ def balls_for_seed(seed: int, count: int, speed: str) -> tuple[np.ndarray, np.nd
     """Launch positions [count, 3] and velocities [count, 3]: evaluate's first balls for this seed (its
     task builds the sampler with batch max(1024, 2 N) and draws all N environments' balls at once)."""
     from stylepong_sim.batched import batched_launcher
-    sampler = batched_launcher.IncomingBallSampler(tuple(world_spec.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu',
-                                                   batch=max(1024, 2 * count))
+
+    sampler = batched_launcher.IncomingBallSampler(
+        tuple(world_spec.SPEED_RANGES_M_S[speed]), seed=seed, device='cpu', batch=max(1024, 2 * count)
+    )
     position, velocity, _ = sampler.sample(count)
     return position.T.double().numpy(), velocity.T.double().numpy()
 
@@ -98,9 +103,13 @@ def goals_for_seed(seed: int, count: int) -> np.ndarray:
     """Goal centres [count, 2], uniform so that a ws.GOAL_RADIUS_M region lies on the opponent's half."""
     rng = np.random.default_rng(seed)
     r = world_spec.GOAL_RADIUS_M
-    return np.stack((rng.uniform(r, world_spec.HALF_LENGTH_M - r, count),
-                     rng.uniform(-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r, count)),
-                    axis=1)
+    return np.stack(
+        (
+            rng.uniform(r, world_spec.HALF_LENGTH_M - r, count),
+            rng.uniform(-world_spec.HALF_WIDTH_M + r, world_spec.HALF_WIDTH_M - r, count),
+        ),
+        axis=1,
+    )
 
 
 def summarise(results: list[SeedResult], args: argparse.Namespace) -> dict:
@@ -112,18 +121,33 @@ def summarise(results: list[SeedResult], args: argparse.Namespace) -> dict:
         if not rally.success:
             failures[rally.reason] = failures.get(rally.reason, 0) + 1
     return {
-        'success_rate': float(np.mean(rates)), 'success_rate_std': float(np.std(rates)),
-        'per_seed': [round(x, 4) for x in rates], 'hit_rate': sum(r.hit for r in rallies) / max(1, len(rallies)),
-        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])), 'balls': len(rallies),
-        'seeds': [r.seed for r in results], 'balls_per_seed': args.balls, 'speed': args.speed,
+        'success_rate': float(np.mean(rates)),
+        'success_rate_std': float(np.std(rates)),
+        'per_seed': [round(x, 4) for x in rates],
+        'hit_rate': sum(r.hit for r in rallies) / max(1, len(rallies)),
+        'failures': dict(sorted(failures.items(), key=lambda kv: -kv[1])),
+        'balls': len(rallies),
+        'seeds': [r.seed for r in results],
+        'balls_per_seed': args.balls,
+        'speed': args.speed,
         'through': 'ros (ur5_sim referee)',
-        'rallies': [{'seed': r.seed, 'ball': r.index, 'success': r.success, 'hit': r.hit, 'reason': r.reason,
-                     'duration_s': round(r.duration_s, 3)} for r in rallies],
+        'rallies': [
+            {
+                'seed': r.seed,
+                'ball': r.index,
+                'success': r.success,
+                'hit': r.hit,
+                'reason': r.reason,
+                'duration_s': round(r.duration_s, 3),
+            }
+            for r in rallies
+        ],
     }
 
 
 class RallyEvalNode(Node):
     """rally_eval's node: watches rally events, player status and the ball; enables the player, serves balls."""
+
     def __init__(self):
         super().__init__('rally_eval')
         qos = QoSProfile(depth=10)
@@ -153,8 +177,9 @@ class RallyEvalNode(Node):
     def watch_joint_states(self) -> None:
         """Without a player status, home is judged from /joint_states (500 Hz: subscribed only then)."""
         if self._joint_sub is None:
-            self._joint_sub = self.create_subscription(JointState, '/joint_states',
-                                                       lambda m: setattr(self, 'joint_state', m), QoSProfile(depth=10))
+            self._joint_sub = self.create_subscription(
+                JointState, '/joint_states', lambda m: setattr(self, 'joint_state', m), QoSProfile(depth=10)
+            )
 
     def arm_settled(self) -> bool:
         if self.status is not None:
@@ -164,17 +189,21 @@ class RallyEvalNode(Node):
             return False
         index = {n: i for i, n in enumerate(msg.name)}
         from stylepong_description.robot_model import JOINT_NAMES
+
         try:
             q = np.array([msg.position[index[n]] for n in JOINT_NAMES])
             qd = np.array([msg.velocity[index[n]] for n in JOINT_NAMES])
         except (KeyError, IndexError):
             return False
-        return bool(np.abs(q - np.asarray(world_spec.HOME_JOINT_POSITIONS_RAD)).max() < HOME_TOLERANCE_RAD
-                    and np.abs(qd).max() < REST_SPEED_RAD_S)
+        return bool(
+            np.abs(q - np.asarray(world_spec.HOME_JOINT_POSITIONS_RAD)).max() < HOME_TOLERANCE_RAD
+            and np.abs(qd).max() < REST_SPEED_RAD_S
+        )
 
 
 class Evaluator:
     """Serves balls through ur5_sim one at a time and waits for each verdict."""
+
     def __init__(self, node: RallyEvalNode, executor: SingleThreadedExecutor, args: argparse.Namespace):
         self.node, self.executor, self.args = node, executor, args
 
@@ -191,8 +220,9 @@ class Evaluator:
         node = self.node
         for client in (node.launch_client, node.reset_client):
             if not self.spin_until(client.service_is_ready, self.args.start_timeout_s):
-                raise RuntimeError(f'{client.srv_name} not available after {self.args.start_timeout_s} s: '
-                                   'is ur5_sim running?')
+                raise RuntimeError(
+                    f'{client.srv_name} not available after {self.args.start_timeout_s} s: is ur5_sim running?'
+                )
         if not self.spin_until(lambda: node.status is not None, self.args.player_timeout_s):
             print('rally_eval: no /player/status: judging home from /joint_states', file=sys.stderr, flush=True)
             node.watch_joint_states()
@@ -224,7 +254,7 @@ class Evaluator:
         goal_msg.header.frame_id = 'world'
         goal_msg.point.x, goal_msg.point.y, goal_msg.point.z = float(goal[0]), float(goal[1]), world_spec.TABLE_HEIGHT_M
         node.goal_pub.publish(goal_msg)
-        self.spin_until(lambda: False, 0.05)      # the goal arrives before the ball
+        self.spin_until(lambda: False, 0.05)  # the goal arrives before the ball
         request = LaunchBall.Request(randomize=False)
         request.position.x, request.position.y, request.position.z = (float(v) for v in position)
         request.velocity.x, request.velocity.y, request.velocity.z = (float(v) for v in velocity)
@@ -249,8 +279,9 @@ class Evaluator:
         rally.success = bool(end.success)
         rally.reason = REASON_RETURNED if end.success else end.reason
         rally.hit = any(e.type == RallyEvent.PADDLE_HIT for e in events)
-        rally.duration_s = (end.header.stamp.sec - launched.header.stamp.sec) + \
-            (end.header.stamp.nanosec - launched.header.stamp.nanosec) * 1e-9
+        rally.duration_s = (end.header.stamp.sec - launched.header.stamp.sec) + (
+            end.header.stamp.nanosec - launched.header.stamp.nanosec
+        ) * 1e-9
         return rally
 
 
@@ -268,15 +299,24 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     """The command line of rally_eval."""
     parser = OneLineArgumentParser(prog='rally_eval', description=__doc__.split('\n\n')[0])
     parser.add_argument('--balls', type=int, default=world_spec.ROS_EVALUATION_BALLS_PER_SEED, help='balls per seed')
-    parser.add_argument('--first-seed', type=int, default=world_spec.FIRST_EVALUATION_SEED,
-                        help=f'first seed (evaluation seeds are >= {world_spec.FIRST_EVALUATION_SEED})')
+    parser.add_argument(
+        '--first-seed',
+        type=int,
+        default=world_spec.FIRST_EVALUATION_SEED,
+        help=f'first seed (evaluation seeds are >= {world_spec.FIRST_EVALUATION_SEED})',
+    )
     parser.add_argument('--seeds', type=int, default=world_spec.EVALUATION_SEEDS, help='number of seeds')
-    parser.add_argument('--speed', choices=tuple(world_spec.SPEED_RANGES_M_S), default='all',
-                        help='incoming speed band')
+    parser.add_argument(
+        '--speed', choices=tuple(world_spec.SPEED_RANGES_M_S), default='all', help='incoming speed band'
+    )
     parser.add_argument('--json', type=pathlib.Path, help='write the summary here')
     parser.add_argument('--ball-timeout-s', type=float, default=60.0, help='wall time to wait for a verdict')
-    parser.add_argument('--settle-timeout-s', type=float, default=20.0,
-                        help='wall time to wait for the ball to go and the arm to be home')
+    parser.add_argument(
+        '--settle-timeout-s',
+        type=float,
+        default=20.0,
+        help='wall time to wait for the ball to go and the arm to be home',
+    )
     parser.add_argument('--start-timeout-s', type=float, default=60.0, help='wall time to wait for ur5_sim')
     parser.add_argument('--player-timeout-s', type=float, default=15.0, help='wall time to wait for the player')
     parser.add_argument('--no-enable', dest='enable', action='store_false', help='do not enable a disabled player')
@@ -298,8 +338,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv if argv is None else ['rally_eval', *argv]
     args = parse_args(remove_ros_args(argv)[1:])
     if args.first_seed < world_spec.FIRST_EVALUATION_SEED:
-        print(f'rally_eval: seeds below {world_spec.FIRST_EVALUATION_SEED} are training/validation seeds',
-              file=sys.stderr)
+        print(
+            f'rally_eval: seeds below {world_spec.FIRST_EVALUATION_SEED} are training/validation seeds', file=sys.stderr
+        )
     # Ctrl-C and SIGTERM end the evaluation with one line: rclpy's own handlers would shut the context down
     # under the executor and leave a traceback or a misleading 'not available' instead.
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
@@ -320,11 +361,17 @@ def main(argv: list[str] | None = None) -> int:
             for i in range(args.balls):
                 rally = evaluator.play(seed, i, positions[i], velocities[i], goals[i])
                 result.rallies.append(rally)
-                print(f'seed {seed} ball {i}: {"returned" if rally.success else rally.reason}'
-                      f'{" (hit)" if rally.hit and not rally.success else ""}, {rally.duration_s:.2f} s', flush=True)
+                print(
+                    f'seed {seed} ball {i}: {"returned" if rally.success else rally.reason}'
+                    f'{" (hit)" if rally.hit and not rally.success else ""}, {rally.duration_s:.2f} s',
+                    flush=True,
+                )
             results.append(result)
-            print(f'seed {seed}: success {result.success_rate:.3f} '
-                  f'({sum(r.success for r in result.rallies)}/{len(result.rallies)})', flush=True)
+            print(
+                f'seed {seed}: success {result.success_rate:.3f} '
+                f'({sum(r.success for r in result.rallies)}/{len(result.rallies)})',
+                flush=True,
+            )
         evaluator.settle()
     except KeyboardInterrupt:
         print('rally_eval: interrupted', file=sys.stderr)
@@ -333,7 +380,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'rally_eval: {error}', file=sys.stderr)
         return 1
     finally:
-        for signum in (signal.SIGINT, signal.SIGTERM):   # a second signal must not break the clean-up
+        for signum in (signal.SIGINT, signal.SIGTERM):  # a second signal must not break the clean-up
             signal.signal(signum, signal.SIG_IGN)
         executor.shutdown()
         node.destroy_node()

@@ -11,6 +11,7 @@ topics itself (RobotStateOutputs below); this node serves a real arm's /joint_st
 
 The transforms are computed in stylepong_description.robot_state.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,8 +37,13 @@ LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durabi
 TF_QOS = QoSProfile(depth=100)
 
 PARAMETERS = (
-    Param('publish_frequency', 100.0, 'Most /tf messages per second (each /joint_states above it is skipped)',
-          low=1.0, high=1000.0),
+    Param(
+        'publish_frequency',
+        100.0,
+        'Most /tf messages per second (each /joint_states above it is skipped)',
+        low=1.0,
+        high=1000.0,
+    ),
 )
 
 
@@ -90,6 +96,7 @@ class RobotStateOutputs:
 
 class RobotStatePublisherNode(Node):
     """The robot_state_publisher node: RobotStateOutputs fed by /joint_states, rate-limited by header stamps."""
+
     def __init__(self, **node_kwargs):
         super().__init__(PROGRAM, **node_kwargs)
         value = declare_parameters(self, PARAMETERS)
@@ -99,14 +106,17 @@ class RobotStatePublisherNode(Node):
         self._outputs = RobotStateOutputs(self)
         self._outputs.publish_description_and_static(self.get_clock().now().to_msg())
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, QoSProfile(depth=10))
-        self.get_logger().info(f'publishing /robot_description, /tf_static and /tf (at most '
-                               f'{value["publish_frequency"]:g} Hz) for {len(self._outputs.state.moving_joints)} '
-                               'moving joints')
+        self.get_logger().info(
+            f'publishing /robot_description, /tf_static and /tf (at most '
+            f'{value["publish_frequency"]:g} Hz) for {len(self._outputs.state.moving_joints)} '
+            'moving joints'
+        )
 
     def _on_joint_state(self, msg: JointState) -> None:
         if len(msg.name) != len(msg.position):
-            self._warnings.warn('length', f'/joint_states rejected: {len(msg.name)} names, '
-                                f'{len(msg.position)} positions')
+            self._warnings.warn(
+                'length', f'/joint_states rejected: {len(msg.name)} names, {len(msg.position)} positions'
+            )
             return
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if self._last_published_ns is not None and 0 <= stamp_ns - self._last_published_ns < self._min_period_ns:
@@ -115,8 +125,10 @@ class RobotStatePublisherNode(Node):
             self._warnings.warn('nonfinite', '/joint_states rejected: a position is NaN or infinite')
             return
         if self._outputs.publish_joint_state(msg) == 0:
-            self._warnings.warn('names', '/joint_states names none of the URDF joints '
-                                f'{", ".join(self._outputs.state.moving_joint_names)}')
+            self._warnings.warn(
+                'names',
+                f'/joint_states names none of the URDF joints {", ".join(self._outputs.state.moving_joint_names)}',
+            )
             return
         self._last_published_ns = stamp_ns
 

@@ -57,6 +57,7 @@ config/realistic_sensing.yaml (the older path: /ball/state with noisy velocities
 record_video: '' (off), a path ending in .mp4, or a folder for PNG frames. real_time_factor alone can be
 changed at run time.
 """
+
 from __future__ import annotations
 
 import math
@@ -95,28 +96,67 @@ ENGINES = (MUJOCO, PYBULLET)
 TIMER_PERIOD_S = 0.002
 # real_time_factor 0: wall time a timer callback may spend stepping before inputs are served again.
 FAST_BATCH_WALL_S = 0.004
-MAX_RATE_HZ = 1.0 / world_spec.PHYSICS_DT_S    # a stream can sample at most every physics step
-_SENSING_FLOATS = ('ball_position_noise_std_m', 'ball_velocity_noise_std_m_s', 'ball_latency_s',
-                   'ball_dropout_probability', 'ft_force_noise_std_n', 'ft_torque_noise_std_nm')
+MAX_RATE_HZ = 1.0 / world_spec.PHYSICS_DT_S  # a stream can sample at most every physics step
+_SENSING_FLOATS = (
+    'ball_position_noise_std_m',
+    'ball_velocity_noise_std_m_s',
+    'ball_latency_s',
+    'ball_dropout_probability',
+    'ft_force_noise_std_n',
+    'ft_torque_noise_std_nm',
+)
 
-REAL_TIME_FACTOR = Param('real_time_factor', 1.0, 'Simulated seconds per wall-clock second; 0 = as fast as possible',
-                         low=0.0, high=100.0, read_only=False)
-ENGINE = Param('engine', MUJOCO, 'Physics of the cell: mujoco (analytic ball contacts) or pybullet (Bullet contacts)',
-               choices=ENGINES)
+REAL_TIME_FACTOR = Param(
+    'real_time_factor',
+    1.0,
+    'Simulated seconds per wall-clock second; 0 = as fast as possible',
+    low=0.0,
+    high=100.0,
+    read_only=False,
+)
+ENGINE = Param(
+    'engine',
+    MUJOCO,
+    'Physics of the cell: mujoco (analytic ball contacts) or pybullet (Bullet contacts)',
+    choices=ENGINES,
+)
 PARAMETERS = (
     REAL_TIME_FACTOR,
     ENGINE,
-    Param('actuator', ur_servoj.IDEAL, "Command -> joint reference: ideal (world_spec's servo) or ur_servoj (UR)",
-          choices=ur_servoj.ACTUATORS),
-    Param('servo_rate_hz', ur_servoj.ServojSettings.servo_rate_hz, 'ur_servoj: controller rate (CB3 125, e-Series 500)',
-          low=ur_servoj.SERVO_RATE_RANGE_HZ[0], high=ur_servoj.SERVO_RATE_RANGE_HZ[1]),
-    Param('lookahead_s', ur_servoj.ServojSettings.lookahead_s, 'ur_servoj: servoj look-ahead time',
-          low=ur_servoj.LOOKAHEAD_RANGE_S[0], high=ur_servoj.LOOKAHEAD_RANGE_S[1]),
-    Param('gain', ur_servoj.ServojSettings.gain, 'ur_servoj: servoj proportional gain',
-          low=ur_servoj.GAIN_RANGE[0], high=ur_servoj.GAIN_RANGE[1]),
+    Param(
+        'actuator',
+        ur_servoj.IDEAL,
+        "Command -> joint reference: ideal (world_spec's servo) or ur_servoj (UR)",
+        choices=ur_servoj.ACTUATORS,
+    ),
+    Param(
+        'servo_rate_hz',
+        ur_servoj.ServojSettings.servo_rate_hz,
+        'ur_servoj: controller rate (CB3 125, e-Series 500)',
+        low=ur_servoj.SERVO_RATE_RANGE_HZ[0],
+        high=ur_servoj.SERVO_RATE_RANGE_HZ[1],
+    ),
+    Param(
+        'lookahead_s',
+        ur_servoj.ServojSettings.lookahead_s,
+        'ur_servoj: servoj look-ahead time',
+        low=ur_servoj.LOOKAHEAD_RANGE_S[0],
+        high=ur_servoj.LOOKAHEAD_RANGE_S[1],
+    ),
+    Param(
+        'gain',
+        ur_servoj.ServojSettings.gain,
+        'ur_servoj: servoj proportional gain',
+        low=ur_servoj.GAIN_RANGE[0],
+        high=ur_servoj.GAIN_RANGE[1],
+    ),
     Param('max_lag_s', 0.25, 'Largest backlog (sim s) caught up after a stall', low=0.001, high=10.0),
-    Param('home_joint_positions_rad', list(world_spec.HOME_JOINT_POSITIONS_RAD),
-          'Start and reset pose, 6 joint positions (rad) in URDF order', length=robot_model.NUM_JOINTS),
+    Param(
+        'home_joint_positions_rad',
+        list(world_spec.HOME_JOINT_POSITIONS_RAD),
+        'Start and reset pose, 6 joint positions (rad) in URDF order',
+        length=robot_model.NUM_JOINTS,
+    ),
     Param('joint_state_rate_hz', 500.0, '/joint_states rate', low=1.0, high=MAX_RATE_HZ),
     Param('wrench_rate_hz', 500.0, 'F/T wrench rate', low=1.0, high=MAX_RATE_HZ),
     Param('ball_state_rate_hz', 120.0, '/sim/ball/ground_truth (and /ball/state) rate', low=1.0, high=MAX_RATE_HZ),
@@ -124,21 +164,43 @@ PARAMETERS = (
     Param('tf_rate_hz', 100.0, '/tf rate (the joint transforms, as robot_state_publisher)', low=1.0, high=MAX_RATE_HZ),
     Param('marker_rate_hz', 30.0, '/cell/markers rate (table, net, ball)', low=1.0, high=MAX_RATE_HZ),
     Param('hand_wrench_timeout_s', 0.1, 'A hand wrench is dropped this long after it arrived', low=0.001, high=10.0),
-    Param('ball_detection_rate_hz', TrackerConfig.rate_hz, '/ball/detection rate (tracker frames)', low=1.0,
-          high=MAX_RATE_HZ),
+    Param(
+        'ball_detection_rate_hz',
+        TrackerConfig.rate_hz,
+        '/ball/detection rate (tracker frames)',
+        low=1.0,
+        high=MAX_RATE_HZ,
+    ),
     Param('ball_detection_latency_s', 0.0, 'Tracker: exposure to message', low=0.0, high=1.0),
-    Param('ball_detection_latency_jitter_s', 0.0, 'Tracker: latency varies uniformly by this much either way',
-          low=0.0, high=1.0),
+    Param(
+        'ball_detection_latency_jitter_s',
+        0.0,
+        'Tracker: latency varies uniformly by this much either way',
+        low=0.0,
+        high=1.0,
+    ),
     Param('ball_detection_noise_std_m', 0.0, 'Tracker: position noise (std, per axis)', low=0.0, high=1.0),
-    Param('ball_detection_dropout_probability', 0.0, 'Tracker: probability a frame shows no ball', low=0.0,
-          high=0.99),
-    Param('ball_detection_outlier_probability', 0.0, 'Tracker: probability a frame adds a false detection',
-          low=0.0, high=0.99),
+    Param('ball_detection_dropout_probability', 0.0, 'Tracker: probability a frame shows no ball', low=0.0, high=0.99),
+    Param(
+        'ball_detection_outlier_probability',
+        0.0,
+        'Tracker: probability a frame adds a false detection',
+        low=0.0,
+        high=0.99,
+    ),
     Param('ball_camera_xyz_m', list(TrackerConfig.camera_xyz_m), 'ball_camera frame: origin in world', length=3),
-    Param('ball_camera_rpy_rad', list(TrackerConfig.camera_rpy_rad), 'ball_camera frame: roll, pitch, yaw in world',
-          length=3),
-    Param('publish_ball_state', False, '/ball/state from the cell (noisy position and velocity, the path before '
-          'ball_estimator); false: /ball/state is left to ball_estimator'),
+    Param(
+        'ball_camera_rpy_rad',
+        list(TrackerConfig.camera_rpy_rad),
+        'ball_camera frame: roll, pitch, yaw in world',
+        length=3,
+    ),
+    Param(
+        'publish_ball_state',
+        False,
+        '/ball/state from the cell (noisy position and velocity, the path before '
+        'ball_estimator); false: /ball/state is left to ball_estimator',
+    ),
     Param('ball_position_noise_std_m', 0.0, 'Camera: position noise (std, per axis)', low=0.0, high=1.0),
     Param('ball_velocity_noise_std_m_s', 0.0, 'Camera: velocity noise (std, per axis)', low=0.0, high=10.0),
     Param('ball_latency_s', 0.0, 'Camera: delay from observation to publication', low=0.0, high=1.0),
@@ -147,8 +209,11 @@ PARAMETERS = (
     Param('ft_torque_noise_std_nm', 0.0, 'F/T: torque noise (std, per axis)', low=0.0, high=10.0),
     Param('ft_force_bias_n', [0.0, 0.0, 0.0], 'F/T: constant force bias, tool0 axes', length=3),
     Param('ft_torque_bias_nm', [0.0, 0.0, 0.0], 'F/T: constant torque bias, tool0 axes', length=3),
-    Param('ft_include_inertia', False,
-          "F/T: also feel the tool's own inertia (a physical sensor does); false: the environment's wrench only"),
+    Param(
+        'ft_include_inertia',
+        False,
+        "F/T: also feel the tool's own inertia (a physical sensor does); false: the environment's wrench only",
+    ),
     Param('sensing_seed', 0, 'Seed of the sensor noise', low=0, high=2**31 - 1),
     Param('record_video', '', "'' = off; a path ending in .mp4, or a folder for PNG frames"),
     Param('video_fps', 30.0, 'Video frames per simulated second', low=1.0, high=240.0),
@@ -167,17 +232,22 @@ def build_cell(engine: str, home_joint_positions_rad, actuator: str, servoj: ur_
     """The cell of `engine` (one of ENGINES); ValueError for a bad home pose."""
     if engine == PYBULLET:
         from stylepong_sim.cells.bullet_cell import BulletCell  # pybullet is loaded only when asked for
+
         return BulletCell(home_joint_positions_rad, actuator=actuator, servoj=servoj)
     from stylepong_sim.cells.cell import Cell  # with it the analytic ball contacts, which the Bullet cell must not load
+
     return Cell(home_joint_positions_rad=home_joint_positions_rad, actuator=actuator, servoj=servoj)
 
 
 class Ur5SimNode(Node):
     """The ur5_sim node: the cell behind the UR driver's and ros2_control's topics, with ball and sim services."""
+
     def __init__(self, default_engine: str = MUJOCO, **node_kwargs):
         super().__init__(PROGRAM, **node_kwargs)
-        table = tuple(Param(ENGINE.name, default_engine, ENGINE.description, choices=ENGINES) if row is ENGINE
-                      else row for row in PARAMETERS)
+        table = tuple(
+            Param(ENGINE.name, default_engine, ENGINE.description, choices=ENGINES) if row is ENGINE else row
+            for row in PARAMETERS
+        )
         value = declare_parameters(self, table)
         self.engine = value['engine']
         servoj = ur_servoj.ServojSettings(value['servo_rate_hz'], value['lookahead_s'], value['gain'])
@@ -186,17 +256,25 @@ class Ur5SimNode(Node):
         except ValueError as error:
             raise ParameterError(f'parameter home_joint_positions_rad: {error}') from error
         try:
-            sensing = SensingConfig(**{name: value[name] for name in _SENSING_FLOATS},
-                                    ft_force_bias_n=tuple(value['ft_force_bias_n']),
-                                    ft_torque_bias_nm=tuple(value['ft_torque_bias_nm']), seed=value['sensing_seed'])
-        except ValueError as error:   # its messages name the field, and the fields are the parameters
+            sensing = SensingConfig(
+                **{name: value[name] for name in _SENSING_FLOATS},
+                ft_force_bias_n=tuple(value['ft_force_bias_n']),
+                ft_torque_bias_nm=tuple(value['ft_torque_bias_nm']),
+                seed=value['sensing_seed'],
+            )
+        except ValueError as error:  # its messages name the field, and the fields are the parameters
             raise ParameterError(str(error)) from error
         try:
             tracker = TrackerConfig(
-                value['ball_detection_rate_hz'], value['ball_detection_latency_s'],
-                value['ball_detection_latency_jitter_s'], value['ball_detection_noise_std_m'],
-                value['ball_detection_dropout_probability'], value['ball_detection_outlier_probability'],
-                tuple(value['ball_camera_xyz_m']), tuple(value['ball_camera_rpy_rad']))
+                value['ball_detection_rate_hz'],
+                value['ball_detection_latency_s'],
+                value['ball_detection_latency_jitter_s'],
+                value['ball_detection_noise_std_m'],
+                value['ball_detection_dropout_probability'],
+                value['ball_detection_outlier_probability'],
+                tuple(value['ball_camera_xyz_m']),
+                tuple(value['ball_camera_rpy_rad']),
+            )
         except ValueError as error:
             raise ParameterError(str(error)) from error
         rng = np.random.default_rng(sensing.seed)
@@ -219,14 +297,21 @@ class Ur5SimNode(Node):
         video_path = value['record_video']
         if video_path:
             from stylepong_sim.cells.video import VideoRecorder
+
             try:
-                if self.engine == PYBULLET:   # Bullet's state drawn by the MuJoCo scene's renderer
+                if self.engine == PYBULLET:  # Bullet's state drawn by the MuJoCo scene's renderer
                     from stylepong_sim.cells.bullet_video import MirroredScene
+
                     self._video_view = MirroredScene()
                 model = self._cell.model if self._video_view is None else self._video_view.model
-                self._video = VideoRecorder(model, video_path, fps=value['video_fps'],
-                                            width=value['video_width'], height=value['video_height'],
-                                            camera=value['video_camera'])
+                self._video = VideoRecorder(
+                    model,
+                    video_path,
+                    fps=value['video_fps'],
+                    width=value['video_width'],
+                    height=value['video_height'],
+                    camera=value['video_camera'],
+                )
             except Exception as error:  # noqa: BLE001 - any renderer/encoder failure is a configuration problem
                 reason = f'parameter record_video: cannot record video to {video_path!r}: {error}'
                 raise ParameterError(reason) from error
@@ -256,13 +341,31 @@ class Ur5SimNode(Node):
         self._wrench_msg.header.frame_id = robot_model.TOOL_FRAME
         self._ball_msg = BallState()
         self._ball_msg.header.frame_id = FRAME_WORLD
-        if self._camera is not None:   # the camera model's noise, as a tracker's estimate would state it
-            position_var = sensing.ball_position_noise_std_m ** 2
-            velocity_var = sensing.ball_velocity_noise_std_m_s ** 2
-            self._ball_msg.position_covariance = [position_var, 0.0, 0.0, 0.0, position_var, 0.0, 0.0, 0.0,
-                                                  position_var]
-            self._ball_msg.velocity_covariance = [velocity_var, 0.0, 0.0, 0.0, velocity_var, 0.0, 0.0, 0.0,
-                                                  velocity_var]
+        if self._camera is not None:  # the camera model's noise, as a tracker's estimate would state it
+            position_var = sensing.ball_position_noise_std_m**2
+            velocity_var = sensing.ball_velocity_noise_std_m_s**2
+            self._ball_msg.position_covariance = [
+                position_var,
+                0.0,
+                0.0,
+                0.0,
+                position_var,
+                0.0,
+                0.0,
+                0.0,
+                position_var,
+            ]
+            self._ball_msg.velocity_covariance = [
+                velocity_var,
+                0.0,
+                0.0,
+                0.0,
+                velocity_var,
+                0.0,
+                0.0,
+                0.0,
+                velocity_var,
+            ]
         self._truth_msg = BallState()
         self._truth_msg.header.frame_id = FRAME_WORLD
         self._detection_msg = PointStamped()
@@ -270,13 +373,14 @@ class Ur5SimNode(Node):
         self._clock_msg = Clock()
 
         self._real_time_factor = value['real_time_factor']
-        self._anchored = False   # the wall-clock schedule starts at the first timer callback
+        self._anchored = False  # the wall-clock schedule starts at the first timer callback
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timer = self.create_timer(TIMER_PERIOD_S, self._on_timer)
         self._publish_due(self._cell.time_s)
         self.get_logger().info(
             f'UR5 cell ready ({self.engine}, actuator {value["actuator"]}): '
-            f'physics step {self._cell.dt_s * 1e3:.1f} ms, real_time_factor {self._real_time_factor}')
+            f'physics step {self._cell.dt_s * 1e3:.1f} ms, real_time_factor {self._real_time_factor}'
+        )
 
     # --- simulation loop ---------------------------------------------------------------------------
     def _reanchor(self) -> None:
@@ -300,8 +404,11 @@ class Ur5SimNode(Node):
         if self._real_time_factor > 0.0:
             target_s = self._anchor_sim_s + (time.monotonic() - self._anchor_wall_s) * self._real_time_factor
             if target_s - cell.time_s > self._max_lag_s:
-                self._warnings.warn('backlog', f'simulation {target_s - cell.time_s:.3f} s behind real_time_factor '
-                                    f'{self._real_time_factor}: dropping the backlog')
+                self._warnings.warn(
+                    'backlog',
+                    f'simulation {target_s - cell.time_s:.3f} s behind real_time_factor '
+                    f'{self._real_time_factor}: dropping the backlog',
+                )
                 # Keep max_lag_s of it to catch up now; the rest of the schedule moves later.
                 self._anchor_wall_s = time.monotonic()
                 self._anchor_sim_s = cell.time_s + self._max_lag_s
@@ -319,7 +426,7 @@ class Ur5SimNode(Node):
 
     def _publish_due(self, time_s: float) -> None:
         cell = self._cell
-        stamp = None   # built once per step, only if something is published (publishing copies it)
+        stamp = None  # built once per step, only if something is published (publishing copies it)
         if self._joint_clock.due(time_s):
             stamp = _stamp(time_s)
             msg = self._joint_msg
@@ -345,17 +452,23 @@ class Ur5SimNode(Node):
         if self._marker_clock.due(time_s):
             ball = cell.ball_position_m if cell.ball_in_play else None
             self._marker_pub.publish(cell_markers(ball, stamp or _stamp(time_s)))
-        if self._ball_clock.due(time_s) and cell.ball_in_play:   # the camera's frames keep their grid
+        if self._ball_clock.due(time_s) and cell.ball_in_play:  # the camera's frames keep their grid
             stamp = stamp or _stamp(time_s)
-            self._publish_ball_state(self._truth_pub, self._truth_msg, stamp, cell.ball_position_m,
-                                     cell.ball_velocity_m_s)
+            self._publish_ball_state(
+                self._truth_pub, self._truth_msg, stamp, cell.ball_position_m, cell.ball_velocity_m_s
+            )
             if self._camera is not None:
                 self._camera.observe(time_s, cell.ball_position_m, cell.ball_velocity_m_s)
         if self._camera is not None:
             for observation in self._camera.delivered(time_s):
-                self._publish_ball_state(self._ball_pub, self._ball_msg, _stamp(observation.stamp_s),
-                                         observation.position_m, observation.velocity_m_s)
-        if self._detection_clock.due(time_s):   # a tracker runs whether or not a ball is in play
+                self._publish_ball_state(
+                    self._ball_pub,
+                    self._ball_msg,
+                    _stamp(observation.stamp_s),
+                    observation.position_m,
+                    observation.velocity_m_s,
+                )
+        if self._detection_clock.due(time_s):  # a tracker runs whether or not a ball is in play
             self._tracker.expose(time_s, cell.ball_position_m if cell.ball_in_play else None)
         for detection in self._tracker.delivered(time_s):
             msg = self._detection_msg
@@ -366,8 +479,9 @@ class Ur5SimNode(Node):
             self._video.capture(cell.data if self._video_view is None else self._video_view.show(cell))
 
     @staticmethod
-    def _publish_ball_state(publisher, msg: BallState, stamp: Time, position_m: np.ndarray,
-                            velocity_m_s: np.ndarray) -> None:
+    def _publish_ball_state(
+        publisher, msg: BallState, stamp: Time, position_m: np.ndarray, velocity_m_s: np.ndarray
+    ) -> None:
         msg.header.stamp = stamp
         msg.position.x, msg.position.y, msg.position.z = position_m.tolist()
         msg.velocity.x, msg.velocity.y, msg.velocity.z = velocity_m_s.tolist()
@@ -393,8 +507,12 @@ class Ur5SimNode(Node):
         frame = msg.header.frame_id.lstrip('/')
         w = msg.wrench
         try:
-            self._cell.set_hand_wrench((w.force.x, w.force.y, w.force.z), (w.torque.x, w.torque.y, w.torque.z),
-                                       frame=frame, duration_s=self._hand_timeout_s)
+            self._cell.set_hand_wrench(
+                (w.force.x, w.force.y, w.force.z),
+                (w.torque.x, w.torque.y, w.torque.z),
+                frame=frame,
+                duration_s=self._hand_timeout_s,
+            )
         except InputError as error:
             self._warnings.warn('hand_' + error.kind, f'/sim/hand_wrench rejected: {error}')
 
@@ -425,10 +543,15 @@ class Ur5SimNode(Node):
     def _checked_speed_range(speed_min: float, speed_max: float) -> tuple[float, float] | None:
         if speed_min == 0.0 and speed_max == 0.0:
             return None
-        if not (math.isfinite(speed_min) and math.isfinite(speed_max) and 0.0 < speed_min <= speed_max
-                <= MAX_LAUNCH_SPEED_M_S):
-            raise ValueError(f'speed range must satisfy 0 < speed_min <= speed_max <= {MAX_LAUNCH_SPEED_M_S} m/s '
-                             f'(or both 0 for the default), got [{speed_min}, {speed_max}]')
+        if not (
+            math.isfinite(speed_min)
+            and math.isfinite(speed_max)
+            and 0.0 < speed_min <= speed_max <= MAX_LAUNCH_SPEED_M_S
+        ):
+            raise ValueError(
+                f'speed range must satisfy 0 < speed_min <= speed_max <= {MAX_LAUNCH_SPEED_M_S} m/s '
+                f'(or both 0 for the default), got [{speed_min}, {speed_max}]'
+            )
         return (speed_min, speed_max)
 
     def _on_reset(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:

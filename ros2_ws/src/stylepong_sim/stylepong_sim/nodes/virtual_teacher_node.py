@@ -17,6 +17,7 @@ states, drag_teach or the recorder missing after wait_timeout_s; 3 the recorder 
 SIGTERM; 1 the ROS context shut down under the node.
 Subscribes /joint_states, /forward_position_controller/commands (only to see that the arm is driven).
 """
+
 from __future__ import annotations
 
 import sys
@@ -45,15 +46,20 @@ from stylepong_sim.teaching.teacher import (
 )
 
 PROGRAM = 'virtual_teacher'
-RELEASE_REPEATS = 5         # on the way out, the zero wrench is sent this many times, 10 ms apart
+RELEASE_REPEATS = 5  # on the way out, the zero wrench is sent this many times, 10 ms apart
 
 _DEFAULTS = TeacherConfig()
 PARAMETERS = (
     Param('swing', 'forward', 'the stroke to teach', choices=SWINGS),
     Param('label', '', 'clip label sent to /recorder/start (empty: the swing)'),
     Param('seed', 0, 'which take of the stroke (the same seed gives the same take)', low=0),
-    Param('variation', 1.0, 'how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES '
-          '(0: nominal)', low=0.0, high=1.0),
+    Param(
+        'variation',
+        1.0,
+        'how far the take departs from the nominal stroke, 0-1 of teacher.VARIATION_RANGES (0: nominal)',
+        low=0.0,
+        high=1.0,
+    ),
     Param('rate_hz', 500.0, 'rate of the hand wrench', low=10.0, high=2000.0),
     Param('use_recorder', True, 'bracket the stroke with /recorder/start and /recorder/stop'),
     Param('wait_timeout_s', 30.0, 'give up when joint states, drag_teach or the recorder are not there by then'),
@@ -67,17 +73,39 @@ PARAMETERS = (
     Param('forward_swing_s', _DEFAULTS.forward_swing_s, 'back-swing to follow-through, through the hitting point'),
     Param('end_hold_s', _DEFAULTS.end_hold_s, 'recorded at rest after the follow-through'),
     Param('hand_stiffness_n_per_m', _DEFAULTS.hand_stiffness_n_per_m, "the hand's grip stiffness"),
-    Param('expected_damping_ns_per_m', _DEFAULTS.expected_damping_ns_per_m,
-          'how heavy the person expects the arm to feel'),
+    Param(
+        'expected_damping_ns_per_m', _DEFAULTS.expected_damping_ns_per_m, 'how heavy the person expects the arm to feel'
+    ),
     Param('max_force_n', _DEFAULTS.max_force_n, 'the hardest the hand pushes'),
-    Param('blade_pitch_rad', _DEFAULTS.blade_pitch_rad, 'how far the blade is opened (face turned up) through '
-          'the stroke (0.6: the shipped clips; 0: upright, the ball goes down)', low=0.0, high=1.0),
-    Param('side_turn_rad', _DEFAULTS.side_turn_rad, 'how far a leftward or rightward stroke is turned towards its '
-          'side about the shoulder pan (0: the nominal stroke)', low=0.0, high=MAX_SIDE_TURN_RAD),
-    Param('side_reach_m', _DEFAULTS.side_reach_m, 'how far a leftward or rightward stroke is carried further to its '
-          'side, the arm reaching out (0: the nominal stroke)', low=0.0, high=max(MAX_SIDE_REACH_M.values())),
-    Param('strokes_file', '', "hand-made key poses: a style's YAML (or its name, config/styles/<name>.yaml); "
-          "empty: the shipped strokes"),
+    Param(
+        'blade_pitch_rad',
+        _DEFAULTS.blade_pitch_rad,
+        'how far the blade is opened (face turned up) through '
+        'the stroke (0.6: the shipped clips; 0: upright, the ball goes down)',
+        low=0.0,
+        high=1.0,
+    ),
+    Param(
+        'side_turn_rad',
+        _DEFAULTS.side_turn_rad,
+        'how far a leftward or rightward stroke is turned towards its '
+        'side about the shoulder pan (0: the nominal stroke)',
+        low=0.0,
+        high=MAX_SIDE_TURN_RAD,
+    ),
+    Param(
+        'side_reach_m',
+        _DEFAULTS.side_reach_m,
+        'how far a leftward or rightward stroke is carried further to its '
+        'side, the arm reaching out (0: the nominal stroke)',
+        low=0.0,
+        high=max(MAX_SIDE_REACH_M.values()),
+    ),
+    Param(
+        'strokes_file',
+        '',
+        "hand-made key poses: a style's YAML (or its name, config/styles/<name>.yaml); empty: the shipped strokes",
+    ),
 )
 
 
@@ -87,7 +115,7 @@ def teacher_from(p: dict) -> VirtualTeacher:
         config = TeacherConfig(**{k: p[k] for k in TeacherConfig.__dataclass_fields__ if k in p})
         config.validate()
         check_side_reach(p['swing'], config)
-    except ValueError as error:   # its messages name the field, and the fields are the parameters
+    except ValueError as error:  # its messages name the field, and the fields are the parameters
         raise ParameterError(str(error)) from error
     variation = sample_variation(p['swing'], p['seed'], p['variation'])
     shape = None
@@ -98,37 +126,40 @@ def teacher_from(p: dict) -> VirtualTeacher:
         except ValueError as error:
             raise ParameterError(f'parameter strokes_file: {error}') from error
         if p['swing'] not in strokes:
-            raise ParameterError(f'parameter strokes_file: {path} has no {p["swing"]} stroke '
-                                 f'(it has {", ".join(strokes)})')
+            raise ParameterError(
+                f'parameter strokes_file: {path} has no {p["swing"]} stroke (it has {", ".join(strokes)})'
+            )
         shape = strokes[p['swing']]
     try:
         teacher = VirtualTeacher(p['swing'], config, grip_frame=p['grip_frame'], variation=variation, shape=shape)
-    except ValueError as error:   # swing, seed, variation and config are checked: what is left is the frame
+    except ValueError as error:  # swing, seed, variation and config are checked: what is left is the frame
         raise ParameterError(f'parameter grip_frame: {error}') from error
-    if shape is not None:   # the take about to be dragged, with this config's tempo, pitch, turn and reach
+    if shape is not None:  # the take about to be dragged, with this config's tempo, pitch, turn and reach
         try:
             check_stroke(p['swing'], teacher.path)
         except ValueError as error:
-            raise ParameterError(f'parameter strokes_file: {path}, {p["swing"]} take (seed {p["seed"]}): '
-                                 f'{error}') from error
+            raise ParameterError(
+                f'parameter strokes_file: {path}, {p["swing"]} take (seed {p["seed"]}): {error}'
+            ) from error
     return teacher
 
 
 class VirtualTeacherNode(Node):
     """The virtual teacher: pushes the paddle through one stroke on /sim/hand_wrench, recording it as a clip."""
+
     def __init__(self, **kwargs):
         super().__init__(PROGRAM, **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self.teacher = teacher_from(p)
         self.p = p
         self.label = p['label'] or p['swing']
-        self.exit_code: int | None = None   # set when the node is done (run_node's loop then ends)
+        self.exit_code: int | None = None  # set when the node is done (run_node's loop then ends)
         self._q: np.ndarray | None = None
         self._qdot = np.zeros(robot_model.NUM_JOINTS)
         self._joint_time_s: float | None = None
         self._commanded = not p['wait_for_commands']
         self._started_s = self._now_s()
-        self._bracket = 'idle'              # idle -> starting -> recording -> stopping -> done
+        self._bracket = 'idle'  # idle -> starting -> recording -> stopping -> done
         self._announced = ''
         self._warnings = ThrottledLog(self.get_logger())
 
@@ -137,17 +168,24 @@ class VirtualTeacherNode(Node):
         self._wrench_msg = WrenchStamped()
         self._wrench_msg.header.frame_id = p['wrench_frame_id']
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, qos_profile_sensor_data)
-        self._command_sub = None if self._commanded else self.create_subscription(
-            Float64MultiArray, '/forward_position_controller/commands', self._on_command, 10)
+        self._command_sub = (
+            None
+            if self._commanded
+            else self.create_subscription(
+                Float64MultiArray, '/forward_position_controller/commands', self._on_command, 10
+            )
+        )
         self.start_client = self.create_client(StartClip, '/recorder/start')
         self.stop_client = self.create_client(Trigger, '/recorder/stop')
         self.create_timer(1.0 / p['rate_hz'], self._on_tick)
         path, variation = self.teacher.path, self.teacher.path.variation
-        self.get_logger().info(f'teaching a {p["swing"]} stroke '
-                               f'({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
-                               f'label {self.label!r}, seed {p["seed"]}, variation {p["variation"]}: '
-                               f'amplitude x{variation.amplitude_scale:.3f}, hit at {variation.hit_fraction:.3f} '
-                               f'of the forward swing')
+        self.get_logger().info(
+            f'teaching a {p["swing"]} stroke '
+            f'({path.stroke_s:.2f} s, a {path.duration_s:.2f} s clip), '
+            f'label {self.label!r}, seed {p["seed"]}, variation {p["variation"]}: '
+            f'amplitude x{variation.amplitude_scale:.3f}, hit at {variation.hit_fraction:.3f} '
+            f'of the forward swing'
+        )
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -159,12 +197,15 @@ class VirtualTeacherNode(Node):
 
     # --- inputs ---
     def _on_joint_state(self, msg: JointState) -> None:
-        names = list(msg.name)   # once per message, not once per joint (500 messages a second)
+        names = list(msg.name)  # once per message, not once per joint (500 messages a second)
         try:
             index = [names.index(n) for n in robot_model.JOINT_NAMES]
             q = np.array([msg.position[i] for i in index], dtype=float)
-            qdot = np.array([msg.velocity[i] for i in index], dtype=float) if len(msg.velocity) == len(msg.name) \
+            qdot = (
+                np.array([msg.velocity[i] for i in index], dtype=float)
+                if len(msg.velocity) == len(msg.name)
                 else np.zeros(robot_model.NUM_JOINTS)
+            )
         except (ValueError, IndexError):
             self._warnings.warn('joint names', 'joint state without all UR5 joints ignored')
             return
@@ -175,7 +216,7 @@ class VirtualTeacherNode(Node):
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         self._commanded = True
-        if self._command_sub is not None:   # seen once is enough: stop taking 500 messages a second
+        if self._command_sub is not None:  # seen once is enough: stop taking 500 messages a second
             self.destroy_subscription(self._command_sub)
             self._command_sub = None
 
@@ -193,7 +234,7 @@ class VirtualTeacherNode(Node):
         self._publish(np.zeros(6))
 
     def _finish(self, code: int, text: str) -> None:
-        if code == 0:   # rclpy ties a severity to its call site: one call per severity
+        if code == 0:  # rclpy ties a severity to its call site: one call per severity
             self.get_logger().info(text)
         else:
             self.get_logger().error(text)
@@ -227,8 +268,13 @@ class VirtualTeacherNode(Node):
         elif phase == 'finished' and self._bracket in ('idle', 'recording'):
             self._request_stop()
         else:
-            self._say({'approach': 'bringing the paddle to the ready pose', 'settling': 'settling at the ready pose',
-                       'stroke': f'playing the {self.p["swing"]} stroke'}.get(phase, self._announced))
+            self._say(
+                {
+                    'approach': 'bringing the paddle to the ready pose',
+                    'settling': 'settling at the ready pose',
+                    'stroke': f'playing the {self.p["swing"]} stroke',
+                }.get(phase, self._announced)
+            )
 
     # --- recorder bracket ---
     def _request_start(self, now: float) -> None:
@@ -291,7 +337,7 @@ class VirtualTeacherNode(Node):
             self.exit_code = EXIT_INTERRUPTED
         elif self.exit_code is None:
             self.exit_code = EXIT_STOPPED
-        for _ in range(RELEASE_REPEATS):   # make sure the zero wrench gets out
+        for _ in range(RELEASE_REPEATS):  # make sure the zero wrench gets out
             self.release_hand()
             executor.spin_once(timeout_sec=0.01)
 

@@ -21,6 +21,7 @@ the table, or whose label could be mistaken (a leftward hit must lie to the robo
 and so on). The checks are the shipped strokes' (test_teacher_variation.py), with a shoulder margin that
 allows an opened blade.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,22 +44,25 @@ REQUIRED_KEYS = KEYS[:4]
 # strokes keep 0.22 m; their opened blade comes within 0.02 m, where the shoulder pan whips round at the
 # UR5's speed limit. 0.06 m keeps a slow drag's shoulder pan under about 1.5 rad/s.
 MIN_SHOULDER_CLEARANCE_M = 0.06
-MIN_ELBOW_BEND_RAD = 0.5         # short of a straight arm (the elbow singularity)
-MAX_JOINT_STEP_RAD = 0.15        # per 20 ms of the path: more is a flip of the shoulder or wrist
+MIN_ELBOW_BEND_RAD = 0.5  # short of a straight arm (the elbow singularity)
+MAX_JOINT_STEP_RAD = 0.15  # per 20 ms of the path: more is a flip of the shoulder or wrist
 JOINT_LIMIT_MARGIN_RAD = 0.05
-SIDE_HIT_MIN_Y_M = 0.09          # a leftward (rightward) hit at least this far left (right) of home
-SIDE_HIT_MIN_YAW_RAD = 0.2       # ... with the blade turned at least this far towards its side
-SIDE_SWEEP_MIN_M = 0.08          # ... sweeping at least this far towards its side, back-swing to follow-through
-FORWARD_HIT_MAX_Y_M = 0.03       # a forward hit this close to straight ahead
+SIDE_HIT_MIN_Y_M = 0.09  # a leftward (rightward) hit at least this far left (right) of home
+SIDE_HIT_MIN_YAW_RAD = 0.2  # ... with the blade turned at least this far towards its side
+SIDE_SWEEP_MIN_M = 0.08  # ... sweeping at least this far towards its side, back-swing to follow-through
+FORWARD_HIT_MAX_Y_M = 0.03  # a forward hit this close to straight ahead
 FORWARD_HIT_MAX_YAW_RAD = 0.1
 FORWARD_SWEEP_MAX_M = 0.1
-MAX_OFFSET_M = 0.6               # no key pose further than this from home (beyond the arm's reach round it)
-MAX_ANGLE_RAD = 1.2              # yaw and pitch at a key pose
+MAX_OFFSET_M = 0.6  # no key pose further than this from home (beyond the arm's reach round it)
+MAX_ANGLE_RAD = 1.2  # yaw and pitch at a key pose
 
 
 def _vector(value, name: str, size: int, where: str) -> tuple[float, ...]:
-    if not (isinstance(value, list) and len(value) == size
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
+    if not (
+        isinstance(value, list)
+        and len(value) == size
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    ):
         raise ValueError(f'{where}: {name} must be a list of {size} finite numbers, got {value!r}')
     return tuple(float(v) for v in value)
 
@@ -69,8 +73,9 @@ def shape_from_mapping(entry, where: str) -> StrokeShape:
         raise ValueError(f'{where}: expected a mapping of {", ".join(KEYS)}, got {entry!r}')
     unknown = sorted(set(entry) - set(KEYS))
     missing = [k for k in REQUIRED_KEYS if k not in entry]
-    faults = ([f'unknown key(s) {", ".join(map(str, unknown))}'] if unknown else []) \
-        + ([f'missing {", ".join(missing)}'] if missing else [])
+    faults = ([f'unknown key(s) {", ".join(map(str, unknown))}'] if unknown else []) + (
+        [f'missing {", ".join(missing)}'] if missing else []
+    )
     if faults:
         raise ValueError(f'{where}: ' + '; '.join(faults))
     offsets = [_vector(entry[k], k, 3, where) for k in KEYS[:3]]
@@ -115,11 +120,12 @@ def resolve_strokes_file(name_or_path: str) -> pathlib.Path:
 @dataclass(frozen=True)
 class StrokeCheck:
     """How one take's joint path fares (what `check_stroke` judges)."""
+
     min_shoulder_clearance_m: float
     min_elbow_bend_rad: float
     min_joint_limit_margin_rad: float
     max_joint_step_rad: float
-    peak_joint_speed_rad_s: float      # of the path itself; the dragged arm lags and smooths it a little
+    peak_joint_speed_rad_s: float  # of the path itself; the dragged arm lags and smooths it a little
     peak_joint: str
 
 
@@ -129,7 +135,7 @@ class StrokeKinematics:
     def __init__(self):
         self.kin = CellKinematics()
         self.centre = self.kin.frame_id(robot_model.PADDLE_CENTRE_FRAME)
-        self.wrist = self.kin.frame_id('wrist_3_joint')   # where the axes of wrists 2 and 3 meet
+        self.wrist = self.kin.frame_id('wrist_3_joint')  # where the axes of wrists 2 and 3 meet
         self.home_q = np.array(world_spec.HOME_JOINT_POSITIONS_RAD)
         self.home_rotation = self.kin.pose(self.home_q, self.centre).rotation.copy()
         # The Jacobian's linear and angular rows from the base's axes to the world's.
@@ -146,8 +152,9 @@ class StrokeKinematics:
             target = pin.SE3(via.rotation(self.home_rotation), via.position_m)
             for _ in range(50):
                 current = self.kin.pose(q, self.centre)
-                error = np.concatenate([target.translation - current.translation,
-                                        pin.log3(target.rotation @ current.rotation.T)])
+                error = np.concatenate(
+                    [target.translation - current.translation, pin.log3(target.rotation @ current.rotation.T)]
+                )
                 if np.linalg.norm(error) < 1e-8:
                     break
                 pin.computeJointJacobians(model, data, q)
@@ -161,7 +168,7 @@ class StrokeKinematics:
     def shoulder_clearance_m(self, q: np.ndarray) -> float:
         """Distance of the wrist from the plane of the shoulder's two axes (zero: the shoulder singularity)."""
         pin.framesForwardKinematics(self.kin.model, self.kin.data, q)
-        shoulder = self.kin.data.oMi[2]                       # shoulder_lift_joint, rotating about its y axis
+        shoulder = self.kin.data.oMi[2]  # shoulder_lift_joint, rotating about its y axis
         normal = np.cross([0.0, 0.0, 1.0], shoulder.rotation[:, 1])
         normal /= np.linalg.norm(normal)
         return float(abs((self.kin.data.oMf[self.wrist].translation - shoulder.translation) @ normal))
@@ -176,7 +183,8 @@ class StrokeKinematics:
             min_joint_limit_margin_rad=float(min(np.min(q - limits.lower_rad), np.min(limits.upper_rad - q))),
             max_joint_step_rad=float(np.max(np.abs(np.diff(q, axis=0)))),
             peak_joint_speed_rad_s=float(speed.max()),
-            peak_joint=robot_model.JOINT_NAMES[int(speed.max(axis=0).argmax())])
+            peak_joint=robot_model.JOINT_NAMES[int(speed.max(axis=0).argmax())],
+        )
 
 
 def label_problem(swing: str, path: StrokePath) -> str | None:
@@ -186,14 +194,24 @@ def label_problem(swing: str, path: StrokePath) -> str | None:
     hit_yaw_rad = path.yaws[2]
     side = {'leftward': 1.0, 'rightward': -1.0}.get(swing)
     if side is None:
-        if abs(hit_y_m) > FORWARD_HIT_MAX_Y_M or abs(hit_yaw_rad) > FORWARD_HIT_MAX_YAW_RAD \
-                or abs(sweep_y_m) > FORWARD_SWEEP_MAX_M:
-            return (f'a forward stroke meets the ball straight ahead (hit {hit_y_m:+.3f} m, yaw {hit_yaw_rad:+.2f} rad '
-                    f'from home; sweep {sweep_y_m:+.3f} m sideways)')
-    elif side * hit_y_m < SIDE_HIT_MIN_Y_M or side * hit_yaw_rad < SIDE_HIT_MIN_YAW_RAD \
-            or side * sweep_y_m < SIDE_SWEEP_MIN_M:
-        return (f'a {swing} stroke meets the ball >= {SIDE_HIT_MIN_Y_M} m to its side facing it, sweeping that way '
-                f'(hit {hit_y_m:+.3f} m, yaw {hit_yaw_rad:+.2f} rad; sweep {sweep_y_m:+.3f} m; +y is the left)')
+        if (
+            abs(hit_y_m) > FORWARD_HIT_MAX_Y_M
+            or abs(hit_yaw_rad) > FORWARD_HIT_MAX_YAW_RAD
+            or abs(sweep_y_m) > FORWARD_SWEEP_MAX_M
+        ):
+            return (
+                f'a forward stroke meets the ball straight ahead (hit {hit_y_m:+.3f} m, yaw {hit_yaw_rad:+.2f} rad '
+                f'from home; sweep {sweep_y_m:+.3f} m sideways)'
+            )
+    elif (
+        side * hit_y_m < SIDE_HIT_MIN_Y_M
+        or side * hit_yaw_rad < SIDE_HIT_MIN_YAW_RAD
+        or side * sweep_y_m < SIDE_SWEEP_MIN_M
+    ):
+        return (
+            f'a {swing} stroke meets the ball >= {SIDE_HIT_MIN_Y_M} m to its side facing it, sweeping that way '
+            f'(hit {hit_y_m:+.3f} m, yaw {hit_yaw_rad:+.2f} rad; sweep {sweep_y_m:+.3f} m; +y is the left)'
+        )
     if not path.back[0] < home[0] < path.hit[0] < path.follow[0]:
         return 'the stroke goes back-swing (behind home) -> hit (in front) -> follow-through (further in front)'
     return None
@@ -214,8 +232,10 @@ def check_stroke(swing: str, path: StrokePath, kinematics: StrokeKinematics | No
     if check.max_joint_step_rad > MAX_JOINT_STEP_RAD:
         raise ValueError(f'a joint flips ({check.max_joint_step_rad:.2f} rad in 20 ms)')
     if check.min_shoulder_clearance_m < MIN_SHOULDER_CLEARANCE_M:
-        raise ValueError(f'the wrist passes {check.min_shoulder_clearance_m:.3f} m from the shoulder singularity '
-                         f'(at least {MIN_SHOULDER_CLEARANCE_M} m)')
+        raise ValueError(
+            f'the wrist passes {check.min_shoulder_clearance_m:.3f} m from the shoulder singularity '
+            f'(at least {MIN_SHOULDER_CLEARANCE_M} m)'
+        )
     if check.min_elbow_bend_rad < MIN_ELBOW_BEND_RAD:
         raise ValueError(f'the elbow straightens to {check.min_elbow_bend_rad:.2f} rad (at least {MIN_ELBOW_BEND_RAD})')
     return check

@@ -33,6 +33,7 @@ forward and leftward strokes pass within about 2 cm of the axis (docs/DESIGN.md,
 
 World frame (world_spec): x from the robot's end towards the opponent, y to the robot's left, z up.
 """
+
 from __future__ import annotations
 
 import math
@@ -68,6 +69,7 @@ class StrokeShape:
     wrist that turns the face up through the stroke); None holds TeacherConfig.blade_pitch_rad from the
     end of the back-swing on, as the shipped strokes do.
     """
+
     back_offset_m: tuple[float, float, float]
     hit_offset_m: tuple[float, float, float]
     follow_offset_m: tuple[float, float, float]
@@ -83,15 +85,30 @@ class StrokeShape:
 # just above the end line, 0.18 m above the table (where a ball that bounced on the robot's half is met);
 # follow-throughs rise forwards over the table, short of the arm's reach (elbow bent by more than 1 rad).
 STROKES = {
-    'forward': StrokeShape(back_offset_m=(-0.10, -0.06, -0.07), hit_offset_m=(0.06, 0.0, 0.05),
-                           follow_offset_m=(0.16, -0.02, 0.13), back_yaw_rad=-0.20, hit_yaw_rad=0.0,
-                           follow_yaw_rad=0.15),
-    'leftward': StrokeShape(back_offset_m=(-0.10, -0.06, -0.05), hit_offset_m=(0.03, 0.16, 0.05),
-                            follow_offset_m=(0.06, 0.28, 0.11), back_yaw_rad=-0.10, hit_yaw_rad=0.30,
-                            follow_yaw_rad=0.45),
-    'rightward': StrokeShape(back_offset_m=(-0.10, 0.08, -0.05), hit_offset_m=(0.05, -0.18, 0.05),
-                             follow_offset_m=(0.12, -0.30, 0.12), back_yaw_rad=0.10, hit_yaw_rad=-0.30,
-                             follow_yaw_rad=-0.45),
+    'forward': StrokeShape(
+        back_offset_m=(-0.10, -0.06, -0.07),
+        hit_offset_m=(0.06, 0.0, 0.05),
+        follow_offset_m=(0.16, -0.02, 0.13),
+        back_yaw_rad=-0.20,
+        hit_yaw_rad=0.0,
+        follow_yaw_rad=0.15,
+    ),
+    'leftward': StrokeShape(
+        back_offset_m=(-0.10, -0.06, -0.05),
+        hit_offset_m=(0.03, 0.16, 0.05),
+        follow_offset_m=(0.06, 0.28, 0.11),
+        back_yaw_rad=-0.10,
+        hit_yaw_rad=0.30,
+        follow_yaw_rad=0.45,
+    ),
+    'rightward': StrokeShape(
+        back_offset_m=(-0.10, 0.08, -0.05),
+        hit_offset_m=(0.05, -0.18, 0.05),
+        follow_offset_m=(0.12, -0.30, 0.12),
+        back_yaw_rad=0.10,
+        hit_yaw_rad=-0.30,
+        follow_yaw_rad=-0.45,
+    ),
 }
 
 
@@ -105,6 +122,7 @@ class VariationRanges:
     test_teacher_variation.py checks the extremes of these ranges: joint limits, the shoulder's clearance,
     the elbow's bend, the blade over the table and each label's direction.
     """
+
     # Reach of the forward swing (hit and follow-through offsets from home scaled together): a person's
     # strokes differ by about a tenth in size. Only smaller than nominal: the nominal follow-throughs are
     # already near the arm's reach (leftward's elbow is bent by only 1.14 rad there, and the key-pose
@@ -145,11 +163,12 @@ def _within(value: float, bounds: tuple[float, float], name: str) -> None:
 @dataclass(frozen=True)
 class SwingVariation:
     """How one take departs from the nominal stroke; the default is no departure (the nominal stroke)."""
-    amplitude_scale: float = 1.0                                  # hit and follow-through offsets scaled
-    back_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)    # added to the back-swing's offset
+
+    amplitude_scale: float = 1.0  # hit and follow-through offsets scaled
+    back_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # added to the back-swing's offset
     hit_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     follow_delta_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    yaw_delta_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)   # back-swing, hit, follow-through
+    yaw_delta_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)  # back-swing, hit, follow-through
     backswing_scale: float = 1.0
     forward_swing_scale: float = 1.0
     hit_fraction: float = 0.5
@@ -169,8 +188,9 @@ class SwingVariation:
             _within(value, (-ranges.yaw_jitter_rad, ranges.yaw_jitter_rad), 'yaw_delta_rad')
 
 
-def sample_variation(swing: str, seed: int, strength: float = 1.0,
-                     ranges: VariationRanges = VARIATION_RANGES) -> SwingVariation:
+def sample_variation(
+    swing: str, seed: int, strength: float = 1.0, ranges: VariationRanges = VARIATION_RANGES
+) -> SwingVariation:
     """One take of `swing` drawn from `seed` (the same seed and swing: the same take).
 
     `strength` in [0, 1] shrinks every departure from the nominal stroke towards it (0: the nominal
@@ -184,7 +204,7 @@ def sample_variation(swing: str, seed: int, strength: float = 1.0,
         raise ValueError(f'strength must be within 0-1, got {strength!r}')
     # One stream per (seed, swing), drawn in a fixed order: a take never depends on other takes.
     rng = np.random.default_rng([seed, SWINGS.index(swing)])
-    unit = strength * rng.uniform(-1.0, 1.0, size=16)   # every departure as a fraction of its half-range
+    unit = strength * rng.uniform(-1.0, 1.0, size=16)  # every departure as a fraction of its half-range
 
     def scaled(u: float, bounds: tuple[float, float]) -> float:
         """1.0 (no change) moved by u in [-1, 1] towards the low (u < 0) or high (u > 0) end of the range."""
@@ -192,7 +212,7 @@ def sample_variation(swing: str, seed: int, strength: float = 1.0,
         return float(1.0 + u * (high - 1.0)) if u >= 0 else float(1.0 + u * (1.0 - low))
 
     jitter = np.array(ranges.key_pose_jitter_m)
-    back_delta = unit[1:4] * jitter   # its x is mapped onto the shallower-only range below
+    back_delta = unit[1:4] * jitter  # its x is mapped onto the shallower-only range below
     shallow_low, shallow_high = ranges.back_shallower_m
     back_delta[0] = shallow_low + 0.5 * (unit[1] + strength) * (shallow_high - shallow_low)
     hit_low, hit_high = ranges.hit_fraction
@@ -210,15 +230,20 @@ def sample_variation(swing: str, seed: int, strength: float = 1.0,
 
 def varied_shape(shape: StrokeShape, variation: SwingVariation) -> StrokeShape:
     """The key poses of one take. The back-swing is not scaled with the amplitude: its depth is capped."""
+
     def moved(offset, delta, scale=1.0):
         return tuple(float(scale * o + d) for o, d in zip(offset, delta))
+
     yaw_back, yaw_hit, yaw_follow = variation.yaw_delta_rad
-    return StrokeShape(back_offset_m=moved(shape.back_offset_m, variation.back_delta_m),
-                       hit_offset_m=moved(shape.hit_offset_m, variation.hit_delta_m, variation.amplitude_scale),
-                       follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m,
-                                             variation.amplitude_scale),
-                       back_yaw_rad=shape.back_yaw_rad + yaw_back, hit_yaw_rad=shape.hit_yaw_rad + yaw_hit,
-                       follow_yaw_rad=shape.follow_yaw_rad + yaw_follow, pitch_rad=shape.pitch_rad)
+    return StrokeShape(
+        back_offset_m=moved(shape.back_offset_m, variation.back_delta_m),
+        hit_offset_m=moved(shape.hit_offset_m, variation.hit_delta_m, variation.amplitude_scale),
+        follow_offset_m=moved(shape.follow_offset_m, variation.follow_delta_m, variation.amplitude_scale),
+        back_yaw_rad=shape.back_yaw_rad + yaw_back,
+        hit_yaw_rad=shape.hit_yaw_rad + yaw_hit,
+        follow_yaw_rad=shape.follow_yaw_rad + yaw_follow,
+        pitch_rad=shape.pitch_rad,
+    )
 
 
 def minimum_jerk_time(progress: float) -> float:
@@ -242,11 +267,12 @@ STROKE_S_RANGE = (1.5, 6.0)
 class TeacherConfig:
     """Timing of the stroke and the hand's impedance (units in the names). Every setting declares its range
     with its default (stylepong_common.settings); validate checks them and what ties settings together."""
-    lead_in_s: float = non_negative(0.3)             # recorded at rest at the ready pose before the back-swing
+
+    lead_in_s: float = non_negative(0.3)  # recorded at rest at the ready pose before the back-swing
     backswing_s: float = positive(0.8)
     forward_swing_s: float = positive(1.6)
-    end_hold_s: float = non_negative(0.3)            # recorded at rest after the follow-through
-    approach_speed_m_s: float = positive(0.25)       # getting to the ready pose (not recorded)
+    end_hold_s: float = non_negative(0.3)  # recorded at rest after the follow-through
+    approach_speed_m_s: float = positive(0.25)  # getting to the ready pose (not recorded)
     approach_min_s: float = positive(1.0)
     settle_timeout_s: float = non_negative(4.0)
     settle_position_m: float = non_negative(0.015)
@@ -295,8 +321,10 @@ class TeacherConfig:
             raise ValueError('lag_stop_m must exceed lag_slowdown_m')
         low_s, high_s = STROKE_S_RANGE
         if not low_s <= self.stroke_s <= high_s:
-            raise ValueError(f'a stroke (back-swing to follow-through) takes {low_s:g}-{high_s:g} s like a slow drag, '
-                             f'got {self.stroke_s:.2f} s')
+            raise ValueError(
+                f'a stroke (back-swing to follow-through) takes {low_s:g}-{high_s:g} s like a slow drag, '
+                f'got {self.stroke_s:.2f} s'
+            )
 
     @property
     def stroke_s(self) -> float:
@@ -350,17 +378,18 @@ class CellKinematics:
 def minimum_jerk(tau: float) -> tuple[float, float]:
     """Minimum-jerk progress s in [0, 1] and ds/dtau at normalised time tau in [0, 1]."""
     tau = min(max(tau, 0.0), 1.0)
-    return 10 * tau ** 3 - 15 * tau ** 4 + 6 * tau ** 5, 30 * tau ** 2 - 60 * tau ** 3 + 30 * tau ** 4
+    return 10 * tau**3 - 15 * tau**4 + 6 * tau**5, 30 * tau**2 - 60 * tau**3 + 30 * tau**4
 
 
 @dataclass(frozen=True)
 class ViaPoint:
     """A via point of the paddle's path: position, velocity, yaw, pitch and their rates (world frame)."""
-    position_m: np.ndarray       # paddle centre, world
+
+    position_m: np.ndarray  # paddle centre, world
     velocity_m_s: np.ndarray
-    yaw_rad: float               # blade turned about world z from its home orientation
+    yaw_rad: float  # blade turned about world z from its home orientation
     yaw_rate_rad_s: float
-    pitch_rad: float = 0.0       # blade face turned up about its horizontal axis (before the yaw)
+    pitch_rad: float = 0.0  # blade face turned up about its horizontal axis (before the yaw)
     pitch_rate_rad_s: float = 0.0
 
     def rotation(self, home_rotation: np.ndarray) -> np.ndarray:
@@ -377,7 +406,7 @@ def turned_about_base(points_m: np.ndarray, turn_rad: float) -> np.ndarray:
     """World points [K, 3] turned by turn_rad about the vertical through the robot base (the shoulder pan's
     axis: world_spec places the base upright)."""
     if turn_rad == 0.0:
-        return np.asarray(points_m, dtype=float)   # bit for bit: the unturned takes recorded before the turn
+        return np.asarray(points_m, dtype=float)  # bit for bit: the unturned takes recorded before the turn
     base = np.array(world_spec.ROBOT_BASE_POSITION_M)
     return base + (np.asarray(points_m, dtype=float) - base) @ world_spec.yaw_rotation(turn_rad).T
 
@@ -387,15 +416,23 @@ def check_side_reach(swing: str, config: TeacherConfig) -> None:
     is never carried sideways)."""
     limit_m = MAX_SIDE_REACH_M.get(swing)
     if limit_m is not None and config.side_reach_m > limit_m:
-        raise ValueError(f'side_reach_m: a {swing} stroke reaches at most {limit_m} m further to its side, '
-                         f'got {config.side_reach_m!r}')
+        raise ValueError(
+            f'side_reach_m: a {swing} stroke reaches at most {limit_m} m further to its side, '
+            f'got {config.side_reach_m!r}'
+        )
 
 
 class StrokePath:
     """Via-point of the paddle centre over time for one take of a stroke, starting at the ready (home) pose."""
 
-    def __init__(self, swing: str, config: TeacherConfig, home_position_m: np.ndarray,
-                 variation: SwingVariation = SwingVariation(), shape: StrokeShape | None = None):
+    def __init__(
+        self,
+        swing: str,
+        config: TeacherConfig,
+        home_position_m: np.ndarray,
+        variation: SwingVariation = SwingVariation(),
+        shape: StrokeShape | None = None,
+    ):
         """`shape`: the stroke's key poses (default: the shipped STROKES[swing]; stroke_styles reads others)."""
         if swing not in STROKES:
             raise ValueError(f'swing must be one of {SWINGS}, got {swing!r}')
@@ -410,24 +447,29 @@ class StrokePath:
         turn_rad = SIDE_SIGN[swing] * config.side_turn_rad
         check_side_reach(swing, config)
         reach_m = np.array([0.0, SIDE_SIGN[swing] * config.side_reach_m, 0.0])
-        swing_points_m = turned_about_base(self.ready + reach_m + np.array([shape.back_offset_m, shape.hit_offset_m,
-                                                                            shape.follow_offset_m]), turn_rad)
+        swing_points_m = turned_about_base(
+            self.ready + reach_m + np.array([shape.back_offset_m, shape.hit_offset_m, shape.follow_offset_m]), turn_rad
+        )
         self.back, self.hit, self.follow = swing_points_m
         self.yaws = (0.0, shape.back_yaw_rad + turn_rad, shape.hit_yaw_rad + turn_rad, shape.follow_yaw_rad + turn_rad)
         # The forward swing is the quadratic through back (u=0), hit (u=h) and follow-through (u=1) in its
         # path parameter u; its coefficients (rows: 1, u, u^2) are built once, since `at` runs several
         # times per 500 Hz tick. Lagrange basis: (u-h)(u-1)/h, u(u-1)/(h(h-1)), u(u-h)/(1-h).
         h = variation.hit_fraction
-        lagrange = np.array([[1.0, 0.0, 0.0],
-                             [-(1.0 + h) / h, -1.0 / (h * (h - 1.0)), -h / (1.0 - h)],
-                             [1.0 / h, 1.0 / (h * (h - 1.0)), 1.0 / (1.0 - h)]])
+        lagrange = np.array(
+            [
+                [1.0, 0.0, 0.0],
+                [-(1.0 + h) / h, -1.0 / (h * (h - 1.0)), -h / (1.0 - h)],
+                [1.0 / h, 1.0 / (h * (h - 1.0)), 1.0 / (1.0 - h)],
+            ]
+        )
         self._swing_coefficients_m = lagrange @ swing_points_m
         self._swing_yaw_coefficients_rad = lagrange @ np.array(self.yaws[1:])
         # Without key-pose pitches the blade is held at blade_pitch_rad through the forward swing (the
         # shipped strokes, computed as before); with them it turns along the same quadratic as the yaw.
         self.pitches = shape.pitch_rad
         self._swing_pitch_coefficients_rad = None if shape.pitch_rad is None else lagrange @ np.array(shape.pitch_rad)
-        self._hit_tau = minimum_jerk_time(h)   # u = h is reached at this fraction of the forward swing
+        self._hit_tau = minimum_jerk_time(h)  # u = h is reached at this fraction of the forward swing
 
     @property
     def stroke_s(self) -> float:
@@ -452,8 +494,14 @@ class StrokePath:
             _, yaw_back, _, _ = self.yaws
             # opened with the back-swing (to blade_pitch_rad, held open after it, or to the back pose's pitch)
             pitch = self.config.blade_pitch_rad if self.pitches is None else self.pitches[0]
-            return ViaPoint(self.ready + s * (self.back - self.ready), ds * (self.back - self.ready),
-                            s * yaw_back, ds * yaw_back, s * pitch, ds * pitch)
+            return ViaPoint(
+                self.ready + s * (self.back - self.ready),
+                ds * (self.back - self.ready),
+                s * yaw_back,
+                ds * yaw_back,
+                s * pitch,
+                ds * pitch,
+            )
         # Forward swing: u(t) minimum-jerk from 0 to 1 along the quadratic.
         u, du = minimum_jerk((t_s - self.backswing_s) / self.forward_swing_s)
         du /= self.forward_swing_s
@@ -461,11 +509,22 @@ class StrokePath:
         dpowers = np.array([0.0, 1.0, 2.0 * u])
         points, yaws = self._swing_coefficients_m, self._swing_yaw_coefficients_rad
         if self._swing_pitch_coefficients_rad is None:
-            return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws),
-                            float(du * (dpowers @ yaws)), self.config.blade_pitch_rad)
+            return ViaPoint(
+                powers @ points,
+                du * (dpowers @ points),
+                float(powers @ yaws),
+                float(du * (dpowers @ yaws)),
+                self.config.blade_pitch_rad,
+            )
         pitches = self._swing_pitch_coefficients_rad
-        return ViaPoint(powers @ points, du * (dpowers @ points), float(powers @ yaws), float(du * (dpowers @ yaws)),
-                        float(powers @ pitches), float(du * (dpowers @ pitches)))
+        return ViaPoint(
+            powers @ points,
+            du * (dpowers @ points),
+            float(powers @ yaws),
+            float(du * (dpowers @ yaws)),
+            float(powers @ pitches),
+            float(du * (dpowers @ pitches)),
+        )
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -477,20 +536,31 @@ def clamp_norm(vector: np.ndarray, limit: float) -> np.ndarray:
     return vector if norm <= limit else vector * (limit / norm)
 
 
-def hand_wrench(config: TeacherConfig, position_m: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
-                target_position_m: np.ndarray, target_rotation: np.ndarray, target_twist: np.ndarray) -> np.ndarray:
+def hand_wrench(
+    config: TeacherConfig,
+    position_m: np.ndarray,
+    rotation: np.ndarray,
+    twist: np.ndarray,
+    target_position_m: np.ndarray,
+    target_rotation: np.ndarray,
+    target_twist: np.ndarray,
+) -> np.ndarray:
     """The hand's wrench (force N, torque N m about the gripped point; world axes).
 
     A spring-damper pulling the gripped point and the blade's orientation towards the via-point, plus
     the push a person makes ahead of the motion to overcome the arm's felt damping.
     """
     c = config
-    force = (c.hand_stiffness_n_per_m * (target_position_m - position_m)
-             + c.hand_damping_ns_per_m * (target_twist[:3] - twist[:3])
-             + c.expected_damping_ns_per_m * target_twist[:3])
-    torque = (c.hand_rot_stiffness_nm_per_rad * pin.log3(target_rotation @ rotation.T)
-              + c.hand_rot_damping_nms_per_rad * (target_twist[3:] - twist[3:])
-              + c.expected_rot_damping_nms_per_rad * target_twist[3:])
+    force = (
+        c.hand_stiffness_n_per_m * (target_position_m - position_m)
+        + c.hand_damping_ns_per_m * (target_twist[:3] - twist[:3])
+        + c.expected_damping_ns_per_m * target_twist[:3]
+    )
+    torque = (
+        c.hand_rot_stiffness_nm_per_rad * pin.log3(target_rotation @ rotation.T)
+        + c.hand_rot_damping_nms_per_rad * (target_twist[3:] - twist[3:])
+        + c.expected_rot_damping_nms_per_rad * target_twist[3:]
+    )
     return np.concatenate([clamp_norm(force, c.max_force_n), clamp_norm(torque, c.max_torque_nm)])
 
 
@@ -503,8 +573,14 @@ class VirtualTeacher:
     with /sim/hand_wrench) while the stroke is defined for the paddle centre.
     """
 
-    def __init__(self, swing: str, config: TeacherConfig = TeacherConfig(), grip_frame: str = robot_model.TOOL_FRAME,
-                 variation: SwingVariation = SwingVariation(), shape: StrokeShape | None = None):
+    def __init__(
+        self,
+        swing: str,
+        config: TeacherConfig = TeacherConfig(),
+        grip_frame: str = robot_model.TOOL_FRAME,
+        variation: SwingVariation = SwingVariation(),
+        shape: StrokeShape | None = None,
+    ):
         config.validate()
         self.config = config
         self.swing = swing
@@ -521,7 +597,7 @@ class VirtualTeacher:
         self._phase_start_s: float | None = None
         self._approach_from: ViaPoint | None = None
         self._approach_s = config.approach_min_s
-        self._stroke_clock_s = 0.0          # time along the stroke's path; slower than t when the arm lags
+        self._stroke_clock_s = 0.0  # time along the stroke's path; slower than t when the arm lags
         self._stroke_rate = 1.0
         self._last_update_s: float | None = None
 
@@ -532,16 +608,24 @@ class VirtualTeacher:
             start, ready = self._approach_from, self.path.at(0.0)
             s, ds = minimum_jerk(elapsed / self._approach_s)
             ds /= self._approach_s
-            return ViaPoint(start.position_m + s * (ready.position_m - start.position_m),
-                            ds * (ready.position_m - start.position_m),
-                            start.yaw_rad + s * (ready.yaw_rad - start.yaw_rad), ds * (ready.yaw_rad - start.yaw_rad))
+            return ViaPoint(
+                start.position_m + s * (ready.position_m - start.position_m),
+                ds * (ready.position_m - start.position_m),
+                start.yaw_rad + s * (ready.yaw_rad - start.yaw_rad),
+                ds * (ready.yaw_rad - start.yaw_rad),
+            )
         if self.phase == 'ready':
             return self.path.at(0.0)
         if self.phase == 'stroke':
             via = self.path.at(min(self._stroke_clock_s, self.path.duration_s))
-            return ViaPoint(via.position_m, self._stroke_rate * via.velocity_m_s, via.yaw_rad,
-                            self._stroke_rate * via.yaw_rate_rad_s, via.pitch_rad,
-                            self._stroke_rate * via.pitch_rate_rad_s)
+            return ViaPoint(
+                via.position_m,
+                self._stroke_rate * via.velocity_m_s,
+                via.yaw_rad,
+                self._stroke_rate * via.yaw_rate_rad_s,
+                via.pitch_rad,
+                self._stroke_rate * via.pitch_rate_rad_s,
+            )
         return self.path.at(self.path.duration_s)
 
     def _advance_stroke_clock(self, t_s: float, centre_position_m: np.ndarray) -> None:
@@ -560,7 +644,7 @@ class VirtualTeacher:
         """Hand wrench (world axes, force N and torque N m about the grip point) for this joint state."""
         kin = self.kinematics
         centre = kin.pose(q, self.centre_id)
-        if self._phase_start_s is None:   # the first joint state: start the approach from here
+        if self._phase_start_s is None:  # the first joint state: start the approach from here
             self._phase_start_s = t_s
             self._approach_from = ViaPoint(centre.translation.copy(), np.zeros(3), self._yaw_of(centre.rotation), 0.0)
             distance = float(np.linalg.norm(self.path.at(0.0).position_m - centre.translation))
@@ -588,16 +672,25 @@ class VirtualTeacher:
         lever = target_grip.translation - target_centre.translation
         target_twist = np.concatenate([via.velocity_m_s + np.cross(omega, lever), omega])
         grip = kin.pose(q, self.grip_id)
-        return hand_wrench(self.config, grip.translation, grip.rotation, kin.twist(q, qdot, self.grip_id),
-                           target_grip.translation, target_grip.rotation, target_twist)
+        return hand_wrench(
+            self.config,
+            grip.translation,
+            grip.rotation,
+            kin.twist(q, qdot, self.grip_id),
+            target_grip.translation,
+            target_grip.rotation,
+            target_twist,
+        )
 
     def at_rest_on(self, q: np.ndarray, qdot: np.ndarray, via: ViaPoint) -> bool:
         centre = self.kinematics.pose(q, self.centre_id)
         target_rotation = via.rotation(self.home_rotation)
         c = self.config
-        return (np.linalg.norm(centre.translation - via.position_m) < c.settle_position_m
-                and np.linalg.norm(pin.log3(target_rotation @ centre.rotation.T)) < c.settle_angle_rad
-                and np.linalg.norm(self.kinematics.twist(q, qdot, self.centre_id)[:3]) < c.settle_speed_m_s)
+        return (
+            np.linalg.norm(centre.translation - via.position_m) < c.settle_position_m
+            and np.linalg.norm(pin.log3(target_rotation @ centre.rotation.T)) < c.settle_angle_rad
+            and np.linalg.norm(self.kinematics.twist(q, qdot, self.centre_id)[:3]) < c.settle_speed_m_s
+        )
 
     def begin_stroke(self, t_s: float) -> None:
         if self.phase != 'ready':

@@ -1,4 +1,5 @@
 """A client of `ros2 run stylepong_sim ur5_sim` for system tests: records every topic, calls the services."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -27,13 +28,15 @@ def stamp_s(stamp) -> float:
 @dataclasses.dataclass
 class Sample:
     """One message as the probe received it."""
-    received_s: float       # time.monotonic() at arrival
-    stamp_s: float          # header stamp (sim time)
+
+    received_s: float  # time.monotonic() at arrival
+    stamp_s: float  # header stamp (sim time)
     values: tuple
 
 
 class Ur5SimProbe:
     """A node beside `ur5_sim` that records its topics and calls its services, for tests and benchmarks."""
+
     # Deep reader queues: the probe must not lose samples while the test thread is busy.
     QOS = QoSProfile(depth=1000)
 
@@ -65,14 +68,20 @@ class Ur5SimProbe:
     # --- recording ---------------------------------------------------------------------------------
     def _on_joint_state(self, msg: JointState) -> None:
         self.joint_names = list(msg.name)
-        self.joint_states.append(Sample(time.monotonic(), stamp_s(msg.header.stamp),
-                                        (np.array(msg.position), np.array(msg.velocity), np.array(msg.effort))))
+        self.joint_states.append(
+            Sample(
+                time.monotonic(),
+                stamp_s(msg.header.stamp),
+                (np.array(msg.position), np.array(msg.velocity), np.array(msg.effort)),
+            )
+        )
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         self.wrench_frames.add(msg.header.frame_id)
         f, t = msg.wrench.force, msg.wrench.torque
-        self.wrenches.append(Sample(time.monotonic(), stamp_s(msg.header.stamp),
-                                    (np.array([f.x, f.y, f.z]), np.array([t.x, t.y, t.z]))))
+        self.wrenches.append(
+            Sample(time.monotonic(), stamp_s(msg.header.stamp), (np.array([f.x, f.y, f.z]), np.array([t.x, t.y, t.z])))
+        )
 
     def _on_clock(self, msg: Clock) -> None:
         self.clock.append(Sample(time.monotonic(), stamp_s(msg.clock), ()))
@@ -80,8 +89,9 @@ class Ur5SimProbe:
     def _on_ball(self, msg: BallState) -> None:
         self.ball_frames.add(msg.header.frame_id)
         p, v = msg.position, msg.velocity
-        self.balls.append(Sample(time.monotonic(), stamp_s(msg.header.stamp),
-                                 (np.array([p.x, p.y, p.z]), np.array([v.x, v.y, v.z]))))
+        self.balls.append(
+            Sample(time.monotonic(), stamp_s(msg.header.stamp), (np.array([p.x, p.y, p.z]), np.array([v.x, v.y, v.z])))
+        )
 
     # --- driving -----------------------------------------------------------------------------------
     def spin_for(self, duration_s: float) -> None:
@@ -94,10 +104,17 @@ class Ur5SimProbe:
 
     def wait_for_sim(self, timeout_s: float = 60.0) -> bool:
         """The node is up: its topics flow and its services and command subscription are matched."""
-        return self.spin_until(lambda: len(self.joint_states) > 10 and len(self.wrenches) > 10
-                               and self.launch_client.service_is_ready() and self.reset_client.service_is_ready()
-                               and self.command_pub.get_subscription_count() > 0
-                               and self.hand_pub.get_subscription_count() > 0, timeout_s)
+        return self.spin_until(
+            lambda: (
+                len(self.joint_states) > 10
+                and len(self.wrenches) > 10
+                and self.launch_client.service_is_ready()
+                and self.reset_client.service_is_ready()
+                and self.command_pub.get_subscription_count() > 0
+                and self.hand_pub.get_subscription_count() > 0
+            ),
+            timeout_s,
+        )
 
     def call(self, client, request, timeout_s: float = 20.0):
         future = client.call_async(request)
