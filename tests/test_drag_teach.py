@@ -124,6 +124,7 @@ def cell(module_ros_domain):
         sim.stop()
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_without_a_push_no_joint_moves_for_10_s(cell):
     probe, _, drag = cell
     start_q = probe.latest_q()

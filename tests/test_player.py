@@ -213,6 +213,7 @@ def test_the_command_check_judges_windows_by_publish_time():
         check_commands(ahead, limits)
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_fuzzed_inputs_never_produce_a_command_outside_the_limits(ros_env):
     rng = np.random.default_rng(11)
     with NodeProcess('stylepong_player', 'player', params={'start_enabled': True, 'status_rate_hz': 5.0}) as player:

@@ -190,6 +190,7 @@ def talker():
         yield
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_topic_list_echo_hz(talker):
     listing = subprocess.run(['ros2', 'topic', 'list', '-t'], capture_output=True, text=True, timeout=30).stdout
     assert '/test/ball [stylepong_msgs/msg/BallState]' in listing.splitlines()

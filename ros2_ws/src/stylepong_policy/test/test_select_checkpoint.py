@@ -58,6 +58,7 @@ def read_csv(path):
         return list(csv.DictReader(stream))
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_every_checkpoint_is_validated_once_and_rows_are_only_appended(run_dir, capsys):
     # A row someone validated earlier with another setting stays, first, untouched.
     earlier = {c: '' for c in select_checkpoint.COLUMNS}

@@ -75,6 +75,7 @@ def confusion(tmp_path_factory):
     return folder, json.loads((folder / 'out' / style_confusion.JSON_NAME).read_text())
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_distances_are_evaluates_dtw_and_normalised_by_the_baseline(confusion):
     folder, record = confusion
     # evaluate --dtw on the same balls gives the same per-direction means for the synthetic set.

@@ -66,6 +66,7 @@ def test_the_file_names_are_the_constants(tmp_path):
     assert files.strokes_npz == tmp_path / report.EVAL_DIR / 'ppo_strokes.npz'
 
 
+@pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     saved = strokes.load_strokes(report.eval_files(run_dir, 'style').strokes_npz).strokes
     shown = saved[0].direction  # one strip: each takes seconds to draw
