@@ -16,14 +16,13 @@ Prints one Markdown section for BENCHMARKS.md (`make bench`).
 import json
 import os
 import pathlib
-import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
 
-from stylepong_common.node_process import isolated_ros_env, process_cpu_s, start_logged, stop_group
+from stylepong_common.node_process import isolated_ros_env, process_cpu_s, run_rally_eval, start_logged, stop_group
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 ACTOR = ROOT / 'ros2_ws/src/stylepong_policy/models/amp_actor.pt'  # the deployed style actor
@@ -157,27 +156,7 @@ def with_ur5_sim() -> tuple[dict, float, dict]:
         time.sleep(3.0)
         cpu_start, wall_start = process_cpu_s(player.pid), time.monotonic()
         out = logs / 'rally.json'
-        subprocess.run(
-            [
-                'ros2',
-                'run',
-                'stylepong_sim',
-                'rally_eval',
-                '--seeds',
-                '1',
-                '--balls',
-                str(RALLY_BALLS),
-                '--first-seed',
-                '900',
-                '--json',
-                str(out),
-            ],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-            check=True,
-        )
+        run_rally_eval(env, RALLY_BALLS, 900, out).check_returncode()
         cpu_share = (process_cpu_s(player.pid) - cpu_start) / (time.monotonic() - wall_start)
         summary = json.loads(out.read_text())
         return summary['player_status'], cpu_share, summary

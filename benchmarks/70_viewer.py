@@ -23,7 +23,15 @@ import sys
 import tempfile
 import time
 
-from stylepong_common.node_process import free_port, isolated_ros_env, process_cpu_s, start_logged, stop_group
+from stylepong_common.node_process import (
+    free_port,
+    isolated_ros_env,
+    process_cpu_s,
+    run_rally_eval,
+    start_logged,
+    stop_group,
+    viewer_command,
+)
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DURATION_S = 15.0
@@ -51,21 +59,7 @@ def graph_run(what: str, viewer_options: list[str] | None) -> dict:
     processes = [sim]
     viewer = None
     if viewer_options is not None:
-        viewer = start_logged(
-            [
-                'ros2',
-                'run',
-                'stylepong_viz',
-                'viewer',
-                '--web-port',
-                str(free_port()),
-                '--grpc-port',
-                str(free_port()),
-                *viewer_options,
-            ],
-            env,
-            logs / 'viewer.log',
-        )
+        viewer = start_logged(viewer_command(free_port(), *viewer_options), env, logs / 'viewer.log')
         processes.append(viewer)
     status: list[dict] = []
     try:
@@ -118,26 +112,7 @@ def graph_run(what: str, viewer_options: list[str] | None) -> dict:
 def _rally(env: dict, node: subprocess.Popen, logs: pathlib.Path) -> list[dict]:
     """rally_eval serving RALLY_BALLS balls to the player; the player's status at the end."""
     out = logs / 'rally.json'
-    result = subprocess.run(
-        [
-            'ros2',
-            'run',
-            'stylepong_sim',
-            'rally_eval',
-            '--seeds',
-            '1',
-            '--balls',
-            str(RALLY_BALLS),
-            '--first-seed',
-            '900',
-            '--json',
-            str(out),
-        ],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    result = run_rally_eval(env, RALLY_BALLS, 900, out)
     if result.returncode != 0 or node.poll() is not None:
         raise RuntimeError('rally_eval failed:\n' + result.stderr[-1000:] + (logs / 'node.log').read_text()[-1000:])
     return [json.loads(out.read_text())['player_status']]

@@ -11,37 +11,29 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
-
-@pytest.mark.skipif(
+needs_ruff = pytest.mark.skipif(
     importlib.util.find_spec('ruff') is None,
     reason='ruff is not installed (make setup installs it from requirements.lock)',
 )
+
+
+def run_over_the_tree(*args: str) -> subprocess.CompletedProcess:
+    """`python -m <args>` in the repository's root (where ruff.toml and .codespellrc are read)."""
+    return subprocess.run([sys.executable, '-m', *args], cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+
+@needs_ruff
 def test_ruff_check_passes_over_the_tree():
-    result = subprocess.run(
-        [sys.executable, '-m', 'ruff', 'check', '--no-cache', '--output-format', 'concise', '.'],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    result = run_over_the_tree('ruff', 'check', '--no-cache', '--output-format', 'concise', '.')
     assert result.returncode == 0, (
         f'ruff check found violations (fix them, or `python3 -m ruff check --fix .` for the mechanical ones):\n'
         f'{result.stdout}{result.stderr}'
     )
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec('ruff') is None,
-    reason='ruff is not installed (make setup installs it from requirements.lock)',
-)
+@needs_ruff
 def test_the_tree_is_formatted():
-    result = subprocess.run(
-        [sys.executable, '-m', 'ruff', 'format', '--check', '--no-cache', '.'],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    result = run_over_the_tree('ruff', 'format', '--check', '--no-cache', '.')
     assert result.returncode == 0, (
         f'files not formatted (run `python3 -m ruff format .`):\n{result.stdout}{result.stderr}'
     )
@@ -53,9 +45,7 @@ def test_the_tree_is_formatted():
 )
 def test_codespell_passes_over_the_tree():
     # The settings (what is skipped, the true words it would flag) are .codespellrc's, read from the root.
-    result = subprocess.run(
-        [sys.executable, '-m', 'codespell_lib'], cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    result = run_over_the_tree('codespell_lib')
     assert result.returncode == 0, (
         f"codespell found misspellings (fix them; a true word goes in .codespellrc's ignore-words-list):\n"
         f'{result.stdout}{result.stderr}'

@@ -14,6 +14,8 @@ import time
 
 import pytest
 
+from tests.test_one_home import EVENT_CODES  # the rally events RallyEvent.msg defines
+
 PACKAGES = (
     'stylepong_msgs',
     'stylepong_description',
@@ -54,20 +56,8 @@ def test_interfaces_have_the_documented_fields_and_constants():
         'success',
         'reason',
     ]
-    names = [
-        'LAUNCHED',
-        'BOUNCE_OWN_SIDE',
-        'PADDLE_HIT',
-        'BOUNCE_OPPONENT_SIDE',
-        'NET',
-        'ROBOT_CONTACT',
-        'TABLE_CONTACT_BY_ROBOT',
-        'OUT',
-        'TIMEOUT',
-        'RALLY_END',
-    ]
-    values = [getattr(RallyEvent, n) for n in names]
-    assert len(set(values)) == len(names)
+    values = [getattr(RallyEvent, n) for n in EVENT_CODES]
+    assert len(set(values)) == len(EVENT_CODES)
     assert list(LaunchBall.Request.get_fields_and_field_types()) == [
         'position',
         'velocity',

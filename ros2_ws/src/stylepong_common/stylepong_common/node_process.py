@@ -59,6 +59,30 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+def viewer_command(grpc_port: int, *options: str) -> list[str]:
+    """`ros2 run stylepong_viz viewer` on a free web port and this data (gRPC) port, with options; a caller
+    that watches the page's data connection picks grpc_port itself."""
+    return [
+        'ros2',
+        'run',
+        'stylepong_viz',
+        'viewer',
+        '--web-port',
+        str(free_port()),
+        '--grpc-port',
+        str(grpc_port),
+        *options,
+    ]
+
+
+def run_rally_eval(env: dict, balls: int, first_seed: int, json_path: pathlib.Path) -> subprocess.CompletedProcess:
+    """`ros2 run stylepong_sim rally_eval` serving `balls` balls of one seed to the player already running in
+    env's graph, its summary written to json_path; the finished process (the caller judges its exit code)."""
+    command = ['ros2', 'run', 'stylepong_sim', 'rally_eval', '--seeds', '1', '--balls', str(balls)]
+    command += ['--first-seed', str(first_seed), '--json', str(json_path)]
+    return subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+
+
 class NodeProcess:
     """`ros2 run <package> <executable> [args]` as a child process with its output in a log file."""
 

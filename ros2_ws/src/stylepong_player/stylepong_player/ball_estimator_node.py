@@ -18,6 +18,7 @@ named in a throttled warning, and never reach /ball/state.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import json
 import sys
 
@@ -105,23 +106,11 @@ class BallEstimatorNode(Node):
         super().__init__(PROGRAM, **node_kwargs)
         value = declare_parameters(self, PARAMETERS)
         try:
-            config = EstimatorConfig(
-                **{
-                    name: value[name]
-                    for name in (
-                        'measurement_noise_std_m',
-                        'acceleration_noise_std_m_s2',
-                        'initial_velocity_std_m_s',
-                        'bounce_velocity_std_m_s',
-                        'gate_sigma',
-                        'confirm_detections',
-                        'track_timeout_s',
-                        'max_speed_m_s',
-                    )
-                },
-                play_volume_min_m=tuple(value['play_volume_min_m']),
-                play_volume_max_m=tuple(value['play_volume_max_m']),
-            )
+            # Each field of the config is the parameter of its name; the play volume's corners come as lists.
+            settings = {f.name: value[f.name] for f in dataclasses.fields(EstimatorConfig)}
+            for corner in ('play_volume_min_m', 'play_volume_max_m'):
+                settings[corner] = tuple(settings[corner])
+            config = EstimatorConfig(**settings)
             self.estimator = BallEstimator(config)
         except ValueError as error:
             raise ParameterError(str(error)) from error

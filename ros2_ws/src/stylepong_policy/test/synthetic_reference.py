@@ -1,11 +1,12 @@
-"""A synthetic reference dataset for tests that measure DTW (evaluate, select_checkpoint)."""
+"""Synthetic reference datasets: one for tests that measure DTW (evaluate, select_checkpoint), one toy clip
+for tests of the motion prior (test_amp)."""
 
 import pathlib
 
 import numpy as np
 
 from stylepong_policy.evaluation import strokes
-from stylepong_policy.training.dataset import Clip, SourceClip, assemble_dataset
+from stylepong_policy.training.dataset import Clip, ReferenceDataset, SourceClip, assemble_dataset
 
 
 def write_reference(path: pathlib.Path, labels=strokes.DIRECTIONS) -> pathlib.Path:
@@ -23,3 +24,24 @@ def write_reference(path: pathlib.Path, labels=strokes.DIRECTIONS) -> pathlib.Pa
         sources.append(SourceClip(Clip(t=t, q=q, qd=np.gradient(q, t, axis=0)), label, f'synthetic:{label}:{k}'))
     assemble_dataset(sources, (2,), JOINT_NAMES, 60.0).save(path)
     return path
+
+
+def one_clip_dataset(q: np.ndarray, qd: np.ndarray, label: str) -> ReferenceDataset:
+    """All the frames as one original clip labelled `label`, at 60 Hz, of joints named a, b, ... (the
+    fields a ReferenceDataset needs, with toy provenance: no bag was read)."""
+    frames = len(q)
+    return ReferenceDataset(
+        t=np.arange(frames) / 60.0,
+        q=q,
+        qd=qd,
+        clip_start=np.array([0]),
+        clip_length=np.array([frames]),
+        label=np.array([label]),
+        speed_factor=np.array([1]),
+        source=np.array(['toy']),
+        original=np.array([0]),
+        time_source=np.array(['header']),
+        velocity_source=np.array(['bag']),
+        rate_hz=60.0,
+        joint_names=np.array([chr(ord('a') + j) for j in range(q.shape[1])]),
+    )

@@ -7,6 +7,7 @@ import pathlib
 import numpy as np
 import pytest
 import torch
+from synthetic_reference import one_clip_dataset
 
 from stylepong_policy.rl.amp import (
     MotionPrior,
@@ -16,7 +17,7 @@ from stylepong_policy.rl.amp import (
     feature_columns,
     style_reward,
 )
-from stylepong_policy.rl.config import AMPConfig, config_from_dict
+from stylepong_policy.rl.config import AMPConfig, TrainConfig, config_from_dict
 from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
 from stylepong_policy.training.dataset import ReferenceDataset
 
@@ -153,21 +154,7 @@ def test_position_features_keep_only_the_joint_positions_of_reference_and_policy
     """frame_features 'q': the reference windows, the replayed policy windows and the windows scored for the
     reward hold the first half of each (positions, velocities) frame, in order."""
     frames = np.arange(40 * 4, dtype=np.float64).reshape(40, 4)  # 2 joints: q0 q1 qd0 qd1
-    dataset = ReferenceDataset(
-        t=np.arange(40) / 60.0,
-        q=frames[:, :2],
-        qd=frames[:, 2:],
-        clip_start=np.array([0]),
-        clip_length=np.array([40]),
-        label=np.array(['forward']),
-        speed_factor=np.array([1]),
-        source=np.array(['toy']),
-        original=np.array([0]),
-        time_source=np.array(['header']),
-        velocity_source=np.array(['bag']),
-        rate_hz=60.0,
-        joint_names=np.array(['a', 'b']),
-    )
+    dataset = one_clip_dataset(frames[:, :2], frames[:, 2:], 'forward')
     cfg = AMPConfig(sequence_length=3, frame_features='q', batch_size=8, updates_per_iteration=1)
     reference = ReferenceMotion.from_dataset(dataset, cfg.sequence_length, features='q')
     assert torch.equal(reference.windows(torch.tensor([0]))[0], torch.tensor(frames[:3, :2], dtype=torch.float32))
@@ -202,24 +189,23 @@ def test_loss_and_gradient_penalty_see_the_same_normalised_inputs():
     assert stats['disc/grad_penalty'] == pytest.approx(float(weight.square().sum()), rel=1e-4)
 
 
+def _tiny_prior_config(num_steps_per_env: int, runner: dict | None = None, **amp) -> TrainConfig:
+    """Policy, critic and discriminator of one 8-unit layer, windows of 2 frames: enough to watch how the
+    runner mixes and streams the rewards, not to learn; `runner` and `amp` add to or override its settings."""
+    return config_from_dict(
+        {
+            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
+            'ppo': {'num_steps_per_env': num_steps_per_env},
+            'runner': {'seed': 0, 'save_interval': 1000, **(runner or {})},
+            'amp': {'sequence_length': 2, 'hidden_dims': [8], 'batch_size': 64, 'replay_size': 1000, **amp},
+        }
+    )
+
+
 def test_an_env_style_factor_scales_the_style_weight_per_environment(tmp_path):
     """The runner passes the env's 'style_weight' extras to the mix: a style-only reward with the factor 0
     in every environment returns nothing, with the factor 2 twice what it does without one."""
-    cfg = config_from_dict(
-        {
-            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-            'ppo': {'num_steps_per_env': 40},
-            'runner': {'seed': 0, 'save_interval': 1000},
-            'amp': {
-                'sequence_length': 2,
-                'hidden_dims': [8],
-                'batch_size': 64,
-                'w_task': 0.0,
-                'w_style': 1.0,
-                'replay_size': 1000,
-            },
-        }
-    )
+    cfg = _tiny_prior_config(40, w_task=0.0, w_style=1.0)
 
     class FactorTask(TOY.ReachTask):
         def __init__(self, factor):
@@ -249,23 +235,14 @@ def test_a_held_run_scales_the_motion_terms_down_when_its_returns_fall_and_resum
     """amp.hold_success: the runner feeds each iteration's training success to rl.success_hold, and the
     scale it returns weighs the next iteration's motion terms (a style-only reward returns nothing at
     scale 0); a resumed run continues at the saved scale."""
-    cfg = config_from_dict(
-        {
-            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-            'ppo': {'num_steps_per_env': 40},
-            'runner': {'seed': 0, 'save_interval': 1000, 'critic_warmup_iterations': 2},
-            'amp': {
-                'sequence_length': 2,
-                'hidden_dims': [8],
-                'batch_size': 64,
-                'w_task': 0.0,
-                'w_style': 1.0,
-                'replay_size': 1000,
-                'hold_success': True,
-                'hold_success_gain': 100.0,
-                'hold_success_smoothing': 1.0,
-            },
-        }
+    cfg = _tiny_prior_config(
+        40,
+        runner={'critic_warmup_iterations': 2},
+        w_task=0.0,
+        w_style=1.0,
+        hold_success=True,
+        hold_success_gain=100.0,
+        hold_success_smoothing=1.0,
     )
 
     class FallingTask(TOY.ReachTask):
@@ -313,22 +290,7 @@ class TouchTask(TOY.ReachTask):
 def test_a_free_follow_through_leaves_the_motion_after_the_touch_unheld_in_a_value_stream_that_ends_at_it(tmp_path):
     """amp.free_follow_through: with the motion terms held at 0 a style-only reward still pays the steps that
     began after the touch, in the second value stream alone, and that stream ends at the step that touches."""
-    cfg = config_from_dict(
-        {
-            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-            'ppo': {'num_steps_per_env': 12},
-            'runner': {'seed': 0, 'save_interval': 1000},
-            'amp': {
-                'sequence_length': 2,
-                'hidden_dims': [8],
-                'batch_size': 64,
-                'w_task': 0.0,
-                'w_style': 1.0,
-                'replay_size': 1000,
-                'free_follow_through': True,
-            },
-        }
-    )
+    cfg = _tiny_prior_config(12, w_task=0.0, w_style=1.0, free_follow_through=True)
     seed_everything(0)
     env = TouchTask(num_envs=4, seed=0, episode_steps=6)
     reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
@@ -386,20 +348,7 @@ def test_a_free_follow_through_run_starts_from_a_skill_with_one_value_stream(tmp
 
 
 def test_a_free_follow_through_needs_the_env_s_phase(tmp_path):
-    cfg = config_from_dict(
-        {
-            'policy': {'actor_hidden_dims': [8], 'critic_hidden_dims': [8]},
-            'ppo': {'num_steps_per_env': 4},
-            'runner': {'seed': 0, 'save_interval': 1000},
-            'amp': {
-                'sequence_length': 2,
-                'hidden_dims': [8],
-                'batch_size': 64,
-                'replay_size': 1000,
-                'free_follow_through': True,
-            },
-        }
-    )
+    cfg = _tiny_prior_config(4, free_follow_through=True)
     env = TOY.ReachTask(num_envs=4, seed=0, episode_steps=6)
     reference = ReferenceMotion(np.random.default_rng(0).normal(size=(50, 4)), [0], [50], 2)
     prior = MotionPrior(cfg.amp, reference, env.num_style_features, env.num_envs, 'cpu', seed=0)
@@ -519,21 +468,7 @@ def test_a_conditioned_prior_needs_labelled_windows_and_each_step_s_label(tmp_pa
         prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2))
     prior.observe(torch.ones(2, 2), torch.tensor([False, False]), torch.ones(2, 2), torch.tensor([0, 1]))
     assert prior.replay.conditions[:2].tolist() == [0, 1]
-    dataset = ReferenceDataset(
-        t=np.arange(20) / 60.0,
-        q=frames[:, :1],
-        qd=frames[:, 1:],
-        clip_start=np.array([0]),
-        clip_length=np.array([20]),
-        label=np.array(['sideways']),
-        speed_factor=np.array([1]),
-        source=np.array(['toy']),
-        original=np.array([0]),
-        time_source=np.array(['header']),
-        velocity_source=np.array(['bag']),
-        rate_hz=60.0,
-        joint_names=np.array(['a']),
-    )
+    dataset = one_clip_dataset(frames[:, :1], frames[:, 1:], 'sideways')
     with pytest.raises(ValueError, match="labelled \\['sideways'\\]"):
         ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'leftward'))
     assert ReferenceMotion.from_dataset(dataset, 2, label_names=('forward', 'sideways')).labels.unique().tolist() == [1]
@@ -552,29 +487,21 @@ def test_a_reference_window_s_phase_is_its_last_frame_s_and_the_condition_pairs_
     with pytest.raises(ValueError, match='one flag per frame'):
         ReferenceMotion(frames, [0], [12], 3, frame_after_hit=after[:-1])
     labels, phases = torch.tensor([0, 0, 1, 1]), torch.tensor([0, 1, 0, 1])
-    both = MotionPrior(
-        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True, condition_on_phase=True),
-        reference,
-        frame_size=2,
-        num_envs=1,
-        device='cpu',
-    )
+
+    def prior(**conditions) -> MotionPrior:
+        return MotionPrior(
+            AMPConfig(sequence_length=3, hidden_dims=[8], **conditions),
+            reference,
+            frame_size=2,
+            num_envs=1,
+            device='cpu',
+        )
+
+    both = prior(condition_on_label=True, condition_on_phase=True)
     assert both.num_conditions == 4 and both.condition(labels, phases).tolist() == [0, 1, 2, 3]
-    phase_only = MotionPrior(
-        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_phase=True),
-        reference,
-        frame_size=2,
-        num_envs=1,
-        device='cpu',
-    )
+    phase_only = prior(condition_on_phase=True)
     assert phase_only.num_conditions == 2 and phase_only.condition(None, phases).tolist() == [0, 1, 0, 1]
-    label_only = MotionPrior(
-        AMPConfig(sequence_length=3, hidden_dims=[8], condition_on_label=True),
-        reference,
-        frame_size=2,
-        num_envs=1,
-        device='cpu',
-    )
+    label_only = prior(condition_on_label=True)
     assert label_only.condition(labels, phases).tolist() == [0, 0, 1, 1]
     phase_only.start(torch.zeros(1, 2))
     with pytest.raises(ValueError, match='style_phase'):

@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from stylepong_player import player_core
-from stylepong_player.actor_contract import ActorMismatchError, current_spec_contract, onnx_path
+from stylepong_player.actor_contract import CONTRACT_KEYS, ActorMismatchError, current_spec_contract, onnx_path
 from stylepong_policy.rl.export import export_actor, write_onnx_for
 from stylepong_policy.rl.networks import ActorCritic
 
@@ -33,17 +33,7 @@ def test_shipped_actor_onnx_and_torchscript_agree_on_random_observations():
 def test_shipped_onnx_carries_the_contract_of_the_sidecar():
     props = {p.key: json.loads(p.value) for p in onnx.load(str(onnx_path(SHIPPED))).metadata_props}
     sidecar = json.loads(SHIPPED.with_suffix('.json').read_text())
-    for key in (
-        'format',
-        'format_version',
-        'spec_version',
-        'action_rate_hz',
-        'joint_names',
-        'obs_layout',
-        'num_obs',
-        'num_actions',
-        'action_decoding',
-    ):
+    for key in ('format', 'format_version', *CONTRACT_KEYS):
         assert props[key] == sidecar[key], key
     assert props['exported_from']['sha256'] == sidecar['actor_sha256']
 

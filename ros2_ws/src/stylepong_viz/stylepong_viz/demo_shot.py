@@ -18,7 +18,7 @@ import sys
 import tempfile
 import time
 
-from stylepong_common.node_process import free_port, isolated_ros_env, start_logged, stop_group
+from stylepong_common.node_process import free_port, isolated_ros_env, start_logged, stop_group, viewer_command
 from stylepong_viz.browser_shot import BrowserError, HeadlessPage, cell_view_pixels
 from stylepong_viz.cell_view import BACKGROUND_RGB
 
@@ -73,20 +73,7 @@ def shoot_rally(out: pathlib.Path, balls: int, first_seed: int, width: int, heig
     try:
         with HeadlessPage(width=width, height=height, start_timeout_s=START_TIMEOUT_S) as browser:
             grpc_port = free_port()
-            viewer = start_logged(
-                [
-                    'ros2',
-                    'run',
-                    'stylepong_viz',
-                    'viewer',
-                    '--web-port',
-                    str(free_port()),
-                    '--grpc-port',
-                    str(grpc_port),
-                ],
-                env,
-                logs / 'viewer.log',
-            )
+            viewer = start_logged(viewer_command(grpc_port), env, logs / 'viewer.log')
             processes.append(viewer)
             browser.watch_requests(f'http://127.0.0.1:{grpc_port}/')
             url = _wait_for_url(logs / 'viewer.log', viewer)

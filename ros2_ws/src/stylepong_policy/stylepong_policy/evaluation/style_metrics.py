@@ -169,3 +169,14 @@ def mean_smoothness(values: Iterable[Smoothness]) -> dict[str, float] | None:
     if not values:
         return None
     return {name: float(np.mean([getattr(v, name) for v in values])) for name in Smoothness.__dataclass_fields__}
+
+
+def reference_smoothness(dataset, labels: Sequence[str], speed_factor: int) -> dict[str, dict[str, float] | None]:
+    """The demonstrations' own smoothness per label (its clips of one speed factor), for scale; clips too
+    short for a jerk (under 4 frames) are left out."""
+    table = {}
+    for label in labels:
+        clips = dataset.select(labels=[label], speed_factors=[speed_factor])
+        values = [smoothness(dataset.clip(int(c)).q, dataset.rate_hz) for c in clips if dataset.clip_length[c] >= 4]
+        table[label] = mean_smoothness(values)
+    return table

@@ -214,20 +214,6 @@ def summarise_all(
     return summaries
 
 
-def reference_smoothness(dataset, speed_factor: int) -> dict[str, dict | None]:
-    """The demonstrations' own smoothness per label (clips of one speed factor), for scale."""
-    table = {}
-    for direction in DIRECTIONS:
-        clips = dataset.select(labels=[direction], speed_factors=[speed_factor])
-        values = [
-            style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
-            for c in clips
-            if dataset.clip_length[c] >= 4
-        ]
-        table[direction] = style_metrics.mean_smoothness(values)
-    return table
-
-
 # ---------------------------------------------------------------------------------------------------
 # Table IV
 
@@ -877,7 +863,7 @@ def main(argv: list[str] | None = None) -> int:
 
     evaluations = run_all(actors, paths, protocol, log)
     summaries = summarise_all(evaluations, dataset, evaluate.portable_path(dataset_path), log)
-    reference_rows = reference_smoothness(dataset, speed_factor=1)
+    reference_rows = style_metrics.reference_smoothness(dataset, DIRECTIONS, speed_factor=1)
     if args.save_strokes:
         for (name, band), evaluation in evaluations.items():
             save_strokes(

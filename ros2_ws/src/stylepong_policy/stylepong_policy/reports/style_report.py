@@ -159,20 +159,6 @@ def setting_text(summary: dict) -> str:
     return f'{summary["world"]}; {seed_text} x {summary["balls_per_seed"]} balls; {summary["speed"]} speeds'
 
 
-def demonstration_smoothness(dataset) -> dict[str, dict | None]:
-    """The demonstrations' own smoothness per label (original clips), for scale."""
-    table = {}
-    for direction in DIRECTIONS:
-        clips = dataset.select(labels=[direction], speed_factors=[1])
-        values = [
-            style_metrics.smoothness(dataset.clip(int(c)).q, dataset.rate_hz)
-            for c in clips
-            if dataset.clip_length[c] >= 4
-        ]
-        table[direction] = style_metrics.mean_smoothness(values)
-    return table
-
-
 # ---------------------------------------------------------------------------------------------------
 # Charts
 
@@ -564,7 +550,7 @@ def write_report_of(
     phases = {name: dtw_by_phase(r.all_speeds) for name, r in results.items()}
     originals = dataset.label[dataset.speed_factor == 1].tolist()
     clips = {d: originals.count(d) for d in DIRECTIONS}
-    reference = demonstration_smoothness(dataset)
+    reference = style_metrics.reference_smoothness(dataset, DIRECTIONS, speed_factor=1)  # the originals
     setting = setting_text(results['style'].all_speeds)
 
     from stylepong_policy.reports import paper_charts

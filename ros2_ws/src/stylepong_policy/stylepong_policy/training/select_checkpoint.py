@@ -203,6 +203,21 @@ def run_evaluation(
     )
 
 
+def evaluate_on_validation_balls(actor: pathlib.Path, setting: Setting, device: str) -> dict:
+    """evaluate's result for the actor on the setting's validation balls (its speed band, seeds and balls),
+    with DTW against the setting's dataset where it has one: a checkpoint and the baseline it is compared
+    with are measured alike."""
+    return run_evaluation(
+        actor,
+        seeds=setting.seeds,
+        first_seed=setting.first_seed,
+        balls=setting.balls,
+        speed=setting.speed,
+        device=device,
+        dtw_dataset=setting.dtw_dataset or None,
+    )
+
+
 def dtw_cells(result: dict) -> dict[str, str]:
     """The DTW columns of a row from evaluate's result (empty where a direction had no stroke)."""
     table = result.get('dtw') or {}
@@ -218,15 +233,7 @@ def validate_checkpoint(checkpoint: dict, setting: Setting, device: str) -> dict
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='select_checkpoint_') as tmp:
         actor = export_checkpoint(checkpoint, pathlib.Path(tmp) / 'actor.pt', onnx=False)
-        result = run_evaluation(
-            actor,
-            seeds=setting.seeds,
-            first_seed=setting.first_seed,
-            balls=setting.balls,
-            speed=setting.speed,
-            device=device,
-            dtw_dataset=setting.dtw_dataset or None,
-        )
+        result = evaluate_on_validation_balls(actor, setting, device)
         high = None
         if setting.high_first_seed is not None:
             high = run_evaluation(
@@ -316,15 +323,7 @@ def worst_ratio(row: dict[str, str], baseline_dtw: dict[str, float]) -> float:
 
 def baseline_distances(actor: pathlib.Path, setting: Setting, device: str) -> dict[str, float]:
     """The baseline actor's mean DTW distance (rad) per direction on the setting's validation balls."""
-    result = run_evaluation(
-        actor,
-        seeds=setting.seeds,
-        first_seed=setting.first_seed,
-        balls=setting.balls,
-        speed=setting.speed,
-        device=device,
-        dtw_dataset=setting.dtw_dataset,
-    )
+    result = evaluate_on_validation_balls(actor, setting, device)
     missing = [d for d in DIRECTIONS if (result.get('dtw') or {}).get(d, {}).get('mean_rad') is None]
     if missing:
         raise ValueError(f'{actor} made no {", ".join(missing)} stroke on the validation balls')
