@@ -12,6 +12,15 @@ from __future__ import annotations
 
 import torch
 
+# PPO's settings that learn this task in a few seconds (test_ppo's and test_amp's runs).
+TOY_PPO = {
+    'num_steps_per_env': 16,
+    'num_mini_batches': 2,
+    'num_learning_epochs': 4,
+    'learning_rate': 3e-3,
+    'entropy_coef': 0.005,
+}
+
 
 class ReachTask:
     num_obs = 4

@@ -370,13 +370,7 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     cfg = config_from_dict(
         {
             'policy': {'actor_hidden_dims': [32, 32], 'critic_hidden_dims': [32, 32], 'init_noise_std': 0.5},
-            'ppo': {
-                'num_steps_per_env': 16,
-                'num_mini_batches': 2,
-                'num_learning_epochs': 4,
-                'learning_rate': 3e-3,
-                'entropy_coef': 0.005,
-            },
+            'ppo': {**TOY.TOY_PPO},
             'runner': {'seed': 0, 'save_interval': 1000},
             'amp': {
                 'sequence_length': 3,
@@ -404,6 +398,19 @@ def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_pa
     assert velocity[:, 0].mean() > 0.03 and velocity[:, 1].abs().mean() < 0.03, velocity.mean(0)
 
 
+def _conditioned_discriminator_config(**condition) -> AMPConfig:
+    """A small discriminator on 4-frame windows, learning fast, conditioned as told (label or phase)."""
+    return AMPConfig(
+        sequence_length=4,
+        hidden_dims=[32, 32],
+        batch_size=256,
+        updates_per_iteration=1,
+        grad_penalty=0.1,
+        learning_rate=1e-3,
+        **condition,
+    )
+
+
 def _train_against_the_wrong_conditions(
     prior: MotionPrior, windows: torch.Tensor, wrong: torch.Tensor, steps: int = 300
 ) -> None:
@@ -428,15 +435,7 @@ def test_a_discriminator_conditioned_on_labels_tells_a_motion_under_its_own_labe
     assert reference.labels.tolist() == [0] * 27 + [1] * 27
     outputs = {}
     for conditioned in (True, False):
-        cfg = AMPConfig(
-            sequence_length=4,
-            hidden_dims=[32, 32],
-            batch_size=256,
-            updates_per_iteration=1,
-            grad_penalty=0.1,
-            learning_rate=1e-3,
-            condition_on_label=conditioned,
-        )
+        cfg = _conditioned_discriminator_config(condition_on_label=conditioned)
         prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
         everything = torch.arange(reference.num_windows)
         swapped = 1 - reference.labels[everything]
@@ -520,15 +519,7 @@ def test_a_discriminator_conditioned_on_the_phase_tells_a_follow_through_from_a_
     after = np.arange(60) >= 30
     reference = ReferenceMotion(frames, [0], [60], 4, frame_after_hit=after)
     rising = reference.phases == 0
-    cfg = AMPConfig(
-        sequence_length=4,
-        hidden_dims=[32, 32],
-        batch_size=256,
-        updates_per_iteration=1,
-        grad_penalty=0.1,
-        learning_rate=1e-3,
-        condition_on_phase=True,
-    )
+    cfg = _conditioned_discriminator_config(condition_on_phase=True)
     prior = MotionPrior(cfg, reference, frame_size=2, num_envs=1, device='cpu', seed=0)
     everything = torch.arange(reference.num_windows)
     straddling = (everything + 3 >= 30) & (everything < 30)  # windows that hold both phases' frames

@@ -25,14 +25,7 @@ def toy_config(**ppo) -> TrainConfig:
     return config_from_dict(
         {
             'policy': {'actor_hidden_dims': [64, 64], 'critic_hidden_dims': [64, 64], 'init_noise_std': 0.5},
-            'ppo': {
-                'num_steps_per_env': 16,
-                'num_mini_batches': 2,
-                'num_learning_epochs': 4,
-                'learning_rate': 3e-3,
-                'entropy_coef': 0.005,
-                **ppo,
-            },
+            'ppo': {**ppo_toy_task.TOY_PPO, **ppo},
             'runner': {'seed': 0, 'save_interval': 1000},
         }
     )
