@@ -4,7 +4,7 @@ SHELL := /bin/bash
 ROOT := $(CURDIR)
 # Sourcing the workspace is all a command needs: the venv underlay comes with it.
 WS := set +u; source $(ROOT)/ros2_ws/install/setup.bash;
-# Tests marked slow (over 10 s each on a 2-core machine) run in .ci/run, which clears this.
+# Tests marked slow (over about 7 s each on a 2-core machine) run in .ci/run, which clears this.
 PYTEST_ARGS ?= -m 'not slow'
 
 # lint needs only the virtual environment (make setup made it), not the built workspace.

@@ -125,6 +125,7 @@ def test_train_rejects_an_evaluation_seed(tmp_path, ros_env):
     assert result.returncode == 2 and 'evaluation range' in result.stderr
 
 
+@pytest.mark.slow  # over 7 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_ctrl_c_saves_a_checkpoint_and_exports(tmp_path, ros_env):
     run_dir = tmp_path / 'run'
     train = NodeProcess(

@@ -109,6 +109,7 @@ def _mean_joint_speed(windows: torch.Tensor) -> torch.Tensor:
     return windows[..., windows.shape[-1] // 2 :].norm(dim=-1).mean(dim=1)
 
 
+@pytest.mark.slow  # over 7 s on the 2-core machine: .ci/run runs it, `make test` skips it
 @pytest.mark.parametrize('negative', ['shuffled', 'slowed'])
 def test_the_discriminator_separates_reference_windows_from_shuffled_or_slowed_ones(tmp_path, negative):
     """LSGAN training against windows whose frames are shuffled among the demonstrations (every pose is
@@ -357,6 +358,7 @@ def test_a_free_follow_through_needs_the_env_s_phase(tmp_path):
         runner.learn(1, progress_bar=False)
 
 
+@pytest.mark.slow  # over 7 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_style_reward_rises_as_the_policy_imitates_a_clip_on_the_toy_task(tmp_path):
     """AMP alone (no task reward) on the toy task, the reference a steady motion at 0.06 per step along
     +x: the style reward per step rises and the policy ends up moving like the clip."""

@@ -51,6 +51,7 @@ def written(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # over 7 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_markdown_has_every_table_with_the_papers_figures_beside_ours(written):
     text = (written / 'README.md').read_text()
     for heading in (
