@@ -43,6 +43,8 @@ UR_JOINT_SPEED_LIMIT_RAD_S = math.radians(180.0)
 SERVO_RATE_RANGE_HZ = (10.0, 1000.0)
 LOOKAHEAD_RANGE_S = (0.03, 0.2)  # URScript servoj
 GAIN_RANGE = (100.0, 3000.0)  # URScript says 100-2000; the driver's xacro accepts up to 3000
+# Each ServojSettings field's allowed (low, high).
+SETTING_RANGES = {'servo_rate_hz': SERVO_RATE_RANGE_HZ, 'lookahead_s': LOOKAHEAD_RANGE_S, 'gain': GAIN_RANGE}
 
 
 @dataclass(frozen=True)
@@ -54,11 +56,7 @@ class ServojSettings:
     gain: float = 2000.0
 
     def __post_init__(self):
-        for name, (low, high) in (
-            ('servo_rate_hz', SERVO_RATE_RANGE_HZ),
-            ('lookahead_s', LOOKAHEAD_RANGE_S),
-            ('gain', GAIN_RANGE),
-        ):
+        for name, (low, high) in SETTING_RANGES.items():
             value = getattr(self, name)
             if not (math.isfinite(value) and low <= value <= high):
                 raise ValueError(f'{name} must be within [{low}, {high}], got {value}')

@@ -60,6 +60,7 @@ changed at run time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -106,6 +107,34 @@ _SENSING_FLOATS = (
     'ft_torque_noise_std_nm',
 )
 
+
+def _servoj_param(name: str, description: str) -> Param:
+    """The ServojSettings field `name` as a parameter: its default, bounded by ur_servoj.SETTING_RANGES."""
+    low, high = ur_servoj.SETTING_RANGES[name]
+    return Param(name, getattr(ur_servoj.ServojSettings, name), description, low=low, high=high)
+
+
+# The tracker's scalar parameters, one per TrackerConfig field in the dataclass's order (the camera pose
+# follows them): name, description, low, high. Their defaults are TrackerConfig's.
+_TRACKER_SCALARS = (
+    ('ball_detection_rate_hz', '/ball/detection rate (tracker frames)', 1.0, MAX_RATE_HZ),
+    ('ball_detection_latency_s', 'Tracker: exposure to message', 0.0, 1.0),
+    ('ball_detection_latency_jitter_s', 'Tracker: latency varies uniformly by this much either way', 0.0, 1.0),
+    ('ball_detection_noise_std_m', 'Tracker: position noise (std, per axis)', 0.0, 1.0),
+    ('ball_detection_dropout_probability', 'Tracker: probability a frame shows no ball', 0.0, 0.99),
+    ('ball_detection_outlier_probability', 'Tracker: probability a frame adds a false detection', 0.0, 0.99),
+)
+
+
+def _tracker_scalar_params() -> tuple[Param, ...]:
+    """The rows of _TRACKER_SCALARS as parameters, each with the default of its TrackerConfig field."""
+    fields = dataclasses.fields(TrackerConfig)[: len(_TRACKER_SCALARS)]
+    return tuple(
+        Param(name, field.default, description, low=low, high=high)
+        for field, (name, description, low, high) in zip(fields, _TRACKER_SCALARS, strict=True)
+    )
+
+
 REAL_TIME_FACTOR = Param(
     'real_time_factor',
     1.0,
@@ -129,27 +158,9 @@ PARAMETERS = (
         "Command -> joint reference: ideal (world_spec's servo) or ur_servoj (UR)",
         choices=ur_servoj.ACTUATORS,
     ),
-    Param(
-        'servo_rate_hz',
-        ur_servoj.ServojSettings.servo_rate_hz,
-        'ur_servoj: controller rate (CB3 125, e-Series 500)',
-        low=ur_servoj.SERVO_RATE_RANGE_HZ[0],
-        high=ur_servoj.SERVO_RATE_RANGE_HZ[1],
-    ),
-    Param(
-        'lookahead_s',
-        ur_servoj.ServojSettings.lookahead_s,
-        'ur_servoj: servoj look-ahead time',
-        low=ur_servoj.LOOKAHEAD_RANGE_S[0],
-        high=ur_servoj.LOOKAHEAD_RANGE_S[1],
-    ),
-    Param(
-        'gain',
-        ur_servoj.ServojSettings.gain,
-        'ur_servoj: servoj proportional gain',
-        low=ur_servoj.GAIN_RANGE[0],
-        high=ur_servoj.GAIN_RANGE[1],
-    ),
+    _servoj_param('servo_rate_hz', 'ur_servoj: controller rate (CB3 125, e-Series 500)'),
+    _servoj_param('lookahead_s', 'ur_servoj: servoj look-ahead time'),
+    _servoj_param('gain', 'ur_servoj: servoj proportional gain'),
     Param('max_lag_s', 0.25, 'Largest backlog (sim s) caught up after a stall', low=0.001, high=10.0),
     Param(
         'home_joint_positions_rad',
@@ -164,30 +175,7 @@ PARAMETERS = (
     Param('tf_rate_hz', 100.0, '/tf rate (the joint transforms, as robot_state_publisher)', low=1.0, high=MAX_RATE_HZ),
     Param('marker_rate_hz', 30.0, '/cell/markers rate (table, net, ball)', low=1.0, high=MAX_RATE_HZ),
     Param('hand_wrench_timeout_s', 0.1, 'A hand wrench is dropped this long after it arrived', low=0.001, high=10.0),
-    Param(
-        'ball_detection_rate_hz',
-        TrackerConfig.rate_hz,
-        '/ball/detection rate (tracker frames)',
-        low=1.0,
-        high=MAX_RATE_HZ,
-    ),
-    Param('ball_detection_latency_s', 0.0, 'Tracker: exposure to message', low=0.0, high=1.0),
-    Param(
-        'ball_detection_latency_jitter_s',
-        0.0,
-        'Tracker: latency varies uniformly by this much either way',
-        low=0.0,
-        high=1.0,
-    ),
-    Param('ball_detection_noise_std_m', 0.0, 'Tracker: position noise (std, per axis)', low=0.0, high=1.0),
-    Param('ball_detection_dropout_probability', 0.0, 'Tracker: probability a frame shows no ball', low=0.0, high=0.99),
-    Param(
-        'ball_detection_outlier_probability',
-        0.0,
-        'Tracker: probability a frame adds a false detection',
-        low=0.0,
-        high=0.99,
-    ),
+    *_tracker_scalar_params(),
     Param('ball_camera_xyz_m', list(TrackerConfig.camera_xyz_m), 'ball_camera frame: origin in world', length=3),
     Param(
         'ball_camera_rpy_rad',
@@ -266,12 +254,7 @@ class Ur5SimNode(Node):
             raise ParameterError(str(error)) from error
         try:
             tracker = TrackerConfig(
-                value['ball_detection_rate_hz'],
-                value['ball_detection_latency_s'],
-                value['ball_detection_latency_jitter_s'],
-                value['ball_detection_noise_std_m'],
-                value['ball_detection_dropout_probability'],
-                value['ball_detection_outlier_probability'],
+                *(value[name] for name, *_ in _TRACKER_SCALARS),
                 tuple(value['ball_camera_xyz_m']),
                 tuple(value['ball_camera_rpy_rad']),
             )
