@@ -213,13 +213,9 @@ class _DiscoveryInfoReader:
                 ('avoid_ros_namespace_conventions', ctypes.c_bool),
             ]
 
-        class Allocator(ctypes.Structure):  # rcutils/allocator.h, rcutils_allocator_t
+        class Allocator(ctypes.Structure):  # rcutils/allocator.h, rcutils_allocator_t: four functions and a state
             _fields_ = [
-                ('allocate', ctypes.c_void_p),
-                ('deallocate', ctypes.c_void_p),
-                ('reallocate', ctypes.c_void_p),
-                ('zero_allocate', ctypes.c_void_p),
-                ('state', ctypes.c_void_p),
+                (name, ctypes.c_void_p) for name in ('allocate', 'deallocate', 'reallocate', 'zero_allocate', 'state')
             ]
 
         class SerializedMessage(ctypes.Structure):  # rcutils/types/uint8_array.h, rmw_serialized_message_t
@@ -425,12 +421,27 @@ def _resolve(topic: str) -> str:
     return topic if topic.startswith('/') else '/' + topic
 
 
+def _parser_with_list_verb(prog: str, listed: str):
+    """A parser for `prog` with verbs (parser, its subparsers, the `list` verb's): `list` of the graph's `listed`.
+
+    As ros2cli's, `list` takes -t/--show-types; the caller adds the other verbs.
+    """
+    parser = argparse.ArgumentParser(prog=prog)
+    sub = parser.add_subparsers(dest='verb', required=True)
+    p_list = sub.add_parser('list', help=f'Output a list of available {listed}')
+    p_list.add_argument('-t', '--show-types', action='store_true')
+    return parser, sub, p_list
+
+
+def _print_names_and_types(names_and_types, show_types: bool) -> None:
+    """A line a name, sorted, as `ros2 topic list` and `ros2 service list` print them (`name [types]` with -t)."""
+    for name, types in sorted(names_and_types):
+        print(f'{name} [{", ".join(types)}]' if show_types else name)
+
+
 def cmd_topic(argv: list) -> int:
     """ros2 topic list | echo | hz | info | pub."""
-    parser = argparse.ArgumentParser(prog='ros2 topic')
-    sub = parser.add_subparsers(dest='verb', required=True)
-    p_list = sub.add_parser('list', help='Output a list of available topics')
-    p_list.add_argument('-t', '--show-types', action='store_true')
+    parser, sub, p_list = _parser_with_list_verb('ros2 topic', 'topics')
     p_echo = sub.add_parser('echo', help='Output messages from a topic')
     p_echo.add_argument('topic_name')
     p_echo.add_argument('message_type', nargs='?')
@@ -461,8 +472,7 @@ def cmd_topic(argv: list) -> int:
     try:
         if args.verb == 'list':
             _wait_for_graph(node, args.spin_time)
-            for name, types in sorted(node.get_topic_names_and_types()):
-                print(f'{name} [{", ".join(types)}]' if args.show_types else name)
+            _print_names_and_types(node.get_topic_names_and_types(), args.show_types)
             return 0
         topic = _resolve(args.topic_name)
         if args.verb == 'info':
@@ -850,10 +860,7 @@ def _field_value(current, type_name: str, value, stamp_fields):
 
 def cmd_service(argv: list) -> int:
     """ros2 service list | call."""
-    parser = argparse.ArgumentParser(prog='ros2 service')
-    sub = parser.add_subparsers(dest='verb', required=True)
-    p_list = sub.add_parser('list', help='Output a list of available services')
-    p_list.add_argument('-t', '--show-types', action='store_true')
+    parser, sub, p_list = _parser_with_list_verb('ros2 service', 'services')
     p_call = sub.add_parser('call', help='Call a service')
     p_call.add_argument('service_name')
     p_call.add_argument('service_type', help="e.g. 'std_srvs/srv/Trigger'")
@@ -865,10 +872,8 @@ def cmd_service(argv: list) -> int:
         if args.verb == 'list':
             _wait_for_graph(node, args.spin_time)
             own = f'/{node.get_name()}/'
-            for name, types in sorted(node.get_service_names_and_types()):
-                if name.startswith(own):
-                    continue
-                print(f'{name} [{", ".join(types)}]' if args.show_types else name)
+            others = [(name, types) for name, types in node.get_service_names_and_types() if not name.startswith(own)]
+            _print_names_and_types(others, args.show_types)
             return 0
         import yaml
 
