@@ -138,24 +138,15 @@ def _add_ball(spec: mujoco.MjSpec) -> None:
 
 
 def _add_looks(spec: mujoco.MjSpec) -> None:
-    spec.add_texture(
-        name='sky',
-        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
-        builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
-        width=64,
-        height=64,
-        rgb1=[0.55, 0.6, 0.68],
-        rgb2=[0.12, 0.13, 0.16],
-    )
-    spec.add_texture(
-        name='floor_grid',
-        type=mujoco.mjtTexture.mjTEXTURE_2D,
-        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-        width=256,
-        height=256,
-        rgb1=[0.32, 0.32, 0.34],
-        rgb2=[0.27, 0.27, 0.29],
-    )
+    kind, pattern = mujoco.mjtTexture, mujoco.mjtBuiltin
+    # Square built-in textures: name, kind, pattern, side (pixels), its two colours.
+    for name, texture_type, builtin, side_px, rgb1, rgb2 in (
+        ('sky', kind.mjTEXTURE_SKYBOX, pattern.mjBUILTIN_GRADIENT, 64, [0.55, 0.6, 0.68], [0.12, 0.13, 0.16]),
+        ('floor_grid', kind.mjTEXTURE_2D, pattern.mjBUILTIN_CHECKER, 256, [0.32, 0.32, 0.34], [0.27, 0.27, 0.29]),
+    ):
+        spec.add_texture(
+            name=name, type=texture_type, builtin=builtin, width=side_px, height=side_px, rgb1=rgb1, rgb2=rgb2
+        )
     material = spec.add_material(name='floor_grid', texrepeat=[8.0, 8.0])
     material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = 'floor_grid'
     spec.worldbody.add_geom(
