@@ -469,29 +469,28 @@ def load_named_actor(name: str, path: pathlib.Path, folder: pathlib.Path):
 # Command line
 
 
+def _add_named_paths_option(parser: argparse.ArgumentParser, flag: str, metavar: str, help_text: str) -> None:
+    """A required option given one or more times as NAME=PATH (parse_named), listed in args.<flag>s."""
+    parser.add_argument(
+        flag,
+        dest=f'{flag.removeprefix("--")}s',
+        action='append',
+        type=parse_named,
+        required=True,
+        metavar=metavar,
+        help=f'{help_text} (repeat)',
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line of style_confusion."""
     from stylepong_sim.world_spec import EVALUATION_BALLS_PER_SEED, EVALUATION_SEEDS, FIRST_EVALUATION_SEED
 
     parser = argparse.ArgumentParser(prog='style_confusion', description=__doc__.split('\n\n')[0])
-    parser.add_argument(
-        '--actor',
-        dest='actors',
-        action='append',
-        type=parse_named,
-        required=True,
-        metavar='NAME=ACTOR.pt',
-        help='an exported actor, or a training checkpoint such as models/skills/NAME.pt (repeat)',
+    _add_named_paths_option(
+        parser, '--actor', 'NAME=ACTOR.pt', 'an exported actor, or a training checkpoint such as models/skills/NAME.pt'
     )
-    parser.add_argument(
-        '--set',
-        dest='sets',
-        action='append',
-        type=parse_named,
-        required=True,
-        metavar='NAME=BAGS_DIR_OR_DATASET',
-        help='a demonstration set (repeat)',
-    )
+    _add_named_paths_option(parser, '--set', 'NAME=BAGS_DIR_OR_DATASET', 'a demonstration set')
     parser.add_argument(
         '--baseline',
         required=True,
