@@ -45,32 +45,16 @@ def confusion(tmp_path_factory):
     folder = tmp_path_factory.mktemp('confusion')
     synthetic = write_reference(folder / 'synthetic.npz')
     forward = write_reference(folder / 'forward.npz', labels=('forward',))
-    argv = [
-        '--actor',
-        f'shipped={MODELS / "amp_actor.pt"}',
-        '--actor',
-        f'ppo={MODELS / "ppo_actor.pt"}',
-        '--actor',
-        f'forward={MODELS / "amp_actor_checkpoint.pt"}',
-        '--set',
-        f'shipped={SHIPPED_BAGS}',
-        '--set',
-        f'synthetic={synthetic}',
-        '--set',
-        f'forward={forward}',
-        '--baseline',
-        str(MODELS / 'ppo_actor.pt'),
-        '--seeds',
-        '1',
-        '--first-seed',
-        str(SEED),
-        '--balls',
-        str(BALLS),
-        '--num-threads',
-        '1',
-        '--out',
-        str(folder / 'out'),
-    ]
+    actors = {
+        'shipped': MODELS / 'amp_actor.pt',
+        'ppo': MODELS / 'ppo_actor.pt',
+        'forward': MODELS / 'amp_actor_checkpoint.pt',
+    }
+    sets = {'shipped': SHIPPED_BAGS, 'synthetic': synthetic, 'forward': forward}
+    argv = [word for name, path in actors.items() for word in ('--actor', f'{name}={path}')]
+    argv += [word for name, path in sets.items() for word in ('--set', f'{name}={path}')]
+    argv += ['--baseline', str(MODELS / 'ppo_actor.pt'), '--seeds', '1', '--first-seed', str(SEED)]
+    argv += ['--balls', str(BALLS), '--num-threads', '1', '--out', str(folder / 'out')]
     assert style_confusion.run(argv) == 0
     return folder, json.loads((folder / 'out' / style_confusion.JSON_NAME).read_text())
 
