@@ -7,17 +7,26 @@ import pytest
 from stylepong_sim.cells.tracker import BallTracker, TrackerConfig, camera_to_world, world_to_camera
 
 BALL = np.array([-0.5, 0.2, 1.0])
+PERFECT = TrackerConfig()
+# Every imperfection at once: a jittered latency, position noise, lost frames and false detections.
+IMPERFECT = TrackerConfig(
+    latency_s=0.02,
+    latency_jitter_s=0.005,
+    position_noise_std_m=0.003,
+    dropout_probability=0.1,
+    outlier_probability=0.05,
+)
 
 
 def test_camera_and_world_frames_are_inverse_and_the_camera_looks_at_the_table():
-    config = TrackerConfig()
+    config = PERFECT
     np.testing.assert_allclose(camera_to_world(config, world_to_camera(config, BALL)), BALL, atol=1e-12)
     centre = world_to_camera(config, (0.0, 0.0, 0.76))
     assert centre[0] > 2.0 and np.hypot(centre[1], centre[2]) < 0.3 * centre[0]  # x is the line of sight
 
 
 def test_a_perfect_tracker_reports_the_ball_at_once_in_its_frame():
-    config = TrackerConfig()
+    config = PERFECT
     tracker = BallTracker(config, np.random.default_rng(0))
     tracker.expose(1.0, BALL)
     (detection,) = tracker.delivered(1.0)
@@ -28,13 +37,7 @@ def test_a_perfect_tracker_reports_the_ball_at_once_in_its_frame():
 
 
 def test_latency_noise_losses_and_false_detections_at_their_rates():
-    config = TrackerConfig(
-        latency_s=0.02,
-        latency_jitter_s=0.005,
-        position_noise_std_m=0.003,
-        dropout_probability=0.1,
-        outlier_probability=0.05,
-    )
+    config = IMPERFECT
     tracker = BallTracker(config, np.random.default_rng(1))
     frames = 6000
     delivered = []

@@ -18,6 +18,29 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def check_nonnegative(name: str, value: float) -> None:
+    """ValueError naming the setting `name` unless `value` is finite and >= 0."""
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f'{name} must be finite and >= 0, got {value}')
+
+
+def check_probability(name: str, value: float) -> None:
+    """ValueError naming the setting `name` unless `value` is a probability below 1 (something must get through)."""
+    if not 0.0 <= value < 1.0:
+        raise ValueError(f'{name} must be in [0, 1), got {value}')
+
+
+def check_finite_xyz(name: str, value: tuple[float, float, float]) -> None:
+    """ValueError naming the setting `name` unless `value` is 3 finite numbers."""
+    if len(value) != 3 or not all(math.isfinite(v) for v in value):
+        raise ValueError(f'{name} needs 3 finite values, got {list(value)}')
+
+
+def happens(rng: np.random.Generator, probability: float) -> bool:
+    """True with `probability`; at 0 it draws nothing from rng, so a perfect sensor leaves the stream as it was."""
+    return probability > 0.0 and rng.random() < probability
+
+
 @dataclass(frozen=True)
 class SensingConfig:
     """Sensor imperfections: ball camera noise, latency and dropout; F/T noise and bias; the seed."""
@@ -40,15 +63,10 @@ class SensingConfig:
             'ft_force_noise_std_n',
             'ft_torque_noise_std_nm',
         ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'{name} must be finite and >= 0, got {value}')
-        if not 0.0 <= self.ball_dropout_probability < 1.0:
-            raise ValueError(f'ball_dropout_probability must be in [0, 1), got {self.ball_dropout_probability}')
+            check_nonnegative(name, getattr(self, name))
+        check_probability('ball_dropout_probability', self.ball_dropout_probability)
         for name in ('ft_force_bias_n', 'ft_torque_bias_nm'):
-            value = getattr(self, name)
-            if len(value) != 3 or not all(math.isfinite(v) for v in value):
-                raise ValueError(f'{name} needs 3 finite values, got {list(value)}')
+            check_finite_xyz(name, getattr(self, name))
 
 
 @dataclass(frozen=True)
@@ -70,7 +88,7 @@ class BallCamera:
 
     def observe(self, time_s: float, position_m: np.ndarray, velocity_m_s: np.ndarray) -> None:
         c = self._config
-        if c.ball_dropout_probability > 0.0 and self._rng.random() < c.ball_dropout_probability:
+        if happens(self._rng, c.ball_dropout_probability):
             return
         position = np.array(position_m, dtype=float)
         velocity = np.array(velocity_m_s, dtype=float)

@@ -20,8 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from stylepong_description.robot_state import quaternion_from_rpy, rotate
+from stylepong_sim.cells.sensing import check_finite_xyz, check_nonnegative, check_probability, happens
 
 FRAME_CAMERA = 'ball_camera'
+# Table-tennis trackers run their cameras at 120-200 Hz; 150 Hz is no multiple of the player's 60 Hz
+# (config/tracker_sensing.yaml says where each figure comes from).
+FRAME_RATE_HZ = 150.0
 # Beside the table (to the robot's right), 2.5 m up, pitched down towards the table's centre and turned to
 # face it: a stereo rig's usual place, clear of the arm and of the ball's flight.
 CAMERA_XYZ_M = (0.0, -2.2, 2.6)
@@ -35,7 +39,7 @@ OUTLIER_BOX_M = ((-3.0, 3.0), (-2.0, 2.0), (0.0, 2.0))
 class TrackerConfig:
     """A tracker's rate and imperfections, and the pose of its camera frame in world."""
 
-    rate_hz: float = 150.0
+    rate_hz: float = FRAME_RATE_HZ
     latency_s: float = 0.0
     latency_jitter_s: float = 0.0
     position_noise_std_m: float = 0.0
@@ -48,22 +52,16 @@ class TrackerConfig:
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0.0):
             raise ValueError(f'ball_detection_rate_hz must be positive, got {self.rate_hz}')
         for name in ('latency_s', 'latency_jitter_s', 'position_noise_std_m'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'ball_detection_{name} must be finite and >= 0, got {value}')
+            check_nonnegative(f'ball_detection_{name}', getattr(self, name))
         if self.latency_jitter_s > self.latency_s:
             raise ValueError(
                 f'ball_detection_latency_jitter_s ({self.latency_jitter_s}) must not exceed '
                 f'ball_detection_latency_s ({self.latency_s})'
             )
         for name in ('dropout_probability', 'outlier_probability'):
-            value = getattr(self, name)
-            if not 0.0 <= value < 1.0:
-                raise ValueError(f'ball_detection_{name} must be in [0, 1), got {value}')
+            check_probability(f'ball_detection_{name}', getattr(self, name))
         for name in ('camera_xyz_m', 'camera_rpy_rad'):
-            value = getattr(self, name)
-            if len(value) != 3 or not all(math.isfinite(v) for v in value):
-                raise ValueError(f'ball_{name} needs 3 finite values, got {list(value)}')
+            check_finite_xyz(f'ball_{name}', getattr(self, name))
 
     @property
     def camera_rotation_xyzw(self) -> np.ndarray:
@@ -98,12 +96,12 @@ class BallTracker:
     def expose(self, time_s: float, ball_position_m: np.ndarray | None) -> None:
         """One frame at time_s, of the ball at ball_position_m (None: no ball in the cell)."""
         c = self.config
-        if c.outlier_probability > 0.0 and self._rng.random() < c.outlier_probability:
+        if happens(self._rng, c.outlier_probability):
             low, high = np.array(OUTLIER_BOX_M).T
             self._queue(time_s, self._rng.uniform(low, high))
         if ball_position_m is None:
             return
-        if c.dropout_probability > 0.0 and self._rng.random() < c.dropout_probability:
+        if happens(self._rng, c.dropout_probability):
             return
         position = np.array(ball_position_m, dtype=float)
         if c.position_noise_std_m > 0.0:
