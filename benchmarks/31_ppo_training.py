@@ -12,12 +12,16 @@ import os
 import sys
 import tempfile
 import time
+from typing import TYPE_CHECKING
 
 os.environ.setdefault('OMP_WAIT_POLICY', 'PASSIVE')  # as `train` does (see train.py), before torch loads
 
 import torch
 
 from stylepong_common import markdown
+
+if TYPE_CHECKING:
+    from stylepong_policy.rl.config import PPOConfig
 
 NUM_ENVS = int(os.environ.get('BENCH_PPO_NUM_ENVS', 4096))
 WARMUP_ITERATIONS = 1
@@ -26,29 +30,21 @@ NETWORKS = ([512, 256, 128], [256, 128, 64])
 SHARES = ('world_share', 'policy_share', 'learn_share')  # the table's columns of measure_throughput's shares
 
 
-def measure(hidden_dims: list[int]) -> dict[str, float]:
+def measure(hidden_dims: list[int]) -> tuple[dict[str, float], PPOConfig]:
+    """measure_throughput's figures for these hidden sizes, and the PPO settings they were trained with."""
     from stylepong_policy.rl.config import load_config
-    from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
-    from stylepong_policy.rl.throughput import measure_throughput
-    from stylepong_policy.training import task
+    from stylepong_policy.rl.runner import OnPolicyRunner
+    from stylepong_policy.rl.throughput import benchmark_env, measure_throughput
     from stylepong_policy.training.train import default_config_path
 
     cfg = load_config(default_config_path())
     cfg.policy.actor_hidden_dims = list(hidden_dims)
     cfg.policy.critic_hidden_dims = list(hidden_dims)
-    cfg.task['num_envs'] = NUM_ENVS
-    cfg.runner.save_interval = 10**6
-    seed_everything(1)
-    env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
+    env = benchmark_env(cfg, NUM_ENVS)
     with tempfile.TemporaryDirectory() as run_dir:
         runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False)
         throughput = measure_throughput(runner, WARMUP_ITERATIONS, MEASURED_ITERATIONS)
-    return {
-        **throughput,
-        'steps': cfg.ppo.num_steps_per_env,
-        'epochs': cfg.ppo.num_learning_epochs,
-        'minibatches': cfg.ppo.num_mini_batches,
-    }
+    return throughput, cfg.ppo
 
 
 def main() -> int:
@@ -57,15 +53,16 @@ def main() -> int:
     rows = []
     for dims in NETWORKS:
         started = time.perf_counter()
-        rows.append((dims, measure(dims), time.perf_counter() - started))
-    first = rows[0][1]
+        throughput, ppo = measure(dims)
+        rows.append((dims, throughput, time.perf_counter() - started))
     print('## PPO training throughput (end to end)\n')
     print(
         '`benchmarks/31_ppo_training.py`: the runner on `stylepong_policy.training.task.make_env` '
         f'with N = {NUM_ENVS} environments on the CPU (torch {torch.__version__}, 2 threads), the shipped '
         '`config/ppo.yaml` '
-        f'({first["steps"]} steps per env per iteration, {first["epochs"]} epochs x {first["minibatches"]} '
-        f'minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of {MEASURED_ITERATIONS}. '
+        f'({ppo.num_steps_per_env} steps per env per iteration, {ppo.num_learning_epochs} epochs x '
+        f'{ppo.num_mini_batches} minibatches); {WARMUP_ITERATIONS} warm-up iteration, then the mean of '
+        f'{MEASURED_ITERATIONS}. '
         f'Samples = policy steps x environments. Actor and critic have the same hidden sizes. '
         f'Load average before the run: {load_before:.1f} (other work on the 2 cores slows every figure).\n'
     )

@@ -31,16 +31,12 @@ SHARES = ('world_share', 'policy_share', 'learn_share', 'style_share')  # the ta
 
 def measure(run_dir: pathlib.Path) -> dict[str, float]:
     from stylepong_policy.rl.config import load_config
-    from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
-    from stylepong_policy.rl.throughput import measure_throughput
-    from stylepong_policy.training import task
+    from stylepong_policy.rl.runner import OnPolicyRunner
+    from stylepong_policy.rl.throughput import benchmark_env, measure_throughput
     from stylepong_policy.training.train import default_config_path, make_motion_prior
 
     cfg = load_config(default_config_path('amp'))
-    cfg.task['num_envs'] = NUM_ENVS
-    cfg.runner.save_interval = 10**6
-    seed_everything(1)
-    env = task.make_env(task.TaskConfig(**cfg.task), 'cpu', 1)
+    env = benchmark_env(cfg, NUM_ENVS)
     prior, _ = make_motion_prior(cfg, env, run_dir, torch.device('cpu'))
     runner = OnPolicyRunner(env, cfg, run_dir, tensorboard=False, motion_prior=prior)
     return {

@@ -8,8 +8,17 @@ allocations, lazy imports), then the mean over the measured ones of the runner's
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-from stylepong_policy.rl.runner import OnPolicyRunner
+from stylepong_policy.rl.runner import OnPolicyRunner, seed_everything
+
+if TYPE_CHECKING:
+    from stylepong_policy.rl.config import TrainConfig
+    from stylepong_policy.training.task import TableTennisEnv
+
+BENCHMARK_SEED = 1
+# A save interval no benchmark reaches: the runner writes no checkpoint while it is timed.
+NO_CHECKPOINT_ITERATIONS = 10**6
 
 # The runner's timed parts of an iteration (style_s: the discriminator's, zero without a motion prior).
 PARTS = ('world_s', 'policy_s', 'learn_s', 'style_s')
@@ -35,3 +44,14 @@ def measure_throughput(
         'iteration_s': wall_s / measured_iterations,
         **shares,
     }
+
+
+def benchmark_env(cfg: TrainConfig, num_envs: int) -> TableTennisEnv:
+    """The training world of `cfg` with num_envs environments on the CPU, as the benchmarks time it: every
+    generator seeded with BENCHMARK_SEED, and cfg set to match (num_envs, no checkpoint during the run)."""
+    from stylepong_policy.training import task
+
+    cfg.task['num_envs'] = num_envs
+    cfg.runner.save_interval = NO_CHECKPOINT_ITERATIONS
+    seed_everything(BENCHMARK_SEED)
+    return task.make_env(task.TaskConfig(**cfg.task), 'cpu', BENCHMARK_SEED)
