@@ -23,6 +23,7 @@ import sys
 import tempfile
 import time
 
+from stylepong_common import markdown
 from stylepong_common.node_process import (
     free_port,
     isolated_ros_env,
@@ -134,24 +135,20 @@ def main() -> int:
         "of one core over the measured window, the viewer process's (mean of both runs) and the graph's "
         '(ur5_sim + drag_teach, ur5_sim + player).\n'
     )
-    print(
-        '| round | viewer | drag_teach cycles | missed ticks | missed % | player steps | player jitter p99 | '
-        'viewer CPU | graph CPU (drag_teach / player) | load (1 min) |'
-    )
-    print('|---|---|---|---|---|---|---|---|---|---|')
+    header = ['round', 'viewer', 'drag_teach cycles', 'missed ticks', 'missed %', 'player steps']
+    header += ['player jitter p99', 'viewer CPU', 'graph CPU (drag_teach / player)', 'load (1 min)']
+    print('\n'.join(markdown.table(header, [])))
     for round_number in range(1, ROUNDS + 1):
         for label, options in VARIANTS:
             drag = graph_run('drag_teach', options)
             player = graph_run('player', options)
             missed_pct = 100.0 * drag['missed'] / max(1, drag['cycles'] + drag['missed'])
             cpu = None if options is None else (drag['viewer_cpu'] + player['viewer_cpu']) / 2.0
-            print(
-                f'| {round_number} | {label} | {drag["cycles"]} | {drag["missed"]} | {missed_pct:.2f} % | '
-                f'{player["steps"]} | {player["jitter_p99_ms"]} ms | {_cpu_text(cpu)} | '
-                f'{_cpu_text(drag["graph_cpu"])} / {_cpu_text(player["graph_cpu"])} | '
-                f'{(drag["load"] + player["load"]) / 2.0:.2f} |',
-                flush=True,
-            )
+            graph_cpu = f'{_cpu_text(drag["graph_cpu"])} / {_cpu_text(player["graph_cpu"])}'
+            cells = [round_number, label, drag['cycles'], drag['missed'], f'{missed_pct:.2f} %', player['steps']]
+            cells += [f'{player["jitter_p99_ms"]} ms', _cpu_text(cpu), graph_cpu]
+            cells += [f'{(drag["load"] + player["load"]) / 2.0:.2f}']
+            print(markdown.row([str(cell) for cell in cells]), flush=True)
     return 0
 
 

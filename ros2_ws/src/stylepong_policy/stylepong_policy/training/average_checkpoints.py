@@ -111,11 +111,8 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as err:
         print(f'average_checkpoints: {err}', file=sys.stderr)
         return 2
-    print(
-        f'average_checkpoints: {len(iterations)} checkpoints (iterations {iterations[0]}-{iterations[-1]}) '
-        f'averaged into {path}',
-        flush=True,
-    )
+    span = f'iterations {iterations[0]}-{iterations[-1]}'
+    print(f'average_checkpoints: {len(iterations)} checkpoints ({span}) averaged into {path}', flush=True)
     return 0
 
 
