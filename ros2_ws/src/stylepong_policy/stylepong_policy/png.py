@@ -16,6 +16,7 @@ import pathlib
 import numpy as np
 
 PALETTE_COLOURS = 256
+CHART_DPI = 110  # the charts of the reports
 
 
 def palettised(image):
@@ -77,6 +78,27 @@ def save_figure(figure, path: str | os.PathLike, dpi: float) -> pathlib.Path:
     buffer.seek(0)
     with Image.open(buffer) as image:
         return write_png(image, path)
+
+
+def headless_pyplot():
+    """matplotlib.pyplot on the Agg backend: charts are drawn where there is no display."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_chart(
+    figure, path: str | os.PathLike, layout_rect: tuple[float, float, float, float] | None = None
+) -> pathlib.Path:
+    """A report's chart: `figure` laid out tightly (within layout_rect, fractions of the figure: left, bottom,
+    right, top; None: all of it), saved as a small PNG at CHART_DPI (save_figure) and closed."""
+    figure.tight_layout(rect=layout_rect)
+    saved = save_figure(figure, path, dpi=CHART_DPI)
+    headless_pyplot().close(figure)
+    return saved
 
 
 def shrink(path: str | os.PathLike) -> pathlib.Path:

@@ -19,23 +19,6 @@ PAPER_COLOUR = '#9aa5b1'
 OURS_COLOUR = '#1f6fb2'
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use('Agg')  # headless
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(figure, path: str | os.PathLike) -> pathlib.Path:
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    png.save_figure(figure, path, dpi=110)
-    _pyplot().close(figure)
-    return path
-
-
 def _paired_bars(
     ax,
     labels: Sequence[str],
@@ -81,14 +64,13 @@ def success_chart(
     setting: str,
 ) -> pathlib.Path:
     """Success rates (fractions) of several methods or speed bands, paper beside ours."""
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     figure, ax = plt.subplots(figsize=(max(5.5, 1.4 * len(labels) + 2), 4.2))
     _paired_bars(ax, labels, paper, ours, ours_std)
     ax.set_ylabel('success rate (%)')
     ax.set_ylim(0, 105)
     ax.set_title(f'{title}\n{setting}', fontsize=9)
-    figure.tight_layout()
-    return _save(figure, path)
+    return png.save_chart(figure, path)
 
 
 def dtw_chart(
@@ -99,7 +81,7 @@ def dtw_chart(
     setting: str,
 ) -> pathlib.Path:
     """Left: the ratio amp/ppo of DTW per direction (comparable across conventions); right: our DTW."""
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
     _paired_bars(left, DIRECTIONS, paper_ratio, ours_ratio, percent=False)
     left.set_ylabel('DTW amp / DTW ppo')
@@ -114,8 +96,7 @@ def dtw_chart(
     right.set_title('our DTW per direction', fontsize=9)
     right.legend(fontsize=8)
     figure.suptitle(setting, fontsize=9)
-    figure.tight_layout()
-    return _save(figure, path)
+    return png.save_chart(figure, path)
 
 
 def smoothness_chart(
@@ -123,7 +104,7 @@ def smoothness_chart(
 ) -> pathlib.Path:
     """Three panels (peak speed, peak acceleration, mean |jerk|), bars per actor and direction; the
     demonstrations' values as ticks."""
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     measures = (
         ('peak_joint_speed_rad_s', 'peak joint speed (rad/s)'),
         ('peak_joint_acceleration_rad_s2', 'peak joint acceleration (rad/s²)'),
@@ -143,5 +124,4 @@ def smoothness_chart(
     handles, labels = axes[0].get_legend_handles_labels()
     figure.legend(handles, labels, loc='lower center', ncol=len(labels), fontsize=8)
     figure.suptitle(setting, fontsize=9)
-    figure.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(figure, path)
+    return png.save_chart(figure, path, layout_rect=(0, 0.07, 1, 1))

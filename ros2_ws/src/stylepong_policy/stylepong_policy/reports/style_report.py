@@ -163,21 +163,6 @@ def setting_text(summary: dict) -> str:
 # Charts
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use('Agg')  # headless
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(figure, path: pathlib.Path) -> pathlib.Path:
-    png.save_figure(figure, path, dpi=110)
-    _pyplot().close(figure)
-    return path
-
-
 def _grouped_bars(ax, groups: Sequence[str], series: Mapping[str, Sequence[float | None]], digits: int) -> None:
     """Bars of each series side by side in every group, each labelled with its value (a missing one: n/a)."""
     x = np.arange(len(groups))
@@ -194,7 +179,7 @@ def _grouped_bars(ax, groups: Sequence[str], series: Mapping[str, Sequence[float
 
 def success_chart(path: pathlib.Path, results: Mapping[str, ActorResults]) -> pathlib.Path:
     """Success rate (%) of each actor at all speeds and at high speeds."""
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     figure, ax = plt.subplots(figsize=(7, 4.2))
     series = {
         ACTOR_TITLES[name]: [
@@ -207,8 +192,7 @@ def success_chart(path: pathlib.Path, results: Mapping[str, ActorResults]) -> pa
     ax.set_ylabel('balls returned (%)')
     ax.set_ylim(0, 110)
     ax.set_title(f'Success\n{setting_text(results["style"].all_speeds)}', fontsize=8)
-    figure.tight_layout()
-    return _save(figure, path)
+    return png.save_chart(figure, path)
 
 
 def dtw_chart(
@@ -218,7 +202,7 @@ def dtw_chart(
     setting: str,
 ) -> pathlib.Path:
     """Left: mean DTW per direction of each actor; right: the ratios."""
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     columns = [*DIRECTIONS, OVERALL]
     figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.4))
     _grouped_bars(left, columns, {ACTOR_TITLES[a]: [distances[a][c] for c in columns] for a in distances}, digits=1)
@@ -229,8 +213,7 @@ def dtw_chart(
     right.set_ylabel('ratio of mean DTW distances')
     right.set_title('ratios (below 1: the first nearer the demonstrations)', fontsize=9)
     figure.suptitle(setting, fontsize=8)
-    figure.tight_layout()
-    return _save(figure, path)
+    return png.save_chart(figure, path)
 
 
 def joints_chart(
@@ -240,7 +223,7 @@ def joints_chart(
     from stylepong_description.robot_model import JOINT_NAMES
     from stylepong_policy.training.dataset import hit_frame
 
-    plt = _pyplot()
+    plt = png.headless_pyplot()
     figure, axes = plt.subplots(2, 3, figsize=(12, 5.5), sharex=True)
     stroke_q = stroke.joint_positions_rad
     stroke_hit = stroke.hit_frame if stroke.hit_frame != NO_FRAME else len(stroke_q) - 1
@@ -258,8 +241,7 @@ def joints_chart(
     axes[1][0].set_ylabel('rad')
     axes[0][0].legend(fontsize=7)
     figure.suptitle(title, fontsize=8)
-    figure.tight_layout()
-    return _save(figure, path)
+    return png.save_chart(figure, path)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -489,39 +471,20 @@ def run_section(timings_s: Mapping[str, float], checkpoints) -> list[str]:
 # ---------------------------------------------------------------------------------------------------
 
 
-def write_report(
-    run_dir: str | os.PathLike,
-    *,
-    dataset_path: str | os.PathLike,
-    timings_s: Mapping[str, float],
-    checkpoints,
-    notes: Sequence[str] = (),
-    render_strips: bool = True,
-    strip_directions: Sequence[str] | None = None,
-) -> pathlib.Path:
+def write_report(run_dir: str | os.PathLike, *, dataset_path: str | os.PathLike, **options) -> pathlib.Path:
     """Write RUN/report.md, report.json and the PNGs from RUN/EVAL_DIR's files (module docstring).
 
-    timings_s: wall time of each stage, in order; checkpoints: what was chosen (any JSON-able value);
-    notes: lines printed under the title (e.g. how labels without clips were handled); strip_directions:
-    the directions that get a strip and joint chart (None: every demonstrated one; each takes a few
-    seconds to draw); render_strips=False draws the joint charts alone. Returns the
-    report's path; ValueError naming a missing or DTW-less evaluation file."""
+    write_report_of with the evaluations read from RUN and the dataset from dataset_path; `options` are
+    write_report_of's keywords after `source` (timings_s and checkpoints required, notes, render_strips,
+    strip_directions). Returns the report's path; ValueError naming a missing or DTW-less evaluation file."""
     from stylepong_policy.training.dataset import ReferenceDataset
 
     run_dir = pathlib.Path(run_dir)
     results = {name: load_actor_results(run_dir, name, high_required=name == 'style') for name in ACTORS}
-    return write_report_of(
-        run_dir,
-        results,
-        ReferenceDataset.load(dataset_path),
-        dataset_name=pathlib.Path(dataset_path).name,
-        source=f'stylepong_policy.reports.style_report from `{EVAL_DIR}/`',
-        timings_s=timings_s,
-        checkpoints=checkpoints,
-        notes=notes,
-        render_strips=render_strips,
-        strip_directions=strip_directions,
-    )
+    dataset_name = pathlib.Path(dataset_path).name
+    source = f'stylepong_policy.reports.style_report from `{EVAL_DIR}/`'
+    dataset = ReferenceDataset.load(dataset_path)
+    return write_report_of(run_dir, results, dataset, dataset_name=dataset_name, source=source, **options)
 
 
 def write_report_of(
@@ -540,8 +503,12 @@ def write_report_of(
     """write_report from evaluations already in hand: `results` for each of ACTORS (an ActorResults whose
     all-speeds summary has DTW against `dataset`; high_speeds may be None for every actor), written to
     OUT/report.md, report.json and the PNGs. dataset_name: how the report names the demonstrations;
-    source: what wrote the report (after 'by' in its first line). style_confusion calls this with the
-    evaluations it ran, so that a report costs no evaluation of its own."""
+    source: what wrote the report (after 'by' in its first line); timings_s: wall time of each stage, in
+    order; checkpoints: what was chosen (any JSON-able value); notes: lines printed under the title (e.g.
+    how labels without clips were handled); strip_directions: the directions that get a strip and joint
+    chart (None: every demonstrated one; each takes a few seconds to draw); render_strips=False draws the
+    joint charts alone. Returns the report's path. style_confusion calls this with the evaluations it ran,
+    so that a report costs no evaluation of its own."""
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rate_hz = results['style'].rate_hz
