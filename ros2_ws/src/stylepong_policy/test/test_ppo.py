@@ -9,6 +9,7 @@ import torch
 from torch.distributions import Normal, kl_divergence
 
 from stylepong_policy.rl.config import TrainConfig, config_from_dict, load_config, save_config
+from stylepong_policy.rl.env import StepSizes
 from stylepong_policy.rl.networks import ActorCritic, fit_value_streams
 from stylepong_policy.rl.normalizer import RunningNormalizer
 from stylepong_policy.rl.ppo import PPO, gaussian_kl
@@ -53,7 +54,7 @@ def test_normalizer_clips_outliers():
 
 def _storage_with(rewards, dones, values):
     T, N = rewards.shape
-    storage = RolloutStorage(T, N, 1, 1, 1, 'cpu')
+    storage = RolloutStorage(T, N, StepSizes(1, 1, 1), 'cpu')
     for t in range(T):
         zeros = torch.zeros(N, 1)
         storage.add(zeros, zeros, zeros, rewards[t], dones[t], values[t], torch.zeros(N), zeros, zeros + 1)
@@ -89,7 +90,7 @@ def test_value_streams_each_estimate_their_own_advantage_with_their_own_ends_and
     """Two streams on one environment: the second ends after step 0 where the episode goes on, so its reward
     at step 1 does not reach step 0; the first bootstraps through. The advantage is the streams' sum."""
     gamma = 0.9
-    storage = RolloutStorage(2, 1, 1, 1, 1, 'cpu', value_streams=2)
+    storage = RolloutStorage(2, 1, StepSizes(1, 1, 1), 'cpu', value_streams=2)
     rewards = torch.tensor([[[1.0, 0.0]], [[0.0, 5.0]]])
     dones = torch.tensor([[[0.0, 1.0]], [[0.0, 0.0]]])
     values = torch.tensor([[[0.5, 0.0]], [[0.2, 3.0]]])
@@ -105,7 +106,7 @@ def test_value_streams_each_estimate_their_own_advantage_with_their_own_ends_and
 
 
 def test_an_episode_end_ends_every_value_stream():
-    storage = RolloutStorage(1, 3, 1, 1, 1, 'cpu', value_streams=2)
+    storage = RolloutStorage(1, 3, StepSizes(1, 1, 1), 'cpu', value_streams=2)
     zeros = torch.zeros(3, 1)
     storage.add(
         zeros,
@@ -160,7 +161,7 @@ def test_gaussian_kl_matches_torch():
 def _filled_storage(ac: ActorCritic, ppo: PPO, shift_mean: float = 0.0) -> RolloutStorage:
     """One-step episodes whose reward is a smooth function of the critic's input (so V can fit it)."""
     T, N = 4, 32
-    storage = RolloutStorage(T, N, ac.num_obs, ac.num_critic_obs, ac.num_actions, 'cpu')
+    storage = RolloutStorage(T, N, StepSizes.of(ac), 'cpu')
     with torch.inference_mode():
         for _ in range(T):
             critic_obs = torch.randn(N, ac.num_critic_obs)

@@ -46,7 +46,7 @@ the pose prior's follow-through (amp.pose_follows_through) needs it.
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import torch
 
@@ -59,6 +59,19 @@ EXTRAS_STYLE_LABEL = 'style_label'
 EXTRAS_STYLE_PHASE = 'style_phase'
 EXTRAS_STYLE_TIME = 'style_time_s'
 EXTRAS_STYLE_STROKE_END = 'style_stroke_end'
+
+
+class StepSizes(NamedTuple):
+    """The widths of one step's records: the actor's observation, the critic's and the action."""
+
+    num_obs: int
+    num_critic_obs: int
+    num_actions: int
+
+    @classmethod
+    def of(cls, source: Any) -> StepSizes:
+        """The sizes of a VecEnv, an ActorCritic or anything else with the three attributes."""
+        return cls(int(source.num_obs), int(source.num_critic_obs), int(source.num_actions))
 
 
 class VecEnv(Protocol):

@@ -9,14 +9,27 @@ used); `fit_value_streams` carries a critic over from a network with another num
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import torch
 from torch import nn
 from torch.distributions import Normal
 
+from .env import StepSizes
 from .normalizer import RunningNormalizer
 
+if TYPE_CHECKING:
+    from .config import PolicyConfig
+
+# The settings of rl.config.PolicyConfig that are ActorCritic's own (keep_skill_std is the runner's).
+NETWORK_SETTINGS = (
+    'actor_hidden_dims',
+    'critic_hidden_dims',
+    'activation',
+    'init_noise_std',
+    'min_std',
+    'normalize_observations',
+)
 ACTIVATIONS = {'elu': nn.ELU, 'relu': nn.ReLU, 'tanh': nn.Tanh, 'selu': nn.SELU, 'leaky_relu': nn.LeakyReLU}
 
 
@@ -81,6 +94,11 @@ class ActorCritic(nn.Module):
         self.normalize_observations = bool(normalize_observations)
         self.obs_normalizer = RunningNormalizer(num_obs)
         self.critic_obs_normalizer = RunningNormalizer(num_critic_obs)
+
+    @classmethod
+    def from_config(cls, sizes: StepSizes, policy: PolicyConfig, value_streams: int = 1) -> ActorCritic:
+        """The networks `policy` describes (its NETWORK_SETTINGS) for steps of `sizes`."""
+        return cls(*sizes, **{name: getattr(policy, name) for name in NETWORK_SETTINGS}, value_streams=value_streams)
 
     def normalize(self, obs: torch.Tensor, critic_obs: torch.Tensor, update: bool) -> tuple[torch.Tensor, torch.Tensor]:
         """Normalised inputs for actor and critic; update=True folds this batch into the statistics first."""

@@ -199,33 +199,15 @@ class OnPolicyRunner:
         self.device = torch.device(env.device)
         self.tensorboard = tensorboard
         self.motion_prior = motion_prior
-        p = cfg.policy
         amp = cfg.amp
         # amp.free_follow_through: a second value stream for the motion terms after the touch (MotionPrior.mix).
         self.free_follow_through = motion_prior is not None and amp is not None and amp.free_follow_through
         streams = 2 if self.free_follow_through else 1
-        self.actor_critic = ActorCritic(
-            env.num_obs,
-            env.num_critic_obs,
-            env.num_actions,
-            actor_hidden_dims=p.actor_hidden_dims,
-            critic_hidden_dims=p.critic_hidden_dims,
-            activation=p.activation,
-            init_noise_std=p.init_noise_std,
-            min_std=p.min_std,
-            normalize_observations=p.normalize_observations,
-            value_streams=streams,
-        ).to(self.device)
+        sizes = env_contract.StepSizes.of(env)
+        self.actor_critic = ActorCritic.from_config(sizes, cfg.policy, value_streams=streams).to(self.device)
         self.alg = PPO(self.actor_critic, cfg.ppo)
-        self.storage = RolloutStorage(
-            cfg.ppo.num_steps_per_env,
-            env.num_envs,
-            env.num_obs,
-            env.num_critic_obs,
-            env.num_actions,
-            self.device,
-            value_streams=streams,
-        )
+        steps = cfg.ppo.num_steps_per_env
+        self.storage = RolloutStorage(steps, env.num_envs, sizes, self.device, value_streams=streams)
         # Whether each environment's ball has touched the paddle before the coming step (free follow-through).
         self.touched = torch.zeros(env.num_envs, dtype=torch.bool, device=self.device)
         self.shuffle = torch.Generator()

@@ -13,6 +13,8 @@ from typing import Iterator
 
 import torch
 
+from .env import StepSizes
+
 
 @dataclass
 class Minibatch:
@@ -33,15 +35,9 @@ class RolloutStorage:
     """Fixed-size buffers filled step by step during a rollout, then consumed by the PPO update."""
 
     def __init__(
-        self,
-        num_steps: int,
-        num_envs: int,
-        num_obs: int,
-        num_critic_obs: int,
-        num_actions: int,
-        device: torch.device | str,
-        value_streams: int = 1,
+        self, num_steps: int, num_envs: int, sizes: StepSizes, device: torch.device | str, value_streams: int = 1
     ):
+        """num_steps x num_envs steps, each an actor and a critic observation and an action of `sizes`."""
         if value_streams < 1:
             raise ValueError(f'value_streams must be at least 1, got {value_streams}')
         self.num_steps, self.num_envs = int(num_steps), int(num_envs)
@@ -52,15 +48,15 @@ class RolloutStorage:
         def buffer(*shape, dtype=torch.float32):
             return torch.zeros(self.num_steps, self.num_envs, *shape, dtype=dtype, device=self.device)
 
-        self.obs = buffer(num_obs)
-        self.critic_obs = buffer(num_critic_obs)
-        self.actions = buffer(num_actions)
+        self.obs = buffer(sizes.num_obs)
+        self.critic_obs = buffer(sizes.num_critic_obs)
+        self.actions = buffer(sizes.num_actions)
         self.rewards = buffer(*stream)
         self.dones = buffer(*stream)
         self.values = buffer(*stream)
         self.log_probs = buffer()
-        self.mean = buffer(num_actions)
-        self.std = buffer(num_actions)
+        self.mean = buffer(sizes.num_actions)
+        self.std = buffer(sizes.num_actions)
         self.returns = buffer(*stream)
         self.advantages = buffer()  # summed over the streams
         self.step = 0
