@@ -16,7 +16,6 @@ run it again after either tool and the shipped files follow.
 
 from __future__ import annotations
 
-import argparse
 import json
 import lzma
 import pathlib
@@ -25,6 +24,7 @@ import sys
 
 from stylepong_policy import png
 from stylepong_policy.paths import MODELS, REPOSITORY
+from stylepong_policy.shipping import shipping_parser
 
 # The run's file -> the shipped one's name after <name>_: the training log is the largest file shipped
 # (over 1 MB plain), so it is kept compressed: xz keeps a third of it (gzip two fifths).
@@ -131,15 +131,8 @@ def ship_run(run: pathlib.Path, name: str, models: pathlib.Path = MODELS, evalua
 
 def main(argv: list[str] | None = None) -> int:
     """Command line of ship_run."""
-    parser = argparse.ArgumentParser(prog='ship_run', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--run', required=True, type=pathlib.Path)
-    parser.add_argument('--name', required=True, help="amp, amp_noaug, ppo: the shipped files' prefix")
-    parser.add_argument(
-        '--models-dir',
-        type=pathlib.Path,
-        default=MODELS,
-        help='the models folder of the checkout (default: %(default)s)',
-    )
+    name_help = "amp, amp_noaug, ppo: the shipped files' prefix"
+    parser = shipping_parser('ship_run', __doc__.split('\n\n')[0], None, name_help)
     parser.add_argument('--no-evaluate', action='store_true', help='copy only; skip the evaluations')
     args = parser.parse_args(argv)
     try:

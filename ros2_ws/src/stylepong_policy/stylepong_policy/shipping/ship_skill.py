@@ -13,14 +13,13 @@ that differs from config/amp.yaml. Needs the workspace built (make setup). Nothi
 
 from __future__ import annotations
 
-import argparse
 import json
 import pathlib
 import sys
 
 import torch
 
-from stylepong_policy.paths import MODELS
+from stylepong_policy.shipping import shipping_parser
 
 # Values every learn_style run sets for itself: not a difference of recipe.
 RUN_OWN_KEYS = ('amp.dataset', 'runner.progress_bar', 'runner.device')
@@ -98,15 +97,8 @@ def ship_skill(run: pathlib.Path, name: str, models: pathlib.Path) -> list[pathl
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: ship the run's network; exit code 2 with one line when the run is not a finished one."""
-    parser = argparse.ArgumentParser(prog='ship_skill', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--run', required=True, type=pathlib.Path, help='a finished learn_style run directory')
-    parser.add_argument('--name', required=True, help="the skill's name in the library (a file stem)")
-    parser.add_argument(
-        '--models-dir',
-        type=pathlib.Path,
-        default=MODELS,
-        help='the models folder of the checkout (default: %(default)s)',
-    )
+    run_help, name_help = 'a finished learn_style run directory', "the skill's name in the library (a file stem)"
+    parser = shipping_parser('ship_skill', __doc__.split('\n\n')[0], run_help, name_help)
     args = parser.parse_args(argv)
     try:
         for path in ship_skill(args.run, args.name, args.models_dir):
