@@ -518,14 +518,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help=f'wall-time budget of the whole command (default {DEFAULT_MINUTES:g})',
     )
     parser.add_argument('--device', choices=('cpu', 'cuda'), default=None, help='torch device (default: cpu)')
-    parser.add_argument(
-        '--from',
-        dest='start_from',
-        type=pathlib.Path,
-        metavar='ACTOR',
-        help='the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
-        '(default: the nearest skill of the library, validated against the demonstrations)',
+    skill_help = (
+        'the skill to start from: a learn_style RUN, its actor.pt, or a training checkpoint '
+        '(default: the nearest skill of the library, validated against the demonstrations)'
     )
+    parser.add_argument('--from', dest='start_from', type=pathlib.Path, metavar='ACTOR', help=skill_help)
     parser.add_argument('--resume', action='store_true', help='continue the run in --out from its last stage')
     return parser.parse_args(argv)
 
