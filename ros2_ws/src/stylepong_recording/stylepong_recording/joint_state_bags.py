@@ -32,6 +32,7 @@ DRIVER_JOINTS = (
 )
 GRIPPER_JOINT = 'robotiq_85_left_knuckle_joint'
 EPOCH_NS = 1_763_700_000_000_000_000  # a date in 2025, as a real recording would carry
+DRIVER_RATE_HZ = 125.0  # write_driver_bag's header stamps, as the driver recordings it imitates
 
 Motion = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
@@ -73,6 +74,18 @@ class Swing:
 def wrap_to_pi(angle_rad: np.ndarray) -> np.ndarray:
     """[-pi, pi), as a driver that reports a continuous joint modulo one turn."""
     return (np.asarray(angle_rad) + math.pi) % (2 * math.pi) - math.pi
+
+
+def sample_times_s(duration_s: float, rate_hz: float) -> np.ndarray:
+    """A recording's sample instants from 0: every 1/rate_hz up to duration_s, both ends included."""
+    return np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
+
+
+def _storage_plugin(storage: str):
+    """rosbags' storage plugin called `storage` ('mcap' or 'sqlite3')."""
+    from rosbags.rosbag2.enums import StoragePlugin
+
+    return {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
 
 
 def jazzy_typestore():
@@ -127,13 +140,12 @@ def write_recorder_bag(
     raw_messages(index, cdr) may replace a message's bytes (to plant a corrupt one).
     """
     from rosbags.rosbag2 import Writer
-    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
     store = jazzy_typestore()
-    plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
-    times_s = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
+    times_s = sample_times_s(duration_s, rate_hz)
     q, qd = motion(times_s)
-    writer = Writer(bag_dir, version=9, storage_plugin=plugin)
+    writer = Writer(bag_dir, version=9, storage_plugin=_storage_plugin(storage))
     if compression:
         writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
     with writer:
@@ -159,11 +171,9 @@ def write_raw_bag(
 ) -> None:
     """A bag (rosbags Writer) holding exactly these (receive_ns, serialized bytes) messages per topic."""
     from rosbags.rosbag2 import Writer
-    from rosbags.rosbag2.enums import StoragePlugin
 
     store = jazzy_typestore()
-    plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
-    with Writer(bag_dir, version=9, storage_plugin=plugin) as writer:
+    with Writer(bag_dir, version=9, storage_plugin=_storage_plugin(storage)) as writer:
         if label is not None:
             writer.set_custom_data('label', label)
         for topic, messages in topics.items():
@@ -223,7 +233,7 @@ def write_driver_bag(
     motion: Motion,
     duration_s: float,
     *,
-    rate_hz: float = 125.0,
+    rate_hz: float = DRIVER_RATE_HZ,
     label: str | None = 'forward',
     seed: int = 0,
     qos_in_mcap: bool = True,
@@ -242,7 +252,7 @@ def write_driver_bag(
     rng = np.random.default_rng(seed)
     bag_dir.mkdir(parents=True)
     file_name = f'{bag_dir.name}_0.mcap'
-    stamps_ns = EPOCH_NS + np.round(np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz * 1e9).astype(np.int64)
+    stamps_ns = EPOCH_NS + np.round(sample_times_s(duration_s, rate_hz) * 1e9).astype(np.int64)
     # Receive times: stamp plus a bursty transport delay that keeps the order (0.05 - 6 ms).
     receive_ns = stamps_ns + (rng.uniform(0.05, 6.0, len(stamps_ns)) * 1e6).astype(np.int64)
     receive_ns = np.maximum.accumulate(receive_ns)
