@@ -6,6 +6,7 @@ when it published which; then it reads the bag back with rosbags and with the mc
 readers and compares stamps.
 """
 
+import contextlib
 import random
 import shutil
 import signal
@@ -150,13 +151,23 @@ def start_recorder(output_dir: Path, **params) -> NodeProcess:
     return NodeProcess('stylepong_recording', 'recorder', params={'output_dir': str(output_dir), **params}).start()
 
 
+@contextlib.contextmanager
+def recording_clip(harness: Harness, output_dir: Path, storage: str, label: str):
+    """A recorder writing `storage` bags into output_dir, joint states flowing and a clip `label` started (the
+    start checked): yields (recorder, publisher, the clip's bag directory, monotonic start); the recorder is
+    stopped on the way out."""
+    recorder = start_recorder(output_dir, storage=storage)
+    try:
+        publisher, response, started_s = harness.begin_clip(recorder, label)
+        assert response.success, response.message
+        yield recorder, publisher, Path(response.bag_path), started_s
+    finally:
+        recorder.stop()
+
+
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path, storage):
-    recorder = start_recorder(tmp_path / 'bags', storage=storage)
-    try:
-        publisher, response, started_s = harness.begin_clip(recorder, 'forward')
-        assert response.success, response.message
-        bag_dir = Path(response.bag_path)
+    with recording_clip(harness, tmp_path / 'bags', storage, 'forward') as (recorder, publisher, bag_dir, started_s):
         assert bag_dir.parent == tmp_path / 'bags' and bag_dir.name.startswith('forward_')
         time.sleep(3.0)
         stopping_s = time.monotonic()
@@ -164,8 +175,6 @@ def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path
         publisher.stop()
         assert stopped.success, stopped.message
         assert recorder.running(), recorder.output()
-    finally:
-        recorder.stop()
 
     published = publisher.stamps_between(started_s, stopping_s)
     assert len(published) > 0.8 * 3.0 * RATE_HZ, 'the test publisher itself fell behind'
@@ -192,19 +201,13 @@ def test_a_clip_holds_the_published_joint_states_and_its_label(harness, tmp_path
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_after_sigkill_recover_bag_gives_every_joint_state_up_to_0_1_s_before_the_kill(harness, tmp_path, storage):
-    recorder = start_recorder(tmp_path / 'bags', storage=storage)
-    try:
-        publisher, response, started_s = harness.begin_clip(recorder, 'leftward')
-        assert response.success, response.message
+    with recording_clip(harness, tmp_path / 'bags', storage, 'leftward') as (recorder, publisher, bag_dir, started_s):
         # The kill lands anywhere in the recorder's 0.1 s flush cycle (a fixed 3 s would always hit one phase).
         time.sleep(3.0 + random.uniform(0.0, FLUSH_PERIOD_S))
         killed_s = time.monotonic()
         recorder.signal(signal.SIGKILL)
         recorder.process.wait(10.0)
         publisher.stop()
-    finally:
-        recorder.stop()
-    bag_dir = Path(response.bag_path)
     assert not (bag_dir / 'metadata.yaml').exists()  # the kill really left an unfinished bag
 
     result = subprocess.run(
