@@ -140,6 +140,11 @@ def test_run_prefix_goes_in_front(fake_package):
     process.wait(10)
 
 
+def ros2(*words: str, timeout_s: float = 30.0) -> subprocess.CompletedProcess:
+    """`ros2 WORDS...` run to its end, its output captured as text."""
+    return subprocess.run(['ros2', *words], capture_output=True, text=True, timeout=timeout_s)
+
+
 @contextlib.contextmanager
 def spinning_node(name: str):
     """A node of this process spinning in a thread (its own context) while the `ros2` command runs."""
@@ -182,12 +187,10 @@ def talker():
 
 @pytest.mark.slow  # over 10 s on the 2-core machine: .ci/run runs it, `make test` skips it
 def test_topic_list_echo_hz(talker):
-    listing = subprocess.run(['ros2', 'topic', 'list', '-t'], capture_output=True, text=True, timeout=30).stdout
+    listing = ros2('topic', 'list', '-t').stdout
     assert '/test/ball [stylepong_msgs/msg/BallState]' in listing.splitlines()
 
-    echo = subprocess.run(
-        ['ros2', 'topic', 'echo', '/test/ball', '--once'], capture_output=True, text=True, timeout=30
-    ).stdout
+    echo = ros2('topic', 'echo', '/test/ball', '--once').stdout
     assert re.search(
         r'^header:\n  stamp:\n    sec: 0\n    nanosec: 0\n  frame_id: world\nposition:\n  x: -0\.5\n', echo
     ), echo
@@ -231,11 +234,9 @@ def trigger_server():
 
 
 def test_service_list_and_call(trigger_server):
-    listing = subprocess.run(['ros2', 'service', 'list', '-t'], capture_output=True, text=True, timeout=30).stdout
+    listing = ros2('service', 'list', '-t').stdout
     assert '/test/trigger [std_srvs/srv/Trigger]' in listing.splitlines()
-    out = subprocess.run(
-        ['ros2', 'service', 'call', '/test/trigger', 'std_srvs/srv/Trigger'], capture_output=True, text=True, timeout=30
-    ).stdout
+    out = ros2('service', 'call', '/test/trigger', 'std_srvs/srv/Trigger').stdout
     assert 'requester: making request: std_srvs.srv.Trigger_Request()' in out
     assert "response:\nstd_srvs.srv.Trigger_Response(success=True, message='call 1')" in out
     assert len(trigger_server) == 1
@@ -262,12 +263,7 @@ def _wait_for(predicate, timeout_s: float = 5.0) -> bool:
 
 def test_topic_pub_once_enables_like_ros2cli(listener):
     # The command README gives for enabling the player, on a topic of the test's own.
-    result = subprocess.run(
-        ['ros2', 'topic', 'pub', '--once', '/test/enable', 'std_msgs/msg/Bool', '{data: true}'],
-        capture_output=True,
-        text=True,
-        timeout=30,
-    )
+    result = ros2('topic', 'pub', '--once', '/test/enable', 'std_msgs/msg/Bool', '{data: true}')
     assert result.returncode == 0, result.stderr
     assert 'publishing #1: std_msgs.msg.Bool(data=True)' in result.stdout
     # --once waits for the subscription before publishing, so the one message is not lost.
@@ -278,12 +274,7 @@ def test_topic_pub_once_enables_like_ros2cli(listener):
 
 def test_topic_pub_times_rate_and_nested_fields(listener):
     values = '{layout: {dim: [{label: joints, size: 3, stride: 3}], data_offset: 1}, data: [1, 2.5, -3]}'
-    result = subprocess.run(
-        ['ros2', 'topic', 'pub', '-t', '3', '-r', '20', '/test/array', 'std_msgs/msg/Float64MultiArray', values],
-        capture_output=True,
-        text=True,
-        timeout=30,
-    )
+    result = ros2('topic', 'pub', '-t', '3', '-r', '20', '/test/array', 'std_msgs/msg/Float64MultiArray', values)
     assert result.returncode == 0, result.stderr
     assert result.stdout.count('publishing #') == 3
     assert _wait_for(lambda: len(listener['/test/array']) >= 3)
@@ -305,12 +296,7 @@ def test_topic_pub_times_rate_and_nested_fields(listener):
     ],
 )
 def test_topic_pub_refuses_a_bad_message_before_publishing(values, complaint):
-    result = subprocess.run(
-        ['ros2', 'topic', 'pub', '--once', '/test/never', 'std_msgs/msg/Bool', values],
-        capture_output=True,
-        text=True,
-        timeout=30,
-    )
+    result = ros2('topic', 'pub', '--once', '/test/never', 'std_msgs/msg/Bool', values)
     assert result.returncode != 0
     assert complaint in result.stderr
     assert 'publishing' not in result.stdout
