@@ -260,20 +260,10 @@ class Referee:
         return [event] + verdict
 
     def robot_contact(self, time_s: float, position_m) -> list[RallyEvent]:
-        if not self._open:
-            return []
-        return [
-            self._event(ROBOT_CONTACT, time_s, position_m),
-            self._end(time_s, position_m, False, REASON_ROBOT_CONTACT),
-        ]
+        return self._losing_contact(ROBOT_CONTACT, REASON_ROBOT_CONTACT, time_s, position_m)
 
     def robot_table_contact(self, time_s: float, contact_point_m) -> list[RallyEvent]:
-        if not self._open:
-            return []
-        return [
-            self._event(TABLE_CONTACT_BY_ROBOT, time_s, contact_point_m),
-            self._end(time_s, contact_point_m, False, REASON_TABLE_CONTACT_BY_ROBOT),
-        ]
+        return self._losing_contact(TABLE_CONTACT_BY_ROBOT, REASON_TABLE_CONTACT_BY_ROBOT, time_s, contact_point_m)
 
     def ball_state(self, time_s: float, position_m, velocity_m_s) -> list[RallyEvent]:
         """Called with the ball's state after every physics step: timeout, dead and out balls."""
@@ -288,6 +278,13 @@ class Referee:
                 ended = [self._end(time_s, position_m, False, reason)]
                 return ended if event is None else [self._event(event, time_s, position_m)] + ended
         return []
+
+    def _losing_contact(self, event_type: int, reason: str, time_s: float, position_m) -> list[RallyEvent]:
+        """A contact that loses the rally at once: its event, then the RALLY_END for `reason` (nothing once the
+        rally is over)."""
+        if not self._open:
+            return []
+        return [self._event(event_type, time_s, position_m), self._end(time_s, position_m, False, reason)]
 
     def _first_verdict(self, time_s: float, position_m, verdicts: Verdicts) -> list[RallyEvent]:
         """The RALLY_END of the first verdict that holds (none: the rally goes on)."""
