@@ -23,6 +23,7 @@ def test_the_shipped_actor_scores_its_shipped_figure_on_seed_1000(tmp_path):
     assert shipped['balls_per_seed'] == BALLS and shipped['speed'] == 'all' and not shipped['randomize']
     expected = shipped['per_seed'][shipped['seeds'].index(SEED)]
     out = tmp_path / 'eval.json'
+    balls = f'--seeds 1 --first-seed {SEED} --balls {BALLS}'.split()
     result = subprocess.run(
         [
             'ros2',
@@ -31,12 +32,7 @@ def test_the_shipped_actor_scores_its_shipped_figure_on_seed_1000(tmp_path):
             'evaluate',
             '--actor',
             str(MODELS / 'ppo_actor.pt'),
-            '--seeds',
-            '1',
-            '--first-seed',
-            str(SEED),
-            '--balls',
-            str(BALLS),
+            *balls,
             '--json',
             str(out),
         ],

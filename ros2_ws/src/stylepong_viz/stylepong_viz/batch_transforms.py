@@ -9,6 +9,7 @@ of a batch go through numpy together. The unit tests compare both.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from stylepong_description.robot_state import RobotState
 
@@ -46,14 +47,8 @@ def joint_rotations(state: RobotState, positions: np.ndarray) -> list[np.ndarray
 
 
 def _matrix_from_quaternion(q_xyzw: np.ndarray) -> np.ndarray:
-    x, y, z, w = q_xyzw
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """The rotation matrix of a unit quaternion (x, y, z, w), by Pinocchio."""
+    return pin.Quaternion(np.asarray(q_xyzw, dtype=float)).toRotationMatrix()
 
 
 class LinkPoses:

@@ -471,21 +471,14 @@ class ReferenceDataset:
             def optional(key: str, default) -> np.ndarray:
                 return data[key] if key in data.files else np.asarray([default] * count)
 
-            return cls(
-                t=data['t'],
-                q=data['q'],
-                qd=data['qd'],
-                clip_start=data['clip_start'],
-                clip_length=data['clip_length'],
-                label=data['label'],
-                speed_factor=data['speed_factor'],
-                source=data['source'],
-                original=optional('original', -1),
-                time_source=optional('time_source', ''),
-                velocity_source=optional('velocity_source', ''),
-                rate_hz=float(data['rate_hz']),
-                joint_names=tuple(str(n) for n in data['joint_names']),
-            )
+            arrays = {
+                key: data[key]
+                for key in ('t', 'q', 'qd', 'clip_start', 'clip_length', 'label', 'speed_factor', 'source')
+            }
+            # Written by older versions without these: unknown for every clip.
+            for key, default in (('original', -1), ('time_source', ''), ('velocity_source', '')):
+                arrays[key] = optional(key, default)
+            return cls(**arrays, rate_hz=float(data['rate_hz']), joint_names=tuple(str(n) for n in data['joint_names']))
 
 
 def assemble_dataset(
