@@ -53,83 +53,51 @@ def _default_actor() -> str:
 
 
 _D = core.PlayerConfig()
+
+
+def _configured(name: str, description: str, **bounds) -> Param:
+    """A row of the table whose default is PlayerConfig's field of the same name (a list for a tuple)."""
+    default = getattr(_D, name)
+    return Param(name, list(default) if isinstance(default, tuple) else default, description, **bounds)
+
+
+_FIELD = robot_cell.HALF_LENGTH_M
 PARAMETERS = (
     Param('actor', '', "exported actor, <name>.pt or <name>.onnx ('' = the shipped models/amp_actor.pt)"),
     Param('backend', 'onnx', 'onnx (onnxruntime, no torch) or torchscript', choices=core.BACKENDS),
     Param('start_enabled', False, 'enabled at start-up (else wait for /player/enable true)'),
-    Param(
-        'goal_xy_m',
-        list(_D.goal_xy_m),
-        "goal on the opponent's half until /player/goal says otherwise",
-        length=2,
-        low=-robot_cell.HALF_LENGTH_M,
-        high=robot_cell.HALF_LENGTH_M,
+    _configured(
+        'goal_xy_m', "goal on the opponent's half until /player/goal says otherwise", length=2, low=-_FIELD, high=_FIELD
     ),
-    Param(
-        'position_margin_rad',
-        _D.position_margin_rad,
-        'commands stay this far inside the URDF position limits',
-        low=0.0,
-        high=0.5,
+    _configured('position_margin_rad', 'commands stay this far inside the URDF position limits', low=0.0, high=0.5),
+    _configured(
+        'velocity_limit_scale', "commands move at most this share of the URDF's velocity limits", low=0.05, high=1.0
     ),
-    Param(
-        'velocity_limit_scale',
-        _D.velocity_limit_scale,
-        "commands move at most this fraction of the URDF's velocity limits",
-        low=0.05,
-        high=1.0,
+    _configured(
+        'acceleration_limit_rad_s2', 'command acceleration limits per joint', length=spec.NUM_ACTIONS, low=1.0, high=2e3
     ),
-    Param(
-        'acceleration_limit_rad_s2',
-        list(_D.acceleration_limit_rad_s2),
-        'command acceleration limits per joint',
-        length=spec.NUM_ACTIONS,
-        low=1.0,
-        high=2000.0,
+    _configured('home_speed_rad_s', 'speed of the moves to home (ready)', low=0.05, high=3.0),
+    _configured('home_acceleration_rad_s2', 'acceleration of the moves to home', low=0.1, high=50.0),
+    _configured('home_tolerance_rad', 'at home: every joint this close to it', low=0.001, high=0.5),
+    _configured(
+        'joint_timeout_periods', 'no joint state accepted for this many periods: no commands', low=1.0, high=60.0
     ),
-    Param('home_speed_rad_s', _D.home_speed_rad_s, 'speed of the moves to home (ready)', low=0.05, high=3.0),
-    Param(
-        'home_acceleration_rad_s2', _D.home_acceleration_rad_s2, 'acceleration of the moves to home', low=0.1, high=50.0
-    ),
-    Param('home_tolerance_rad', _D.home_tolerance_rad, 'at home: every joint this close to it', low=0.001, high=0.5),
-    Param(
-        'joint_timeout_periods',
-        _D.joint_timeout_periods,
-        'no accepted joint state for this many periods: no commands',
-        low=1.0,
-        high=60.0,
-    ),
-    Param(
-        'ball_timeout_s',
-        _D.ball_timeout_s,
-        'no accepted ball message for this long: the ball is gone (ready)',
-        low=0.02,
-        high=2.0,
-    ),
-    Param(
-        'max_ball_age_s',
-        _D.max_ball_age_s,
-        'ball messages stamped longer ago than this are rejected',
-        low=0.01,
-        high=2.0,
-    ),
-    Param('max_ball_speed_m_s', _D.max_ball_speed_m_s, 'faster ball messages are rejected', low=1.0, high=100.0),
-    Param(
+    _configured('ball_timeout_s', 'no ball accepted for this long: the ball is gone (ready)', low=0.02, high=2.0),
+    _configured('max_ball_age_s', 'ball messages stamped longer ago than this are rejected', low=0.01, high=2.0),
+    _configured('max_ball_speed_m_s', 'faster ball messages are rejected', low=1.0, high=100.0),
+    _configured(
         'max_ball_velocity_std_m_s',
-        _D.max_ball_velocity_std_m_s,
         'ball states whose velocity is less certain (largest per-axis std of velocity_covariance) are rejected',
         low=0.01,
         high=100.0,
     ),
-    Param(
+    _configured(
         'stream_commands',
-        _D.stream_commands,
         'publish on every joint state the point on the straight path to '
         'the latest command (reached one period after its step); false: one command per 60 Hz period',
     ),
-    Param(
+    _configured(
         'predict_ball',
-        _D.predict_ball,
         "carry the ball forward from its message's stamp to the step "
         '(flight and table bounce) before the actor sees it; false: the ball as the message says',
     ),

@@ -482,21 +482,12 @@ def summarise(
 
 
 def run_evaluation(
-    actor: str | os.PathLike | LoadedActor,
-    *,
-    seeds: int = EVALUATION_SEEDS,
-    first_seed: int = FIRST_EVALUATION_SEED,
-    balls: int = EVALUATION_BALLS_PER_SEED,
-    speed: str = 'all',
-    randomize: bool = False,
-    device: str | torch.device = 'cpu',
-    dtw_dataset: str | os.PathLike | None = None,
+    actor: str | os.PathLike | LoadedActor, *, dtw_dataset: str | os.PathLike | None = None, **protocol
 ) -> dict:
-    """Evaluate an actor (a path to an exported actor, or one loaded with rl.export.load_actor) and return
-    the dict `evaluate` prints. Raises rl.export.ActorMismatchError for an actor that does not fit."""
-    evaluation = evaluate_actor(
-        actor, seeds=seeds, first_seed=first_seed, balls=balls, speed=speed, randomize=randomize, device=device
-    )
+    """Evaluate an actor (a path to an exported actor, or one loaded with rl.export.load_actor) under the
+    protocol's settings (evaluate_actor's keywords: seeds, first_seed, balls, speed, randomize, device, drive)
+    and return the dict `evaluate` prints. Raises rl.export.ActorMismatchError for an actor that does not fit."""
+    evaluation = evaluate_actor(actor, **protocol)
     dataset = load_reference(dtw_dataset) if dtw_dataset is not None else None
     return summarise(evaluation, dataset=dataset, dataset_path=dtw_dataset)
 

@@ -79,6 +79,29 @@ TABLE_TANGENT_OVER_NORMAL = 1.67  # mean |v_t|/|v_n| of the incoming balls at th
 CONTACT_TANGENT_OVER_NORMAL = 0.5  # guessed for blade, net and links
 BALL_SHELL_INERTIA_KG_M2 = 2.0 / 3.0 * world_spec.BALL_MASS_KG * world_spec.BALL_RADIUS_M**2
 SOLVER_ITERATIONS = 50
+# Bullet's solver as the analytic contacts need it: no restitution threshold, slop or error reduction that
+# would bend a bounce, no warm start that would carry one contact's impulse into the next, and the same
+# contact order on every run.
+ENGINE_PARAMETERS = {
+    'numSolverIterations': SOLVER_ITERATIONS,
+    'restitutionVelocityThreshold': 0.0,
+    'warmStartingFactor': 0.0,
+    'useSplitImpulse': 1,
+    'contactSlop': 0.0,
+    'contactERP': 0.0,
+    'frictionERP': 0.0,
+    'enableConeFriction': 0,
+    'deterministicOverlappingPairs': 1,
+}
+# Contact and motion with nothing the analytic models lack: no rolling or spinning friction, no damping,
+# contacts from touching on (no processing margin).
+FREE_CONTACT = {
+    'rollingFriction': 0.0,
+    'spinningFriction': 0.0,
+    'linearDamping': 0.0,
+    'angularDamping': 0.0,
+    'contactProcessingThreshold': 0.0,
+}
 ROTORS_POSITION_M = [0.0, 0.0, -5.0]  # out of the way (the rotors collide with nothing anyway)
 ROTOR_MASS_KG = 1.0  # on the rotor's axis: no gravity torque, only its inertia counts
 GEAR_MAX_TORQUE_NM = 1.0e5  # a rigid gear: far above any joint's effort
@@ -186,17 +209,7 @@ class BulletCell(CellBase):
         p = self._p
         p.setTimeStep(self._dt)
         p.setGravity(0.0, 0.0, -world_spec.GRAVITY_M_S2)
-        p.setPhysicsEngineParameter(
-            numSolverIterations=SOLVER_ITERATIONS,
-            restitutionVelocityThreshold=0.0,
-            warmStartingFactor=0.0,
-            useSplitImpulse=1,
-            contactSlop=0.0,
-            contactERP=0.0,
-            frictionERP=0.0,
-            enableConeFriction=0,
-            deterministicOverlappingPairs=1,
-        )
+        p.setPhysicsEngineParameter(**ENGINE_PARAMETERS)
         half_thickness_m = world_spec.TABLE_THICKNESS_M / 2.0
         self._table = self._static_box(
             (0.0, 0.0, world_spec.TABLE_HEIGHT_M - half_thickness_m),
@@ -284,11 +297,7 @@ class BulletCell(CellBase):
                 link,
                 restitution=surface.restitution,
                 lateralFriction=surface.friction,
-                rollingFriction=0.0,
-                spinningFriction=0.0,
-                linearDamping=0.0,
-                angularDamping=0.0,
-                contactProcessingThreshold=0.0,
+                **FREE_CONTACT,
             )
         return robot, joints, links
 
@@ -354,11 +363,7 @@ class BulletCell(CellBase):
             mass=world_spec.BALL_MASS_KG,
             restitution=1.0,
             lateralFriction=1.0,
-            rollingFriction=0.0,
-            spinningFriction=0.0,
-            linearDamping=0.0,
-            angularDamping=0.0,
-            contactProcessingThreshold=0.0,
+            **FREE_CONTACT,
             localInertiaDiagonal=[BALL_SHELL_INERTIA_KG_M2] * 3,
             ccdSweptSphereRadius=0.9 * world_spec.BALL_RADIUS_M,
         )
