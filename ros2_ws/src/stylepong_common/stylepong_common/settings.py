@@ -62,10 +62,15 @@ def check_ranges(settings: Any, prefix: str = '') -> None:
     """ValueError '<prefix><name> must be ..., got <value>' for the first field of the dataclass instance
     `settings`, in declaration order, whose value its range does not admit."""
     for field in dataclasses.fields(settings):
-        bound = field.metadata.get(_RANGE_KEY)
+        bound = declared_range(field)
         value = getattr(settings, field.name)
         if bound is not None and not bound.admits(value):
             raise ValueError(f'{prefix}{field.name} {bound.text}, got {value!r}')
+
+
+def declared_range(field: dataclasses.Field) -> Range | None:
+    """The range a field made by positive, non_negative, at_least or within declares; None for another field."""
+    return field.metadata.get(_RANGE_KEY)
 
 
 def _field(default: float, bound: Range) -> Any:
