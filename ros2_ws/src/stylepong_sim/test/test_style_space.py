@@ -1,6 +1,10 @@
-"""The space of drawn stroke styles (style_space.py): draws, their checks, the hand-made styles it brackets."""
+"""The space of drawn stroke styles (style_space.py) and tools/drawn_styles.py, which writes and splits them."""
 
 import dataclasses
+import json
+import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -9,6 +13,7 @@ import yaml
 from stylepong_sim.teaching import stroke_styles, style_space
 from stylepong_sim.teaching.teacher import STROKES, SWINGS, StrokePath, sample_variation
 
+ROOT = pathlib.Path(__file__).resolve().parents[4]
 KINEMATICS = stroke_styles.StrokeKinematics()
 HOME_CENTRE = KINEMATICS.kin.pose(KINEMATICS.home_q, KINEMATICS.centre).translation
 # The hand-made sets' tempos (backswing_s, forward_swing_s), from demonstrations/README.md's commands.
@@ -116,3 +121,38 @@ def test_the_split_is_a_seeded_disjoint_shuffle():
     assert sorted(split['tuning'] + split['heldout']) == sorted(names)
     assert (len(split['tuning']), len(split['heldout'])) == (5, 4)
     assert split != style_space.split_tuning_heldout(names, np.random.default_rng(5))
+
+
+def _tool(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(ROOT / 'tools' / 'drawn_styles.py'), *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_generate_writes_checked_style_files_and_records_the_split(tmp_path):
+    result = _tool('generate', '--count', '2', '--seed', '3', '--out', str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    split = json.loads((tmp_path / 'split.json').read_text())
+    assert (split['seed'], split['count'], list(split['styles'])) == (3, 2, ['style_0', 'style_1'])
+    assert sorted(split['tuning'] + split['heldout']) == ['style_0', 'style_1'] and len(split['heldout']) == 1
+    assert split['rejected'] == sum(len(s['rejected_draws']) for s in split['styles'].values())
+    draws = np.random.default_rng([3, 0])  # the tool's stream of draws: the seed gives every style again
+    for name, style in split['styles'].items():
+        for _ in style['rejected_draws']:
+            style_space.draw_style(draws)
+        parameters = style_space.StyleParameters(**style['parameters'])
+        assert parameters == style_space.draw_style(draws)
+        read_back = stroke_styles.load_strokes_file(tmp_path / style['file'])
+        expected = {
+            swing: stroke_styles.shape_from_mapping(entry, swing)
+            for swing, entry in style_space.key_poses(parameters).items()
+        }
+        assert read_back == expected
+
+    record = _tool(
+        'record', '--split', str(tmp_path / 'split.json'), '--which', 'heldout', '--out', str(tmp_path), '--dry-run'
+    )
+    assert record.returncode == 0, record.stderr
+    heldout = split['styles'][split['heldout'][0]]['parameters']
+    assert f'BACKSWING_S={heldout["backswing_s"]:.2f}' in record.stdout and 'JOINT_STATE_RATE_HZ=125.0' in record.stdout
+    assert 'record_demos.sh --out' in record.stdout and ' '.join(style_space.RECORDING_ORDER) in record.stdout
