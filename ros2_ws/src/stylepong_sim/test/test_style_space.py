@@ -129,6 +129,7 @@ def _tool(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow  # 5-11 s on the 2-core machine (draws and checks styles): .ci/run runs it, `make test` skips it
 def test_generate_writes_checked_style_files_and_records_the_split(tmp_path):
     result = _tool('generate', '--count', '2', '--seed', '3', '--out', str(tmp_path))
     assert result.returncode == 0, result.stderr
