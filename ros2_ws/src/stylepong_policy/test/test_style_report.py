@@ -82,6 +82,7 @@ def test_report_holds_success_dtw_ratios_smoothness_strips_and_the_run(run_dir):
     text = path.read_text()
     assert 'Where the distance lies' in text and '| follow-through |' in text
     for heading in (
+        '## Targets',
         '## Success',
         '## DTW to the demonstrations',
         '## The blade at contact',
@@ -154,7 +155,7 @@ def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp
         files = report.eval_files(forward_only, name)
         summary = json.loads(files.all_speeds_json.read_text())
         for d in ('leftward', 'rightward'):
-            summary['dtw'][d].update(mean_rad=None, reference_clips=0)
+            summary['dtw'][d].update(mean_rad=None, sum_by_phase_rad=None, reference_clips=0)
         summary['dtw']['forward']['reference_clips'] = len(keep)
         files.all_speeds_json.write_text(json.dumps(summary))
     dataset.with_clips(keep).save(forward_only / 'forward.npz')
@@ -169,6 +170,27 @@ def test_a_direction_without_demonstrations_has_no_dtw_and_no_strip(run_dir, tmp
     assert all(entry['strip'] is None and 'turned off' in entry['strip_missing'] for entry in record['strips'])
     forward_dtw = json.loads(report.eval_files(forward_only, 'style').all_speeds_json.read_text())['dtw']['forward']
     assert record['dtw_rad']['style'][report.OVERALL] == forward_dtw['mean_rad']
+    # The targets, near the top: the shipped actor stands in for the new one, so it misses the ratio to the
+    # shipped actor's (1 > 0.65) by 0.35 of its distance; the directions without clips are not measured.
+    targets = record['targets']
+    assert text.index('## Targets') < text.index('## Success') and targets['verdict'] in text
+    assert targets['count']['not_measured'] == 4 and 'not measured: no DTW there' in targets['verdict']
+    assert all(
+        targets['dtw'][d][name]['met'] is None for d in ('leftward', 'rightward') for name in report.TARGET_RATIOS
+    )
+    forward = targets['dtw']['forward']['style / shipped']
+    assert forward['met'] is False and forward['left_rad'] == pytest.approx(0.35 * forward_dtw['mean_rad'])
+    for column in ('forward', report.OVERALL):  # the phases' excesses add up to the distance left
+        check = targets['dtw'][column]['style / shipped']
+        assert sum(check['excess_by_phase_rad'].values()) == pytest.approx(check['left_rad'])
+    assert forward['lies_in']['phase'] in style_metrics.PHASES and f'{forward["left_rad"]:.2f} (style /' in text
+    assert targets['success'] == {
+        'rate': record['success']['style']['all'],
+        'target': report.TARGET_SUCCESS_RATE,
+        'met': record['success']['style']['all'] >= report.TARGET_SUCCESS_RATE,
+    }
+    assert set(targets['blade_minus_demonstrations']) == set(strokes.DIRECTIONS)  # the overall column misses
+    assert targets['blade_minus_demonstrations']['leftward'] is None and 'leftward: no contact to compare' in text
 
 
 def test_a_missing_or_dtw_less_evaluation_is_named(run_dir, tmp_path):
@@ -181,3 +203,80 @@ def test_a_missing_or_dtw_less_evaluation_is_named(run_dir, tmp_path):
     files.all_speeds_json.write_text(json.dumps(summary))
     with pytest.raises(ValueError, match='ppo_all.json: no DTW'):
         report.write_report(tmp_path, dataset_path=run_dir / 'dataset.npz', timings_s={}, checkpoints=None)
+
+
+# ---------------------------------------------------------------------------------------------------
+# The targets, on hand-made distances
+
+
+def distances_of(style, ppo, shipped):
+    """Mean DTW per actor and column from (forward, leftward, rightward, overall) of each."""
+    return {
+        name: dict(zip(report.COLUMNS, values))
+        for name, values in (('style', style), ('ppo', ppo), ('shipped', shipped))
+    }
+
+
+def test_every_target_met():
+    checks = report.target_checks(distances_of((1, 1, 1, 1), (3, 3, 3, 3), (2, 2, 2, 2)), success_rate=0.95)
+    for column in report.COLUMNS:
+        assert checks['dtw'][column]['style / ppo'] == {
+            'ratio': pytest.approx(1 / 3),
+            'target': 0.40,
+            'met': True,
+            'left_rad': None,
+        }
+        assert checks['dtw'][column]['style / shipped'] == {'ratio': 0.5, 'target': 0.65, 'met': True, 'left_rad': None}
+    assert checks['success'] == {'rate': 0.95, 'target': 0.90, 'met': True}
+
+
+def test_a_direction_that_misses_gets_its_distance_left_and_where_it_lies():
+    distances = distances_of((1, 2, 1, 1.1), (3, 3, 3, 3), (2, 2.5, 2, 2))  # overall as given, not recomputed
+    checks = report.target_checks(distances, success_rate=0.85)
+    leftward = checks['dtw']['leftward']
+    assert leftward['style / ppo'] == {
+        'ratio': pytest.approx(2 / 3),
+        'target': 0.40,
+        'met': False,
+        'left_rad': pytest.approx(0.8),
+    }
+    to_shipped = leftward['style / shipped']
+    assert to_shipped['met'] is False and to_shipped['left_rad'] == pytest.approx(2 - 0.65 * 2.5)
+    assert all(x['met'] for c in ('forward', 'rightward', report.OVERALL) for x in checks['dtw'][c].values())
+    assert checks['success']['met'] is False
+    # Where: per phase, the new actor's mean minus 0.4 x PPO's; the swing holds 0.8 of the 0.9 over target.
+    even = dict.fromkeys(style_metrics.PHASES, 0.1)
+    phases = {name: dict.fromkeys(report.COLUMNS, even) for name in report.ACTORS}
+    phases['style']['leftward'] = {'waiting': 0.3, 'swing': 1.4, 'follow_through': 0.3}
+    phases['ppo']['leftward'] = {'waiting': 0.5, 'swing': 1.5, 'follow_through': 1.0}
+    blade = {'ahead_m': 0.1, 'opening_deg': 10.0, 'facing_deg': 5.0, 'speed_m_s': 3.0, 'contacts': 4}
+    shown = {'ahead_m': 0.0, 'opening_deg': 20.0, 'facing_deg': 5.0, 'speed_m_s': 4.0, 'contacts': 2}
+    blades = {'style': {'leftward': blade}, report.DEMONSTRATIONS: {'leftward': shown}}
+    record = report.targets_record(distances, phases, 0.85, blades)
+    to_ppo = record['dtw']['leftward']['style / ppo']
+    assert to_ppo['excess_by_phase_rad'] == pytest.approx({'waiting': 0.1, 'swing': 0.8, 'follow_through': -0.1})
+    assert to_ppo['lies_in'] == {'phase': 'swing', 'share': pytest.approx(0.8 / 0.9)}
+    assert record['dtw']['forward']['style / ppo']['lies_in'] is None
+    assert record['blade_minus_demonstrations'] == {
+        'leftward': pytest.approx({'ahead_m': 0.1, 'opening_deg': -10.0, 'facing_deg': 0.0, 'speed_m_s': -1.0})
+    }
+    assert record['count'] == {'targets': 9, 'met': 6, 'missed': 3, 'not_measured': 0}
+    text = '\n'.join(report.targets_section(record))
+    assert 'The new style actor missed 3 of 9 targets.' in text
+    assert '| leftward | 0.667, missed | 0.800, missed | 0.80 (style / ppo) | swing, 89 % of the excess |' in text
+    assert '| forward | 0.333, met | 0.500, met |  |  |' in text
+    assert 'leftward: ahead +0.10 m, opening -10 deg, facing +0 deg, speed -1.00 m/s' in text
+    assert 'Success at all speeds: 85.0 % of the balls returned, target at least 90.0 %: missed.' in text
+
+
+def test_a_direction_without_distance_is_not_measured_rather_than_met():
+    checks = report.target_checks(distances_of((1, 1, None, 1), (3, 3, None, 3), (2, 2, None, 2)), success_rate=0.95)
+    assert all(
+        x == {'ratio': None, 'target': x['target'], 'met': None, 'left_rad': None}
+        for x in checks['dtw']['rightward'].values()
+    )
+    phases = {name: dict.fromkeys(report.COLUMNS, dict.fromkeys(style_metrics.PHASES, 0.1)) for name in report.ACTORS}
+    record = report.targets_record(distances_of((1, 1, None, 1), (3, 3, None, 3), (2, 2, None, 2)), phases, 0.95, {})
+    assert record['count'] == {'targets': 9, 'met': 7, 'missed': 0, 'not_measured': 2}
+    assert record['verdict'] == 'The new style actor met 7 of 9 targets (2 not measured: no DTW there).'
+    assert record['blade_minus_demonstrations'] == {}

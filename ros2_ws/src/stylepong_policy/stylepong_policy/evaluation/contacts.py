@@ -124,6 +124,22 @@ def mean_blades(contacts: Mapping[str, Sequence[Blade]]) -> dict[str, dict[str, 
     return means
 
 
+def blade_difference(blade: Mapping[str, float] | None, reference: Mapping[str, float] | None) -> dict | None:
+    """Each of BLADE_FIELDS of a mean blade (mean_blades' entry) minus the reference's; None when either had
+    no contact."""
+    if blade is None or reference is None:
+        return None
+    return {name: blade[name] - reference[name] for name in BLADE_FIELDS}
+
+
+def difference_text(difference: Mapping[str, float]) -> str:
+    """A blade_difference in words, with the units of contact_table's columns."""
+    return (
+        f'ahead {_signed(difference["ahead_m"], 2)} m, opening {_signed(difference["opening_deg"], 0)} deg, '
+        f'facing {_signed(difference["facing_deg"], 0)} deg, speed {_signed(difference["speed_m_s"], 2)} m/s'
+    )
+
+
 TABLE_NOTE = (
     "The mean over each direction's contacts: an actor's at its strokes' first paddle contact, a set "
     "of demonstrations' at each original clip's hit (its fastest frame; the clips hold no ball). Ahead "

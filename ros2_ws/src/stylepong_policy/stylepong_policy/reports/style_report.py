@@ -1,6 +1,6 @@
-"""RUN/report.md of a learned style: success, DTW to the demonstrations beside PPO's and the shipped style
-actor's, the blade at contact, smoothness, and the new actor's stroke beside its nearest demonstration
-(no rclpy).
+"""RUN/report.md of a learned style: whether it met its targets (TARGET_RATIOS, TARGET_SUCCESS_RATE) and
+the distance left, success, DTW to the demonstrations beside PPO's and the shipped style actor's, the blade
+at contact, smoothness, and the new actor's stroke beside its nearest demonstration (no rclpy).
 
 What it reads, under RUN/EVAL_DIR (`eval_files(run_dir, actor)` gives the paths), for each of ACTORS
 ('style': the new actor, 'ppo', 'shipped': the shipped style actor):
@@ -53,6 +53,18 @@ SMOOTHNESS_PNG = 'report_smoothness.png'
 STRIP_PNG = 'report_strip_{direction}.png'
 JOINTS_PNG = 'report_joints_{direction}.png'
 OVERALL = 'overall'
+COLUMNS = (*DIRECTIONS, OVERALL)  # the columns of the DTW figures: each direction, then all strokes
+# The ratios of mean DTW distances the report gives: name -> (numerator's actor, denominator's actor).
+RATIO_PAIRS = {
+    'style / ppo': ('style', 'ppo'),
+    'style / shipped': ('style', 'shipped'),
+    'shipped / ppo': ('shipped', 'ppo'),
+}
+# The targets learn_style is held to: in every column (each direction and overall) the new actor's mean DTW
+# distance to the demonstrations at most these fractions of PPO's and of the shipped style actor's on the
+# same balls, and at least TARGET_SUCCESS_RATE of the balls returned at all speeds.
+TARGET_RATIOS = {'style / ppo': 0.40, 'style / shipped': 0.65}
+TARGET_SUCCESS_RATE = 0.90
 
 
 @dataclass(frozen=True)
@@ -124,11 +136,11 @@ def dtw_by_direction(summary: dict) -> dict[str, float | None]:
     return table
 
 
-def dtw_by_phase(summary: dict) -> dict[str, float | None]:
+def dtw_by_phase(summary: dict, directions: Sequence[str] = DIRECTIONS) -> dict[str, float | None]:
     """Mean DTW per stroke (rad) in each phase of the stroke (style_metrics.PHASES: waiting for the ball,
-    the swing's last SWING_S before the hit, the follow-through), over the strokes with clips of their label:
-    where a stroke's distance from the demonstrations lies."""
-    entries = [entry for entry in summary['dtw'].values() if entry.get('sum_by_phase_rad')]
+    the swing's last SWING_S before the hit, the follow-through), over the strokes from `directions` with
+    clips of their label: where a stroke's distance from the demonstrations lies."""
+    entries = [summary['dtw'][d] for d in directions if summary['dtw'][d].get('sum_by_phase_rad')]
     strokes = sum(entry['strokes'] for entry in entries)
     return {
         phase: (sum(entry['sum_by_phase_rad'][phase] for entry in entries) / strokes if strokes else None)
@@ -141,15 +153,97 @@ def ratio(numerator: float | None, denominator: float | None) -> float | None:
     return numerator / denominator if numerator is not None and denominator else None
 
 
+def phases_by_column(summary: dict) -> dict[str, dict[str, float | None]]:
+    """dtw_by_phase of each direction's strokes alone and of every stroke (OVERALL)."""
+    return {c: dtw_by_phase(summary, DIRECTIONS if c == OVERALL else (c,)) for c in COLUMNS}
+
+
 def dtw_ratios(distances: Mapping[str, Mapping[str, float | None]]) -> dict[str, dict[str, float | None]]:
     """The new actor's DTW over PPO's and over the shipped actor's, and the shipped over PPO's, per column."""
-    columns = (*DIRECTIONS, OVERALL)
-    pairs = {
-        'style / ppo': ('style', 'ppo'),
-        'style / shipped': ('style', 'shipped'),
-        'shipped / ppo': ('shipped', 'ppo'),
+    return {name: {c: ratio(distances[a][c], distances[b][c]) for c in COLUMNS} for name, (a, b) in RATIO_PAIRS.items()}
+
+
+def target_checks(distances: Mapping[str, Mapping[str, float | None]], success_rate: float) -> dict:
+    """The report's figures against the targets (TARGET_RATIOS, TARGET_SUCCESS_RATE).
+
+    distances: mean DTW (rad) per actor and column (dtw_by_direction); success_rate: the new actor's at all
+    speeds. Per column and ratio of TARGET_RATIOS: the ratio, its target, met (None: not measured, a
+    distance missing, which is no pass) and, when missed, left_rad: the new actor's mean DTW minus target x
+    the reference's, how much nearer its strokes must come. Then the success rate against its target."""
+    ratios = dtw_ratios(distances)
+    dtw: dict[str, dict[str, dict]] = {}
+    for column in COLUMNS:
+        dtw[column] = {}
+        for name, target in TARGET_RATIOS.items():
+            value = ratios[name][column]
+            met = None if value is None else bool(value <= target)
+            reference = distances[RATIO_PAIRS[name][1]][column]
+            left = distances['style'][column] - target * reference if met is False else None
+            dtw[column][name] = {'ratio': value, 'target': target, 'met': met, 'left_rad': left}
+    success = {'rate': success_rate, 'target': TARGET_SUCCESS_RATE, 'met': bool(success_rate >= TARGET_SUCCESS_RATE)}
+    return {'dtw': dtw, 'success': success}
+
+
+def excess_by_phase(
+    style: Mapping[str, float | None], reference: Mapping[str, float | None], target: float
+) -> dict[str, float] | None:
+    """Per phase (style_metrics.PHASES), the new actor's mean DTW minus target x the reference's (rad): the
+    phases' parts of the distance left (they add up to it). None when a phase is not measured."""
+    if any(style[p] is None or reference[p] is None for p in style_metrics.PHASES):
+        return None
+    return {p: style[p] - target * reference[p] for p in style_metrics.PHASES}
+
+
+def largest_excess(excess: Mapping[str, float]) -> dict:
+    """The phase with the largest excess and its share of the phases' excesses over their targets (a phase
+    within its target is left out of the whole, so that shares stay within 100 %)."""
+    phase = max(excess, key=excess.get)
+    over = sum(value for value in excess.values() if value > 0)
+    return {'phase': phase, 'share': excess[phase] / over if over > 0 else None}
+
+
+def targets_record(
+    distances: Mapping[str, Mapping[str, float | None]],
+    phases: Mapping[str, Mapping[str, Mapping[str, float | None]]],
+    success_rate: float,
+    blades: Mapping[str, Mapping[str, dict | None]],
+) -> dict:
+    """target_checks, with where the distance left lies: each missed target's excess by phase (phases: per
+    actor, phases_by_column) and its largest, and per direction whose distance misses a target (every
+    direction when OVERALL does) the new actor's blade at contact minus the demonstrations' (blades: the
+    report's mean_blades). Then how many targets were met, missed and not measured."""
+    checks = target_checks(distances, success_rate)
+    for column, by_ratio in checks['dtw'].items():
+        for name, check in by_ratio.items():
+            reference = phases[RATIO_PAIRS[name][1]][column]
+            missed = check['met'] is False  # met or not measured: no distance left to place
+            excess = excess_by_phase(phases['style'][column], reference, check['target']) if missed else None
+            check['excess_by_phase_rad'] = excess
+            check['lies_in'] = None if excess is None else largest_excess(excess)
+    missing = [c for c, by_ratio in checks['dtw'].items() if any(x['met'] is False for x in by_ratio.values())]
+    directions = DIRECTIONS if OVERALL in missing else [d for d in DIRECTIONS if d in missing]
+    checks['blade_minus_demonstrations'] = {
+        d: contacts.blade_difference(blades['style'][d], blades[DEMONSTRATIONS][d]) for d in directions
     }
-    return {name: {c: ratio(distances[a][c], distances[b][c]) for c in columns} for name, (a, b) in pairs.items()}
+    verdicts = [x['met'] for by_ratio in checks['dtw'].values() for x in by_ratio.values()]
+    verdicts.append(checks['success']['met'])
+    checks['count'] = {
+        'targets': len(verdicts),
+        'met': verdicts.count(True),
+        'missed': verdicts.count(False),
+        'not_measured': verdicts.count(None),
+    }
+    checks['verdict'] = targets_verdict(checks['count'])
+    return checks
+
+
+def targets_verdict(count: Mapping[str, int]) -> str:
+    """One line: every target met, or how many were missed (and not measured: no pass either)."""
+    if count['met'] == count['targets']:
+        return 'The new style actor met every target.'
+    told = f'missed {count["missed"]}' if count['missed'] else f'met {count["met"]}'
+    unmeasured = f' ({count["not_measured"]} not measured: no DTW there)' if count['not_measured'] else ''
+    return f'The new style actor {told} of {count["targets"]} targets{unmeasured}.'
 
 
 def setting_text(summary: dict) -> str:
@@ -203,12 +297,11 @@ def dtw_chart(
 ) -> pathlib.Path:
     """Left: mean DTW per direction of each actor; right: the ratios."""
     plt = png.headless_pyplot()
-    columns = [*DIRECTIONS, OVERALL]
     figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.4))
-    _grouped_bars(left, columns, {ACTOR_TITLES[a]: [distances[a][c] for c in columns] for a in distances}, digits=1)
+    _grouped_bars(left, COLUMNS, {ACTOR_TITLES[a]: [distances[a][c] for c in COLUMNS] for a in distances}, digits=1)
     left.set_ylabel('mean DTW to the demonstrations (rad)')
     left.set_title('DTW distance (lower: nearer the demonstrations)', fontsize=9)
-    _grouped_bars(right, columns, {name: [values[c] for c in columns] for name, values in ratios.items()}, digits=2)
+    _grouped_bars(right, COLUMNS, {name: [values[c] for c in COLUMNS] for name, values in ratios.items()}, digits=2)
     right.axhline(1.0, color='k', linewidth=0.6)
     right.set_ylabel('ratio of mean DTW distances')
     right.set_title('ratios (below 1: the first nearer the demonstrations)', fontsize=9)
@@ -322,6 +415,51 @@ def _same_balls(results: Mapping[str, ActorResults]) -> bool:
     return len(keys) == 1
 
 
+def _met(met: bool | None) -> str:
+    return {True: 'met', False: 'missed', None: 'not measured'}[met]
+
+
+def targets_section(checks: Mapping) -> list[str]:
+    """The verdict, each column against the DTW targets with the distance left and where it lies, the blade
+    at contact where a direction misses, and success (checks: targets_record)."""
+    rows = []
+    for column, by_ratio in checks['dtw'].items():
+        missed = {name: x for name, x in by_ratio.items() if x['met'] is False}
+        # The target a column misses by most: meeting it meets the column's other target too.
+        worst = max(missed, key=lambda name: missed[name]['left_rad'], default=None)
+        left = '' if worst is None else f'{missed[worst]["left_rad"]:.2f} ({worst})'
+        lies_in = missed[worst]['lies_in'] if worst else None
+        where = f'{lies_in["phase"].replace("_", "-")}, {100 * lies_in["share"]:.0f} % of the excess' if lies_in else ''
+        rows.append([column, *(f'{_number(x["ratio"], 3)}, {_met(x["met"])}' for x in by_ratio.values()), left, where])
+    header = ['Column', *(f'ratio {name} (target <= {target:.2f})' for name, target in TARGET_RATIOS.items())]
+    blades = [
+        f'{d}: {"no contact to compare" if diff is None else contacts.difference_text(diff)}'
+        for d, diff in checks['blade_minus_demonstrations'].items()
+    ]
+    success = checks['success']
+    lines = [
+        '## Targets',
+        '',
+        checks['verdict'],
+        '',
+        "The targets learn_style is held to: in each direction and overall, the new actor's mean DTW distance "
+        "to the demonstrations within the given fraction of PPO's and of the shipped style actor's. Distance "
+        'left: how much nearer (rad of mean DTW) its strokes must come to meet the target a column misses by '
+        "most; where it lies: the phase with the largest share of that excess (the new actor's mean per "
+        "phase minus target x the reference's).",
+        '',
+        *markdown.table([*header, 'Distance left (rad)', 'Where it lies'], rows),
+        '',
+    ]
+    if blades:
+        lines += [f"At contact, the new actor's blade minus the demonstrations': {'; '.join(blades)}.", '']
+    return lines + [
+        f'Success at all speeds: {_percent(success["rate"])} of the balls returned, target at least '
+        f'{_percent(success["target"])}: {_met(success["met"])}.',
+        '',
+    ]
+
+
 def success_section(results: Mapping[str, ActorResults]) -> list[str]:
     """Success at all and at high speeds, each actor."""
     rows = []
@@ -348,14 +486,13 @@ def dtw_section(
     results: Mapping[str, ActorResults], distances, ratios, phases, dataset_name: str, clips: Mapping[str, int]
 ) -> list[str]:
     """DTW per direction of each actor, the ratios, and where each actor's distance lies by phase."""
-    columns = (*DIRECTIONS, OVERALL)
     rows = [
         [ACTOR_TITLES[name]]
-        + [_number(distances[name][c]) for c in columns]
+        + [_number(distances[name][c]) for c in COLUMNS]
         + [' / '.join(str(r.all_speeds['dtw'][d]['strokes']) for d in DIRECTIONS)]
         for name, r in results.items()
     ]
-    rows += [[f'ratio {name}'] + [_number(values[c], 3) for c in columns] + [''] for name, values in ratios.items()]
+    rows += [[f'ratio {name}'] + [_number(values[c], 3) for c in COLUMNS] + [''] for name, values in ratios.items()]
     missing = [d for d in DIRECTIONS if not clips.get(d)]
     lines = [
         '## DTW to the demonstrations',
@@ -366,7 +503,7 @@ def dtw_section(
         + ', '.join(f'{d} {clips.get(d, 0)}' for d in DIRECTIONS)
         + '.',
         '',
-        *markdown.table(['Actor', *columns, 'strokes (fwd / left / right)'], rows),
+        *markdown.table(['Actor', *COLUMNS, 'strokes (fwd / left / right)'], rows),
         '',
     ]
     if missing:
@@ -514,7 +651,8 @@ def write_report_of(
     rate_hz = results['style'].rate_hz
     distances = {name: dtw_by_direction(r.all_speeds) for name, r in results.items()}
     ratios = dtw_ratios(distances)
-    phases = {name: dtw_by_phase(r.all_speeds) for name, r in results.items()}
+    column_phases = {name: phases_by_column(r.all_speeds) for name, r in results.items()}
+    phases = {name: by_column[OVERALL] for name, by_column in column_phases.items()}
     originals = dataset.label[dataset.speed_factor == 1].tolist()
     clips = {d: originals.count(d) for d in DIRECTIONS}
     reference = style_metrics.reference_smoothness(dataset, DIRECTIONS, speed_factor=1)  # the originals
@@ -548,10 +686,12 @@ def write_report_of(
         '',
     ]
     lines += [f'- {note}' for note in notes] + ([''] if notes else [])
-    lines += success_section(results)
-    lines += dtw_section(results, distances, ratios, phases, dataset_name, clips)
     blades = {DEMONSTRATIONS: contacts.mean_blades(contacts.demonstrated_contacts(dataset))}
     blades |= {name: contacts.mean_blades(contacts.actor_contacts(r.strokes)) for name, r in results.items()}
+    targets = targets_record(distances, column_phases, results['style'].all_speeds['success_rate'], blades)
+    lines += targets_section(targets)
+    lines += success_section(results)
+    lines += dtw_section(results, distances, ratios, phases, dataset_name, clips)
     lines += contact_section(blades)
     lines += smoothness_section(results, reference)
     lines += strips_section(strips)
@@ -573,6 +713,7 @@ def write_report_of(
         'dtw_rad': distances,
         'dtw_ratios': ratios,
         'dtw_by_phase_rad': phases,
+        'targets': targets,
         'blade_at_contact': blades,
         'smoothness': {n: r.all_speeds['smoothness'] for n, r in results.items()},
         'demonstration_smoothness': reference,
