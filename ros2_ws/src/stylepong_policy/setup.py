@@ -37,6 +37,7 @@ setup(
             'replay_clip = stylepong_policy.evaluation.player_replay:main',
             'paper_tables = stylepong_policy.reports.paper_tables:main',
             'style_confusion = stylepong_policy.reports.style_confusion:main',
+            'style_generalisation = stylepong_policy.reports.style_generalisation:main',
             'compare_demo_sets = stylepong_policy.reports.compare_demo_sets:main',
             'ship_run = stylepong_policy.shipping.ship_run:main',
             'ship_skill = stylepong_policy.shipping.ship_skill:main',
