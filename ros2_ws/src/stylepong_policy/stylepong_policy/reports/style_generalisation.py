@@ -39,6 +39,7 @@ from stylepong_policy.reports.style_report import (
     REPORT_JSON,
     TARGET_RATIOS,
     TARGET_SUCCESS_RATE,
+    VERDICT_WORDS,
 )
 from stylepong_policy.training.learn_style import STAGES, STATE_NAME
 
@@ -49,7 +50,6 @@ HELDOUT, TUNING = 'heldout', 'tuning'  # split.json's keys (style_space.split_tu
 # The table's order: overall first, the headline figure; then each direction (style_report.COLUMNS' set).
 TABLE_COLUMNS = (OVERALL, *DIRECTIONS)
 FINISHED, UNFINISHED, MISSING, NO_TARGETS = 'finished', 'unfinished', 'missing', 'no targets'
-VERDICT_WORDS = {True: 'met', False: 'missed', None: 'not measured'}
 
 
 class InputError(Exception):

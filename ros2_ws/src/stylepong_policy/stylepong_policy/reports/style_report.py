@@ -415,8 +415,11 @@ def _same_balls(results: Mapping[str, ActorResults]) -> bool:
     return len(keys) == 1
 
 
+VERDICT_WORDS = {True: 'met', False: 'missed', None: 'not measured'}  # a target's `met`, in words
+
+
 def _met(met: bool | None) -> str:
-    return {True: 'met', False: 'missed', None: 'not measured'}[met]
+    return VERDICT_WORDS[met]
 
 
 def targets_section(checks: Mapping) -> list[str]:
