@@ -418,10 +418,6 @@ def _same_balls(results: Mapping[str, ActorResults]) -> bool:
 VERDICT_WORDS = {True: 'met', False: 'missed', None: 'not measured'}  # a target's `met`, in words
 
 
-def _met(met: bool | None) -> str:
-    return VERDICT_WORDS[met]
-
-
 def targets_section(checks: Mapping) -> list[str]:
     """The verdict, each column against the DTW targets with the distance left and where it lies, the blade
     at contact where a direction misses, and success (checks: targets_record)."""
@@ -433,7 +429,8 @@ def targets_section(checks: Mapping) -> list[str]:
         left = '' if worst is None else f'{missed[worst]["left_rad"]:.2f} ({worst})'
         lies_in = missed[worst]['lies_in'] if worst else None
         where = f'{lies_in["phase"].replace("_", "-")}, {100 * lies_in["share"]:.0f} % of the excess' if lies_in else ''
-        rows.append([column, *(f'{_number(x["ratio"], 3)}, {_met(x["met"])}' for x in by_ratio.values()), left, where])
+        ratios = (f'{_number(x["ratio"], 3)}, {VERDICT_WORDS[x["met"]]}' for x in by_ratio.values())
+        rows.append([column, *ratios, left, where])
     header = ['Column', *(f'ratio {name} (target <= {target:.2f})' for name, target in TARGET_RATIOS.items())]
     blades = [
         f'{d}: {"no contact to compare" if diff is None else contacts.difference_text(diff)}'
@@ -458,7 +455,7 @@ def targets_section(checks: Mapping) -> list[str]:
         lines += [f"At contact, the new actor's blade minus the demonstrations': {'; '.join(blades)}.", '']
     return lines + [
         f'Success at all speeds: {_percent(success["rate"])} of the balls returned, target at least '
-        f'{_percent(success["target"])}: {_met(success["met"])}.',
+        f'{_percent(success["target"])}: {VERDICT_WORDS[success["met"]]}.',
         '',
     ]
 
